@@ -1,0 +1,17 @@
+//! dvlcal: spatiotemporal calibration of a Doppler velocity log against a camera.
+//!
+//! Data flows through the modules in this order:
+//! - [`io`]: file formats in and out (TUM poses, A50 logs, CSV, YAML). No estimation here.
+//! - [`trajectory`]: Lie groups and the white-noise-on-jerk Gaussian-process trajectory on SE(3).
+//! - [`sim`]: synthetic datasets with known truth.
+//!
+//! Conventions (frames, time offsets, twist order) are in `docs/conventions.md`.
+
+pub mod error;
+pub mod io;
+pub mod sim;
+pub mod time;
+pub mod trajectory;
+pub mod types;
+
+pub use error::{Error, Result};

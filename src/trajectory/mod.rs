@@ -1,0 +1,3 @@
+//! Continuous-time camera trajectory: Lie groups and the white-noise-on-jerk Gaussian process.
+
+pub mod lie;

@@ -1,0 +1,42 @@
+//! Typed values passed between the stages of the pipeline.
+
+use nalgebra::{Matrix3, Matrix6, Vector3};
+
+use crate::trajectory::lie::Se3;
+
+/// One measured camera pose, `T_world_cam`, on the camera clock.
+#[derive(Clone, Debug)]
+pub struct PoseMeasurement {
+    /// Camera-clock time, seconds relative to the dataset epoch.
+    pub t: f64,
+    /// `T_world_cam`: maps camera-frame points into the world (board) frame.
+    pub pose: Se3,
+    /// Covariance of the right perturbation `T_meas = T_true * exp(n)`, `n = [rho; phi]`
+    /// (translation first, metres and radians, camera frame). `None`: use the fit's default.
+    pub cov: Option<Matrix6<f64>>,
+}
+
+/// One DVL velocity report.
+#[derive(Clone, Debug)]
+pub struct DvlSample {
+    /// DVL-clock time of validity, seconds relative to the dataset epoch.
+    pub t: f64,
+    /// Measured velocity of the DVL origin in the DVL frame, m/s.
+    pub v: Vector3<f64>,
+    /// Covariance of `v`, (m/s)^2, when the report carries one.
+    pub cov: Option<Matrix3<f64>>,
+    /// The DVL's own validity flag.
+    pub valid: bool,
+}
+
+/// The quantities a calibration estimates.
+#[derive(Clone, Debug)]
+pub struct CalibrationParams {
+    /// `T_cam_dvl`: maps DVL-frame points into the camera frame. Its translation is the lever arm
+    /// `p_cam_dvl` (the DVL origin in camera coordinates); its rotation is `R_cam_dvl`.
+    pub t_cam_dvl: Se3,
+    /// `t_cam = t_dvl + time_offset_s`.
+    pub time_offset_s: f64,
+    /// DVL velocity scale `kappa`: `v_dvl = kappa * R_dvl_cam * (v_cam + w_cam x p_cam_dvl)`.
+    pub velocity_scale: f64,
+}
