@@ -17,6 +17,19 @@ use nalgebra::{Matrix3, Matrix4, Matrix6, Vector3, Vector6};
 /// Below this angle (rad) the Taylor series of the Jacobian coefficients is used.
 const SMALL_ANGLE: f64 = 1e-4;
 
+/// Below this angle (rad) the Taylor series of the coefficients of the SE(3) `Q` block is used.
+/// Their closed forms lose about `eps / th` (absolute, times `|rho|`) to cancellation, so they
+/// take over only where that is ~1e-15; the series (to th^8) is exact to ~1e-20 there.
+const Q_SMALL_ANGLE: f64 = 0.1;
+
+/// `(1 - cos th) / th^2`, computed as `2 sin^2(th/2) / th^2` so that it keeps full relative
+/// precision for small `th` (the direct form loses `eps / th^2`).
+#[inline]
+fn half_versine_over_th2(th: f64) -> f64 {
+    let s = (0.5 * th).sin() / th;
+    2.0 * s * s
+}
+
 /// `hat(w) v = w x v`.
 #[inline]
 pub fn hat(w: &Vector3<f64>) -> Matrix3<f64> {
@@ -47,7 +60,7 @@ pub mod so3 {
                 0.5 - th2 / 24.0 + th2 * th2 / 720.0,
             )
         } else {
-            (th.sin() / th, (1.0 - th.cos()) / th2)
+            (th.sin() / th, half_versine_over_th2(th))
         };
         let k = hat(phi);
         Matrix3::identity() + k * a + k * k * b
@@ -147,7 +160,7 @@ pub mod so3 {
                 1.0 / 6.0 - th2 / 120.0 + th2 * th2 / 5040.0,
             )
         } else {
-            ((1.0 - th.cos()) / th2, (th - th.sin()) / (th2 * th))
+            (half_versine_over_th2(th), (th - th.sin()) / (th2 * th))
         };
         let k = hat(phi);
         Matrix3::identity() + k * a + k * k * b
@@ -210,18 +223,27 @@ pub fn se3_vee(m: &Matrix4<f64>) -> Vector6<f64> {
 fn q_block(rho: &Vector3<f64>, phi: &Vector3<f64>) -> Matrix3<f64> {
     let th2 = phi.norm_squared();
     let th = th2.sqrt();
-    let (c1, c2, c3) = if th < SMALL_ANGLE {
+    let (c1, c2, c3) = if th < Q_SMALL_ANGLE {
+        // c1 = sum (-th^2)^k / (2k+3)!, c2 = sum (-th^2)^k / (2k+4)!,
+        // c3 = sum (-th^2)^k (k+1) / (2k+5)!.
+        let x = th2;
         (
-            1.0 / 6.0 - th2 / 120.0 + th2 * th2 / 5040.0,
-            1.0 / 24.0 - th2 / 720.0 + th2 * th2 / 40320.0,
-            1.0 / 120.0 - th2 / 2520.0 + th2 * th2 / 120960.0,
+            1.0 / 6.0
+                - x * (1.0 / 120.0 - x * (1.0 / 5040.0 - x * (1.0 / 362880.0 - x / 39916800.0))),
+            1.0 / 24.0
+                - x * (1.0 / 720.0 - x * (1.0 / 40320.0 - x * (1.0 / 3628800.0 - x / 479001600.0))),
+            1.0 / 120.0
+                - x * (1.0 / 2520.0
+                    - x * (1.0 / 120960.0 - x * (1.0 / 9979200.0 - x / 1245404160.0))),
         )
     } else {
         let (s, c) = th.sin_cos();
         let th4 = th2 * th2;
+        // th^2 + 2 cos th - 2 == th^2 - 4 sin^2(th/2): without the rounding of 2 cos th near 2.
+        let sh = (0.5 * th).sin();
         (
             (th - s) / (th2 * th),
-            (th2 + 2.0 * c - 2.0) / (2.0 * th4),
+            (th2 - 4.0 * sh * sh) / (2.0 * th4),
             (2.0 * th - 3.0 * s + th * c) / (2.0 * th4 * th),
         )
     };
