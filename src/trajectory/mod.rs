@@ -1,3 +1,10 @@
 //! Continuous-time camera trajectory: Lie groups and the white-noise-on-jerk Gaussian process.
 
+pub mod blocktri;
+pub mod fit;
+pub mod gp;
+pub mod hyper;
 pub mod lie;
+
+pub use fit::{FitOptions, FitReport, Trajectory, TrajectoryState};
+pub use gp::Knot;

@@ -1,0 +1,464 @@
+//! MAP fit of the WNOJ trajectory to time-stamped poses, and queries at any time in its span.
+//!
+//! Knots sit at the pose measurement times. The cost is the sum of the GP prior terms between
+//! consecutive knots and one pose term per knot; Gauss-Newton on the right perturbations of the
+//! knot poses (and additive updates of twists and rates) solves it. Every step solves a
+//! block-tridiagonal system, so a fit takes O(N) time and memory.
+
+use nalgebra::{Matrix3, Matrix6, SMatrix, Vector6};
+
+use super::blocktri::{BandedInverse, BlockTridiagonal, Factored, M18, V18};
+use super::gp::{
+    Knot, apply_scalar, d_jr_times, first_local_state, interpolation_weights, knot_from_local,
+    kron_diag, kron_diag_mul, kron_identity, local_state, prior_factor, q_scalar_inv,
+};
+use super::hyper;
+use super::lie::{Se3, se3_right_jacobian, se3_right_jacobian_inv};
+use crate::error::{Error, Result};
+use crate::types::PoseMeasurement;
+
+/// How to fit.
+#[derive(Clone, Debug)]
+pub struct FitOptions {
+    /// Power spectral density of jerk, `[v; w]` order ((m/s^3)^2 s and (rad/s^3)^2 s). `None`:
+    /// chosen by maximising the marginal likelihood of the poses.
+    pub qc: Option<Vector6<f64>>,
+    /// Standard deviations (m, rad) of poses that carry no covariance. `None`: estimated together
+    /// with `qc` by marginal likelihood (or, when `qc` is given, from the data's third differences).
+    pub pose_sigma: Option<(f64, f64)>,
+    /// Gauss-Newton iteration limit.
+    pub max_iterations: usize,
+    /// Knots used for the marginal-likelihood search (several windows spread over the data).
+    pub hyper_knots: usize,
+    /// Compute the posterior covariance (needed for twist standard deviations).
+    pub covariance: bool,
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        FitOptions {
+            qc: None,
+            pose_sigma: None,
+            max_iterations: 30,
+            hyper_knots: 400,
+            covariance: true,
+        }
+    }
+}
+
+/// What the fit found about its own inputs and convergence.
+#[derive(Clone, Debug)]
+pub struct FitReport {
+    pub iterations: usize,
+    pub converged: bool,
+    /// Final value of the (doubled negative log-posterior) cost.
+    pub cost: f64,
+    pub qc: Vector6<f64>,
+    pub qc_estimated: bool,
+    /// Default pose standard deviations (m, rad) used for poses without covariance.
+    pub pose_sigma: (f64, f64),
+    pub pose_sigma_estimated: bool,
+    /// Root-mean-square pose residuals (m, rad) of the measurements against the fit.
+    pub residual_rms_pos: f64,
+    pub residual_rms_rot: f64,
+}
+
+/// A fitted continuous-time trajectory.
+#[derive(Clone, Debug)]
+pub struct Trajectory {
+    times: Vec<f64>,
+    knots: Vec<Knot>,
+    qc: Vector6<f64>,
+    cov: Option<BandedInverse>,
+    report: FitReport,
+}
+
+/// The trajectory at one time.
+#[derive(Clone, Debug)]
+pub struct TrajectoryState {
+    pub t: f64,
+    /// `T_world_cam`.
+    pub pose: Se3,
+    /// Body twist `[v; w]` (m/s, rad/s, camera frame).
+    pub twist: Vector6<f64>,
+    /// Its time derivative.
+    pub rate: Vector6<f64>,
+    /// Posterior covariance of `twist`, when the fit computed covariances.
+    pub twist_cov: Option<Matrix6<f64>>,
+}
+
+/// Interpolated twist with its Jacobian with respect to the variables of the two knots that
+/// bracket the query time (for factors that involve the twist, e.g. DVL velocities).
+pub struct TwistJacobian {
+    /// Index of the first knot.
+    pub knot: usize,
+    pub state: Knot,
+    /// d twist / d [x_k; x_{k+1}], each `x = [dT; dw; ddw]`.
+    pub jacobian: SMatrix<f64, 6, 36>,
+    /// d twist / d local state (6x18), for the conditional covariance term.
+    pub d_local: SMatrix<f64, 6, 18>,
+    /// Scalar conditional covariance of the local state at the query time (times `Qc`).
+    pub cond: Matrix3<f64>,
+}
+
+/// Information matrices of the pose measurements.
+pub(crate) fn measurement_information(
+    poses: &[PoseMeasurement],
+    sigma: (f64, f64),
+) -> Result<Vec<Matrix6<f64>>> {
+    let default = Matrix6::from_diagonal(&Vector6::new(
+        sigma.0.powi(-2),
+        sigma.0.powi(-2),
+        sigma.0.powi(-2),
+        sigma.1.powi(-2),
+        sigma.1.powi(-2),
+        sigma.1.powi(-2),
+    ));
+    poses
+        .iter()
+        .enumerate()
+        .map(|(i, p)| match &p.cov {
+            None => Ok(default),
+            Some(c) => c
+                .try_inverse()
+                .filter(|w| w.iter().all(|v| v.is_finite()))
+                .ok_or_else(|| {
+                    Error::Input(format!(
+                        "pose {} (t = {}): covariance is not invertible",
+                        i + 1,
+                        p.t
+                    ))
+                }),
+        })
+        .collect()
+}
+
+/// Checks the inputs every fit needs.
+fn check_poses(poses: &[PoseMeasurement]) -> Result<()> {
+    if poses.len() < 3 {
+        return Err(Error::Input(format!(
+            "a trajectory needs at least 3 poses, got {}",
+            poses.len()
+        )));
+    }
+    for (i, w) in poses.windows(2).enumerate() {
+        if !(w[1].t > w[0].t) {
+            return Err(Error::Input(format!(
+                "pose times must increase: pose {} (t = {}) follows pose {} (t = {})",
+                i + 2,
+                w[1].t,
+                i + 1,
+                w[0].t
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// Knots initialised from the measurements: poses as measured, twists from central differences.
+pub(crate) fn initial_knots(poses: &[PoseMeasurement]) -> Vec<Knot> {
+    let n = poses.len();
+    (0..n)
+        .map(|k| {
+            let (a, b) = (k.saturating_sub(1), (k + 1).min(n - 1));
+            let twist = (poses[a].pose.inverse() * poses[b].pose).log() / (poses[b].t - poses[a].t);
+            Knot {
+                pose: poses[k].pose,
+                twist,
+                rate: Vector6::zeros(),
+            }
+        })
+        .collect()
+}
+
+/// The Gauss-Newton problem of a pose-only fit.
+pub(crate) struct Problem<'a> {
+    pub times: &'a [f64],
+    pub meas: &'a [Se3],
+    pub info: &'a [Matrix6<f64>],
+    pub qc_inv: Vector6<f64>,
+}
+
+impl Problem<'_> {
+    /// Normal equations linearised at `knots`, and the cost there.
+    pub fn assemble(&self, knots: &[Knot]) -> (BlockTridiagonal, f64) {
+        let n = knots.len();
+        let mut sys = BlockTridiagonal::zeros(n);
+        let mut cost = 0.0;
+        for (k, kn) in knots.iter().enumerate() {
+            let e = (self.meas[k].inverse() * kn.pose).log();
+            let j = se3_right_jacobian_inv(&e);
+            let wj = self.info[k] * j;
+            let mut d = sys.diag[k].fixed_view_mut::<6, 6>(0, 0);
+            d += j.transpose() * wj;
+            let mut r = sys.rhs[k].fixed_rows_mut::<6>(0);
+            r -= wj.transpose() * e;
+            cost += (e.transpose() * self.info[k] * e)[0];
+        }
+        for k in 0..n - 1 {
+            let f = prior_factor(&knots[k], &knots[k + 1], self.times[k + 1] - self.times[k]);
+            // The weight is Q(dt)^-1 (x) Qc^-1: apply it through its Kronecker structure.
+            let qi = q_scalar_inv(self.times[k + 1] - self.times[k]);
+            let wj1 = kron_diag_mul(&qi, &self.qc_inv, &f.j1);
+            let wj2 = kron_diag_mul(&qi, &self.qc_inv, &f.j2);
+            sys.diag[k] += f.j1.transpose() * wj1;
+            sys.diag[k + 1] += f.j2.transpose() * wj2;
+            sys.upper[k] += wj1.transpose() * f.j2;
+            let we = kron_diag_mul(&qi, &self.qc_inv, &f.e);
+            sys.rhs[k] -= f.j1.transpose() * we;
+            sys.rhs[k + 1] -= f.j2.transpose() * we;
+            cost += (f.e.transpose() * we)[0];
+        }
+        (sys, cost)
+    }
+}
+
+/// Applies a step to the knots.
+pub(crate) fn step(knots: &[Knot], dx: &[V18], scale: f64) -> Vec<Knot> {
+    knots
+        .iter()
+        .zip(dx)
+        .map(|(k, d)| Knot {
+            pose: k.pose.retract(&(d.fixed_rows::<6>(0) * scale).into_owned()),
+            twist: k.twist + d.fixed_rows::<6>(6) * scale,
+            rate: k.rate + d.fixed_rows::<6>(12) * scale,
+        })
+        .collect()
+}
+
+/// Result of a Gauss-Newton run.
+pub(crate) struct Solved {
+    pub knots: Vec<Knot>,
+    pub iterations: usize,
+    pub converged: bool,
+    pub cost: f64,
+    /// Factorisation of the information matrix at the final knots.
+    pub factor: Factored,
+}
+
+/// Gauss-Newton with step halving; returns the factorisation at the solution.
+pub(crate) fn gauss_newton(
+    problem: &Problem,
+    mut knots: Vec<Knot>,
+    max_iterations: usize,
+) -> Result<Solved> {
+    let (mut sys, mut cost) = problem.assemble(&knots);
+    let mut iterations = 0;
+    let mut converged = false;
+    loop {
+        let factor = sys.factor()?;
+        if converged || iterations >= max_iterations {
+            return Ok(Solved {
+                knots,
+                iterations,
+                converged,
+                cost,
+                factor,
+            });
+        }
+        let dx = factor.solve();
+        let mut scale = 1.0;
+        let mut accepted = None;
+        for _ in 0..12 {
+            let trial = step(&knots, &dx, scale);
+            let (tsys, tcost) = problem.assemble(&trial);
+            if tcost.is_finite() && tcost <= cost * (1.0 + 1e-12) + 1e-300 {
+                accepted = Some((trial, tsys, tcost));
+                break;
+            }
+            scale *= 0.5;
+        }
+        iterations += 1;
+        let max_step = dx.iter().map(|d| d.abs().max()).fold(0.0, f64::max) * scale;
+        match accepted {
+            Some((trial, tsys, tcost)) => {
+                let rel = (cost - tcost).abs() / cost.max(1e-300);
+                knots = trial;
+                sys = tsys;
+                cost = tcost;
+                // The pose-only problem is nearly linear: once a full step changes the cost by
+                // less than a part in 1e9, the next step is far below the posterior spread.
+                converged = max_step < 1e-9 || (scale == 1.0 && rel < 1e-9);
+            }
+            None => {
+                // No decrease along the step: the current point is as good as we can do.
+                let (s, _) = problem.assemble(&knots);
+                sys = s;
+                converged = true;
+            }
+        }
+    }
+}
+
+impl Trajectory {
+    /// Fits a trajectory to at least three poses with strictly increasing times.
+    pub fn fit(poses: &[PoseMeasurement], opts: &FitOptions) -> Result<Trajectory> {
+        check_poses(poses)?;
+        for (i, p) in poses.iter().enumerate() {
+            if !p.t.is_finite()
+                || !p
+                    .pose
+                    .trans
+                    .iter()
+                    .chain(p.pose.rot.iter())
+                    .all(|v| v.is_finite())
+            {
+                return Err(Error::Input(format!(
+                    "pose {} has non-finite values",
+                    i + 1
+                )));
+            }
+        }
+        let hyp = hyper::choose(poses, opts)?;
+        let times: Vec<f64> = poses.iter().map(|p| p.t).collect();
+        let meas: Vec<Se3> = poses.iter().map(|p| p.pose).collect();
+        let info = measurement_information(poses, hyp.pose_sigma)?;
+        let problem = Problem {
+            times: &times,
+            meas: &meas,
+            info: &info,
+            qc_inv: hyp.qc.map(|q| 1.0 / q),
+        };
+        let solved = gauss_newton(&problem, initial_knots(poses), opts.max_iterations)?;
+        let cov = opts.covariance.then(|| solved.factor.banded_inverse());
+        let (mut sp, mut sr) = (0.0, 0.0);
+        for (k, m) in solved.knots.iter().zip(&meas) {
+            let e = (m.inverse() * k.pose).log();
+            sp += e.fixed_rows::<3>(0).norm_squared();
+            sr += e.fixed_rows::<3>(3).norm_squared();
+        }
+        let n = poses.len() as f64;
+        let report = FitReport {
+            iterations: solved.iterations,
+            converged: solved.converged,
+            cost: solved.cost,
+            qc: hyp.qc,
+            qc_estimated: hyp.qc_estimated,
+            pose_sigma: hyp.pose_sigma,
+            pose_sigma_estimated: hyp.pose_sigma_estimated,
+            residual_rms_pos: (sp / n).sqrt(),
+            residual_rms_rot: (sr / n).sqrt(),
+        };
+        Ok(Trajectory {
+            times,
+            knots: solved.knots,
+            qc: hyp.qc,
+            cov,
+            report,
+        })
+    }
+
+    /// Knot times.
+    pub fn times(&self) -> &[f64] {
+        &self.times
+    }
+
+    /// Knot states.
+    pub fn knots(&self) -> &[Knot] {
+        &self.knots
+    }
+
+    pub fn qc(&self) -> Vector6<f64> {
+        self.qc
+    }
+
+    pub fn report(&self) -> &FitReport {
+        &self.report
+    }
+
+    /// First and last knot times.
+    pub fn span(&self) -> (f64, f64) {
+        (self.times[0], self.times[self.times.len() - 1])
+    }
+
+    /// Index `k` of the interval `[t_k, t_{k+1}]` holding `t`, or `None` outside the span.
+    pub fn interval(&self, t: f64) -> Option<usize> {
+        let (a, b) = self.span();
+        let tol = 1e-9 * (1.0 + a.abs().max(b.abs()));
+        if !(t >= a - tol && t <= b + tol) {
+            return None;
+        }
+        let i = self.times.partition_point(|&x| x <= t);
+        Some(i.saturating_sub(1).min(self.times.len() - 2))
+    }
+
+    /// The interpolated state at `t` with the twist's Jacobian with respect to the two knots.
+    pub fn twist_jacobian(&self, t: f64) -> Result<TwistJacobian> {
+        let k = self.interval(t).ok_or_else(|| {
+            let (a, b) = self.span();
+            Error::Input(format!(
+                "time {t} is outside the trajectory span [{a}, {b}]"
+            ))
+        })?;
+        let (k1, k2) = (&self.knots[k], &self.knots[k + 1]);
+        let dt = self.times[k + 1] - self.times[k];
+        let s = (t - self.times[k]).clamp(0.0, dt);
+        let (lambda, omega, cond) = interpolation_weights(s, dt);
+        let ls = local_state(k1, k2);
+        let gamma = apply_scalar(&lambda, &first_local_state(k1)) + apply_scalar(&omega, &ls.gamma);
+        let state = knot_from_local(&k1.pose, &gamma);
+
+        let xi: Vector6<f64> = gamma.fixed_rows::<6>(0).into_owned();
+        let xid: Vector6<f64> = gamma.fixed_rows::<6>(6).into_owned();
+        let mut d_local = SMatrix::<f64, 6, 18>::zeros();
+        d_local
+            .fixed_view_mut::<6, 6>(0, 0)
+            .copy_from(&d_jr_times(&xi, &[&xid])[0]);
+        d_local
+            .fixed_view_mut::<6, 6>(0, 6)
+            .copy_from(&se3_right_jacobian(&xi));
+
+        let om = kron_identity(&omega);
+        let mut dg1 = kron_identity(&lambda);
+        dg1.fixed_view_mut::<18, 6>(0, 0).fill(0.0);
+        dg1 += om.fixed_view::<18, 18>(0, 0) * {
+            let mut m = M18::zeros();
+            m.fixed_view_mut::<18, 6>(0, 0).copy_from(&ls.d_pose1);
+            m
+        };
+        let dg2 = om * ls.d_knot2;
+        let mut jacobian = SMatrix::<f64, 6, 36>::zeros();
+        jacobian
+            .fixed_view_mut::<6, 18>(0, 0)
+            .copy_from(&(d_local * dg1));
+        jacobian
+            .fixed_view_mut::<6, 18>(0, 18)
+            .copy_from(&(d_local * dg2));
+        Ok(TwistJacobian {
+            knot: k,
+            state,
+            jacobian,
+            d_local,
+            cond,
+        })
+    }
+
+    /// Pose, twist, twist rate and (if computed) the twist covariance at `t`.
+    pub fn query(&self, t: f64) -> Result<TrajectoryState> {
+        let tj = self.twist_jacobian(t)?;
+        let twist_cov = self.cov.as_ref().map(|cov| {
+            let k = tj.knot;
+            let mut joint = SMatrix::<f64, 36, 36>::zeros();
+            joint.fixed_view_mut::<18, 18>(0, 0).copy_from(&cov.diag[k]);
+            joint
+                .fixed_view_mut::<18, 18>(18, 18)
+                .copy_from(&cov.diag[k + 1]);
+            joint
+                .fixed_view_mut::<18, 18>(0, 18)
+                .copy_from(&cov.upper[k]);
+            joint
+                .fixed_view_mut::<18, 18>(18, 0)
+                .copy_from(&cov.upper[k].transpose());
+            let c = tj.jacobian * joint * tj.jacobian.transpose()
+                + tj.d_local * kron_diag(&tj.cond, &self.qc) * tj.d_local.transpose();
+            (c + c.transpose()) * 0.5
+        });
+        Ok(TrajectoryState {
+            t,
+            pose: tj.state.pose,
+            twist: tj.state.twist,
+            rate: tj.state.rate,
+            twist_cov,
+        })
+    }
+}
