@@ -1,0 +1,508 @@
+//! The Water Linked A50 TCP JSON stream (port 16171): one JSON object per line, lines ended by
+//! CRLF. This module writes json_v3 velocity reports exactly as the DVL does and reads the
+//! velocities back from json_v3 (and later) logs.
+
+use std::collections::HashMap;
+use std::fmt::Write as _;
+use std::path::Path;
+
+use nalgebra::{Matrix3, Vector3};
+use serde::{Deserialize, Serialize};
+
+use super::read_text;
+use crate::error::{Error, Result};
+use crate::time::{Epoch, RawTime};
+use crate::types::DvlSample;
+
+/// One beam of a velocity report.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct A50Transducer {
+    /// Beam index, 0..=3.
+    pub id: i64,
+    /// Velocity along the beam, m/s.
+    pub velocity: f64,
+    /// Distance to the bottom along the beam, m.
+    pub distance: f64,
+    /// Received signal strength, dBm.
+    pub rssi: f64,
+    /// Noise spectral density, dBm.
+    pub nsd: f64,
+    /// Whether the beam has a lock on the bottom.
+    pub beam_valid: bool,
+}
+
+/// A json_v3 velocity report (bottom tracking), field for field in the order the DVL sends them.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct A50VelocityReport {
+    /// Milliseconds since the previous velocity report.
+    pub time: f64,
+    /// Velocity in the DVL frame, m/s.
+    pub vx: f64,
+    pub vy: f64,
+    pub vz: f64,
+    /// Figure of merit, m/s.
+    pub fom: f64,
+    /// Covariance of `[vx, vy, vz]`, (m/s)^2, row major.
+    pub covariance: [[f64; 3]; 3],
+    /// Distance to the bottom, m (-1 when invalid).
+    pub altitude: f64,
+    /// The four beams.
+    pub transducers: [A50Transducer; 4],
+    /// The DVL's validity flag for `vx, vy, vz`.
+    pub velocity_valid: bool,
+    /// 0 when normal, 1 on a high temperature warning.
+    pub status: i64,
+    /// Protocol format, e.g. `json_v3` or `json_v3.1`.
+    pub format: String,
+    /// Report type: `velocity` for bottom tracking.
+    #[serde(rename = "type")]
+    pub report_type: String,
+    /// Mid-ping time of the measurement, Unix microseconds on the DVL clock.
+    pub time_of_validity: i64,
+    /// Time the report was sent, Unix microseconds on the DVL clock.
+    pub time_of_transmission: i64,
+}
+
+/// Formats a number the way the DVL's JSON encoder does: the shortest digits that read back to
+/// the same value (ties between two shortest candidates go to the even last digit), plain
+/// decimal notation for magnitudes in [1e-6, 1e21), otherwise exponent notation (`1.5e-7`,
+/// `1e+21`). Non-finite values, which JSON cannot carry, become `null`.
+fn json_number(v: f64) -> String {
+    if !v.is_finite() {
+        return "null".to_string();
+    }
+    if v == 0.0 {
+        return format!("{v}");
+    }
+    let (digits, exp) = shortest_digits(v);
+    let sign = if v < 0.0 { "-" } else { "" };
+    let a = v.abs();
+    let n = digits.len() as i64;
+    if (1e-6..1e21).contains(&a) {
+        if exp >= 0 {
+            let int_len = exp + 1;
+            if n <= int_len {
+                let zeros = "0".repeat((int_len - n) as usize);
+                format!("{sign}{digits}{zeros}")
+            } else {
+                let (i, f) = digits.split_at(int_len as usize);
+                format!("{sign}{i}.{f}")
+            }
+        } else {
+            let zeros = "0".repeat((-exp - 1) as usize);
+            format!("{sign}0.{zeros}{digits}")
+        }
+    } else {
+        let (first, rest) = digits.split_at(1);
+        let point = if rest.is_empty() { "" } else { "." };
+        let esign = if exp >= 0 { "+" } else { "" };
+        format!("{sign}{first}{point}{rest}e{esign}{exp}")
+    }
+}
+
+/// The shortest significant digits `d1 d2 ... dn` and decimal exponent `e` of `|v|`
+/// (`|v| ~ d1.d2...dn * 10^e`) that read back to `v`. When the exact value lies halfway
+/// between two shortest candidates, the one with the even last digit is chosen.
+fn shortest_digits(v: f64) -> (String, i64) {
+    let a = v.abs();
+    let parts = |s: String| -> (String, i64) {
+        let (m, e) = s.split_once('e').unwrap_or((s.as_str(), "0"));
+        (m.replace('.', ""), e.parse().unwrap_or(0))
+    };
+    let (digits, exp) = parts(format!("{a:e}"));
+    // The exact decimal expansion of the double (at most 767 significant digits).
+    let (exact, exact_exp) = parts(format!("{a:.800e}"));
+    let exact = exact.trim_end_matches('0');
+    let n = digits.len();
+    if exact_exp != exp || exact.len() != n + 1 || !exact.ends_with('5') {
+        return (digits, exp);
+    }
+    let last_odd = digits
+        .as_bytes()
+        .last()
+        .is_some_and(|d| (d - b'0') % 2 == 1);
+    if !last_odd {
+        return (digits, exp);
+    }
+    let lower = &exact[..n];
+    let candidate = if lower == digits {
+        increment_digits(&digits)
+    } else {
+        lower.to_string()
+    };
+    // Keep the candidate only if it has the same length and reads back to the same value.
+    let reads_back = candidate.len() == n
+        && format!("{}.{}e{exp}", &candidate[..1], &candidate[1..])
+            .parse::<f64>()
+            .is_ok_and(|x| x == a);
+    if reads_back {
+        (candidate, exp)
+    } else {
+        (digits, exp)
+    }
+}
+
+/// Adds one in the last place of a decimal digit string (the result may be one digit longer).
+fn increment_digits(d: &str) -> String {
+    let mut b = d.as_bytes().to_vec();
+    for c in b.iter_mut().rev() {
+        if *c == b'9' {
+            *c = b'0';
+        } else {
+            *c += 1;
+            return String::from_utf8_lossy(&b).into_owned();
+        }
+    }
+    format!("1{}", String::from_utf8_lossy(&b))
+}
+
+/// A JSON string literal.
+fn json_string(s: &str) -> String {
+    let mut out = String::with_capacity(s.len() + 2);
+    out.push('"');
+    for c in s.chars() {
+        match c {
+            '"' => out.push_str("\\\""),
+            '\\' => out.push_str("\\\\"),
+            '\n' => out.push_str("\\n"),
+            '\r' => out.push_str("\\r"),
+            '\t' => out.push_str("\\t"),
+            c if (c as u32) < 0x20 => {
+                let _ = write!(out, "\\u{:04x}", c as u32);
+            }
+            c => out.push(c),
+        }
+    }
+    out.push('"');
+    out
+}
+
+/// One velocity report as a single-line JSON object (no line terminator), with the keys in the
+/// order and the number format of the DVL's own output. Non-finite numbers are written as
+/// `null`; [`write_a50_jsonl`] refuses them.
+pub fn velocity_report_line(r: &A50VelocityReport) -> String {
+    let n = json_number;
+    let mut s = String::with_capacity(1100);
+    let _ = write!(
+        s,
+        "{{\"time\":{},\"vx\":{},\"vy\":{},\"vz\":{},\"fom\":{},\"covariance\":[",
+        n(r.time),
+        n(r.vx),
+        n(r.vy),
+        n(r.vz),
+        n(r.fom)
+    );
+    for (i, row) in r.covariance.iter().enumerate() {
+        if i > 0 {
+            s.push(',');
+        }
+        let _ = write!(s, "[{},{},{}]", n(row[0]), n(row[1]), n(row[2]));
+    }
+    let _ = write!(s, "],\"altitude\":{},\"transducers\":[", n(r.altitude));
+    for (i, b) in r.transducers.iter().enumerate() {
+        if i > 0 {
+            s.push(',');
+        }
+        let _ = write!(
+            s,
+            "{{\"id\":{},\"velocity\":{},\"distance\":{},\"rssi\":{},\"nsd\":{},\"beam_valid\":{}}}",
+            b.id,
+            n(b.velocity),
+            n(b.distance),
+            n(b.rssi),
+            n(b.nsd),
+            b.beam_valid
+        );
+    }
+    let _ = write!(
+        s,
+        "],\"velocity_valid\":{},\"status\":{},\"format\":{},\"type\":{},\"time_of_validity\":{},\"time_of_transmission\":{}}}",
+        r.velocity_valid,
+        r.status,
+        json_string(&r.format),
+        json_string(&r.report_type),
+        r.time_of_validity,
+        r.time_of_transmission
+    );
+    s
+}
+
+fn report_is_finite(r: &A50VelocityReport) -> bool {
+    let beams = r
+        .transducers
+        .iter()
+        .flat_map(|b| [b.velocity, b.distance, b.rssi, b.nsd]);
+    [r.time, r.vx, r.vy, r.vz, r.fom, r.altitude]
+        .into_iter()
+        .chain(r.covariance.iter().flatten().copied())
+        .chain(beams)
+        .all(f64::is_finite)
+}
+
+/// Writes velocity reports as a JSON-lines log, each line ended by CRLF like a real stream,
+/// atomically.
+pub fn write_a50_jsonl(path: &Path, reports: &[A50VelocityReport]) -> Result<()> {
+    let mut out = String::with_capacity(reports.len() * 1100);
+    for (i, r) in reports.iter().enumerate() {
+        if !report_is_finite(r) {
+            return Err(super::non_finite(path, format!("a value of report {i}")));
+        }
+        out.push_str(&velocity_report_line(r));
+        out.push_str("\r\n");
+    }
+    super::write_atomic(path, out.as_bytes())
+}
+
+/// The number literals of a JSON text by path (`vx`, `covariance.0.1`, `transducers.2.rssi`).
+///
+/// serde_json (without its `float_roundtrip` feature) may round a 17-digit literal to a
+/// neighbouring f64; reading the literal again with `str::parse` gives the correctly rounded
+/// value, so reports read back bit for bit. The text must already be valid JSON.
+fn number_literals(text: &str) -> HashMap<String, &str> {
+    struct Scan<'a> {
+        s: &'a str,
+        i: usize,
+        out: HashMap<String, &'a str>,
+    }
+    impl<'a> Scan<'a> {
+        fn peek(&self) -> Option<u8> {
+            self.s.as_bytes().get(self.i).copied()
+        }
+        fn ws(&mut self) {
+            while matches!(self.peek(), Some(b' ' | b'\t' | b'\r' | b'\n')) {
+                self.i += 1;
+            }
+        }
+        fn eat(&mut self, c: u8) -> Option<()> {
+            self.ws();
+            (self.peek()? == c).then(|| self.i += 1)
+        }
+        /// The raw contents of a string literal.
+        fn string(&mut self) -> Option<&'a str> {
+            self.eat(b'"')?;
+            let start = self.i;
+            loop {
+                match self.peek()? {
+                    b'\\' => self.i += 2,
+                    b'"' => break,
+                    _ => self.i += 1,
+                }
+            }
+            let raw = self.s.get(start..self.i)?;
+            self.i += 1;
+            Some(raw)
+        }
+        fn join(path: &str, key: &str) -> String {
+            if path.is_empty() {
+                key.to_string()
+            } else {
+                format!("{path}.{key}")
+            }
+        }
+        fn value(&mut self, path: &str) -> Option<()> {
+            self.ws();
+            match self.peek()? {
+                b'{' => {
+                    self.i += 1;
+                    self.ws();
+                    if self.peek()? == b'}' {
+                        self.i += 1;
+                        return Some(());
+                    }
+                    loop {
+                        self.ws();
+                        let key = self.string()?;
+                        self.eat(b':')?;
+                        self.value(&Self::join(path, key))?;
+                        self.ws();
+                        match self.peek()? {
+                            b',' => self.i += 1,
+                            b'}' => break,
+                            _ => return None,
+                        }
+                    }
+                    self.i += 1;
+                }
+                b'[' => {
+                    self.i += 1;
+                    self.ws();
+                    if self.peek()? == b']' {
+                        self.i += 1;
+                        return Some(());
+                    }
+                    let mut k = 0usize;
+                    loop {
+                        self.value(&Self::join(path, &k.to_string()))?;
+                        k += 1;
+                        self.ws();
+                        match self.peek()? {
+                            b',' => self.i += 1,
+                            b']' => break,
+                            _ => return None,
+                        }
+                    }
+                    self.i += 1;
+                }
+                b'"' => {
+                    self.string()?;
+                }
+                _ => {
+                    let start = self.i;
+                    while !matches!(
+                        self.peek(),
+                        None | Some(b',' | b'}' | b']' | b' ' | b'\t' | b'\r' | b'\n')
+                    ) {
+                        self.i += 1;
+                    }
+                    let tok = self.s.get(start..self.i)?;
+                    if tok.starts_with(|c: char| c == '-' || c.is_ascii_digit()) {
+                        self.out.insert(path.to_string(), tok);
+                    }
+                }
+            }
+            Some(())
+        }
+    }
+    let mut scan = Scan {
+        s: text,
+        i: 0,
+        out: HashMap::new(),
+    };
+    let _ = scan.value("");
+    scan.out
+}
+
+/// The correctly rounded value of the literal at `path`, or `fallback` when there is none.
+fn exact(lits: &HashMap<String, &str>, path: &str, fallback: f64) -> f64 {
+    lits.get(path)
+        .and_then(|t| t.parse::<f64>().ok())
+        .unwrap_or(fallback)
+}
+
+/// Parses one velocity report line, with every number read back exactly as written.
+pub fn parse_velocity_report(line: &str) -> serde_json::Result<A50VelocityReport> {
+    let mut r: A50VelocityReport = serde_json::from_str(line)?;
+    let lits = number_literals(line);
+    for (name, x) in [
+        ("time", &mut r.time),
+        ("vx", &mut r.vx),
+        ("vy", &mut r.vy),
+        ("vz", &mut r.vz),
+        ("fom", &mut r.fom),
+        ("altitude", &mut r.altitude),
+    ] {
+        *x = exact(&lits, name, *x);
+    }
+    for (i, row) in r.covariance.iter_mut().enumerate() {
+        for (j, x) in row.iter_mut().enumerate() {
+            *x = exact(&lits, &format!("covariance.{i}.{j}"), *x);
+        }
+    }
+    for (i, b) in r.transducers.iter_mut().enumerate() {
+        for (name, x) in [
+            ("velocity", &mut b.velocity),
+            ("distance", &mut b.distance),
+            ("rssi", &mut b.rssi),
+            ("nsd", &mut b.nsd),
+        ] {
+            *x = exact(&lits, &format!("transducers.{i}.{name}"), *x);
+        }
+    }
+    Ok(r)
+}
+
+/// Velocities read from an A50 JSON log.
+#[derive(Clone, Debug)]
+pub struct A50Log {
+    /// The epoch the sample times are relative to.
+    pub epoch: Epoch,
+    /// The velocity reports, in file order; `t` is `time_of_validity`.
+    pub samples: Vec<DvlSample>,
+    /// The 1-based source line of each sample.
+    pub lines: Vec<usize>,
+    /// Number of reports of other types (dead reckoning, water tracking, ...), skipped.
+    pub other_reports: usize,
+}
+
+/// The fields of a velocity report that a [`DvlSample`] needs.
+#[derive(Deserialize)]
+struct VelocityFields {
+    vx: f64,
+    vy: f64,
+    vz: f64,
+    #[serde(default)]
+    covariance: Option<[[f64; 3]; 3]>,
+    velocity_valid: bool,
+    time_of_validity: i64,
+}
+
+/// Reads the bottom-tracking velocity reports (`"type": "velocity"`, json_v3 and later) of an
+/// A50 JSON-lines log. Times are `time_of_validity` relative to `epoch`, or, when it is `None`,
+/// to the whole second of the first report's `time_of_validity`. Reports of other types are
+/// counted and skipped. A line that is not JSON, has no `type`, or is a velocity report without
+/// a required field is an error naming its line.
+pub fn read_a50_velocities(path: &Path, epoch: Option<Epoch>) -> Result<A50Log> {
+    let text = read_text(path)?;
+    let mut epoch = epoch;
+    let mut samples = Vec::new();
+    let mut lines = Vec::new();
+    let mut other_reports = 0;
+    for (i, raw) in text.lines().enumerate() {
+        let line = i + 1;
+        let content = raw.trim();
+        if content.is_empty() {
+            continue;
+        }
+        let value: serde_json::Value = serde_json::from_str(content)
+            .map_err(|e| Error::parse(path, line, format!("not valid JSON: {e}")))?;
+        let report_type = match value.get("type") {
+            Some(serde_json::Value::String(s)) => s.as_str(),
+            Some(_) => {
+                return Err(Error::parse(path, line, "field 'type' is not a string"));
+            }
+            None => {
+                return Err(Error::parse(
+                    path,
+                    line,
+                    "no 'type' field (only json_v3 and later reports are read)",
+                ));
+            }
+        };
+        if report_type != "velocity" {
+            other_reports += 1;
+            continue;
+        }
+        let f: VelocityFields = serde_json::from_value(value)
+            .map_err(|e| Error::parse(path, line, format!("velocity report: {e}")))?;
+        let lits = number_literals(content);
+        let cov = f.covariance.map(|c| {
+            Matrix3::from_fn(|i, j| exact(&lits, &format!("covariance.{i}.{j}"), c[i][j]))
+        });
+        let t_raw = RawTime::from_micros(f.time_of_validity);
+        let ep = *epoch.get_or_insert_with(|| Epoch::at(t_raw));
+        samples.push(DvlSample {
+            t: ep.rel(t_raw),
+            v: Vector3::new(
+                exact(&lits, "vx", f.vx),
+                exact(&lits, "vy", f.vy),
+                exact(&lits, "vz", f.vz),
+            ),
+            cov,
+            valid: f.velocity_valid,
+        });
+        lines.push(line);
+    }
+    match epoch {
+        Some(epoch) if !samples.is_empty() => Ok(A50Log {
+            epoch,
+            samples,
+            lines,
+            other_reports,
+        }),
+        _ => Err(Error::parse(
+            path,
+            super::last_line(&text),
+            "no velocity reports in file",
+        )),
+    }
+}

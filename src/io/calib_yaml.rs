@@ -1,0 +1,294 @@
+//! The calibration result file (YAML).
+//!
+//! Keys, in order: `T_cam_dvl` (4x4, rows), `T_dvl_cam` (its inverse),
+//! `quaternion_cam_dvl_xyzw`, `lever_arm_cam_m` (the translation of `T_cam_dvl`),
+//! `time_offset_s` (`t_cam = t_dvl + time_offset_s`), `velocity_scale`, then the optional
+//! `std`, `observability` and `info` sections.
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::Path;
+
+use nalgebra::{Matrix3, Matrix4, Vector3};
+use serde::{Deserialize, Serialize};
+
+use super::read_text;
+use crate::error::{Error, Result};
+use crate::trajectory::lie::Se3;
+use crate::types::CalibrationParams;
+
+/// Tolerance of the rigidity and consistency checks of [`CalibrationFile::to_params`].
+pub const RIGID_TOL: f64 = 1e-6;
+
+/// Standard deviations of the estimated quantities.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CalibrationStd {
+    /// Rotation of `T_cam_dvl`, degrees, about the camera axes.
+    pub rotation_deg: [f64; 3],
+    /// Lever arm, metres, camera frame.
+    pub lever_arm_m: [f64; 3],
+    pub time_offset_s: f64,
+    pub velocity_scale: f64,
+}
+
+/// Whether the data constrained a quantity well.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Observability {
+    Ok,
+    Weak,
+}
+
+/// Observability of each estimated quantity.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ObservabilityFlags {
+    pub rotation: Observability,
+    pub lever_arm: Observability,
+    pub time_offset: Observability,
+    pub velocity_scale: Observability,
+}
+
+/// Free-form information about how the result was obtained.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct CalibrationInfo {
+    /// Name of the estimation method.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub method: Option<String>,
+    /// Iterations of the solver.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub iterations: Option<u64>,
+    /// Things the user should look at.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
+    /// Other remarks.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub notes: Vec<String>,
+    /// Further figures (data counts, residual RMS, ...), written as keys of `info`.
+    #[serde(flatten, skip_serializing_if = "BTreeMap::is_empty")]
+    pub extra: BTreeMap<String, serde_yaml::Value>,
+}
+
+/// The calibration result file.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CalibrationFile {
+    /// `T_cam_dvl`: maps DVL-frame points into the camera frame; rows of the 4x4 matrix.
+    #[serde(rename = "T_cam_dvl")]
+    pub t_cam_dvl: [[f64; 4]; 4],
+    /// `T_dvl_cam`, the inverse of `T_cam_dvl`.
+    #[serde(rename = "T_dvl_cam")]
+    pub t_dvl_cam: [[f64; 4]; 4],
+    /// Rotation of `T_cam_dvl` as a unit quaternion `[x, y, z, w]`.
+    pub quaternion_cam_dvl_xyzw: [f64; 4],
+    /// The DVL origin in camera coordinates (translation of `T_cam_dvl`), metres.
+    pub lever_arm_cam_m: [f64; 3],
+    /// `t_cam = t_dvl + time_offset_s`.
+    pub time_offset_s: f64,
+    /// DVL velocity scale factor.
+    pub velocity_scale: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub std: Option<CalibrationStd>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub observability: Option<ObservabilityFlags>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub info: Option<CalibrationInfo>,
+}
+
+fn rows(m: &Matrix4<f64>) -> [[f64; 4]; 4] {
+    let mut r = [[0.0; 4]; 4];
+    for (i, row) in r.iter_mut().enumerate() {
+        for (j, x) in row.iter_mut().enumerate() {
+            *x = m[(i, j)];
+        }
+    }
+    r
+}
+
+fn matrix(r: &[[f64; 4]; 4]) -> Matrix4<f64> {
+    Matrix4::from_fn(|i, j| r[i][j])
+}
+
+fn max_abs(m: impl IntoIterator<Item = f64>) -> f64 {
+    m.into_iter().fold(0.0, |a, x| a.max(x.abs()))
+}
+
+/// Checks that `m` is a rigid transform: finite, orthonormal rotation block with determinant
+/// +1, last row `0 0 0 1`.
+fn check_rigid(name: &str, m: &Matrix4<f64>) -> Result<Se3> {
+    if m.iter().any(|x| !x.is_finite()) {
+        return Err(Error::Input(format!("{name} has a non-finite entry")));
+    }
+    let last = max_abs([m[(3, 0)], m[(3, 1)], m[(3, 2)], m[(3, 3)] - 1.0]);
+    if last > RIGID_TOL {
+        return Err(Error::Input(format!(
+            "{name} is not a rigid transform: its last row is not 0 0 0 1"
+        )));
+    }
+    let r: Matrix3<f64> = m.fixed_view::<3, 3>(0, 0).into_owned();
+    let ortho = max_abs((r.transpose() * r - Matrix3::identity()).iter().copied());
+    if ortho > RIGID_TOL {
+        return Err(Error::Input(format!(
+            "{name} is not a rigid transform: its rotation block is not orthonormal \
+             (max |R^T R - I| = {ortho:.3e} > {RIGID_TOL:e})"
+        )));
+    }
+    if r.determinant() < 0.0 {
+        return Err(Error::Input(format!(
+            "{name} is not a rigid transform: its rotation block is a reflection (det < 0)"
+        )));
+    }
+    Ok(Se3::new(r, m.fixed_view::<3, 1>(0, 3).into_owned()))
+}
+
+impl CalibrationFile {
+    /// The file contents for `p`, without the optional sections.
+    pub fn from_params(p: &CalibrationParams) -> CalibrationFile {
+        let t = &p.t_cam_dvl;
+        CalibrationFile {
+            t_cam_dvl: rows(&t.to_matrix()),
+            t_dvl_cam: rows(&t.inverse().to_matrix()),
+            quaternion_cam_dvl_xyzw: t.quaternion_xyzw(),
+            lever_arm_cam_m: [t.trans.x, t.trans.y, t.trans.z],
+            time_offset_s: p.time_offset_s,
+            velocity_scale: p.velocity_scale,
+            std: None,
+            observability: None,
+            info: None,
+        }
+    }
+
+    /// The calibration parameters, after checking that `T_cam_dvl` is a rigid transform
+    /// (orthonormal rotation to [`RIGID_TOL`], last row `0 0 0 1`) consistent with `T_dvl_cam`,
+    /// the quaternion and the lever arm, and that the time offset and a positive velocity scale
+    /// are finite.
+    pub fn to_params(&self) -> Result<CalibrationParams> {
+        let t = check_rigid("T_cam_dvl", &matrix(&self.t_cam_dvl))?;
+        let t_inv = check_rigid("T_dvl_cam", &matrix(&self.t_dvl_cam))?;
+        let scale = 1.0 + t.trans.norm();
+        let prod = (t_inv * t).to_matrix() - Matrix4::identity();
+        if max_abs(prod.iter().copied()) > RIGID_TOL * scale {
+            return Err(Error::Input(
+                "T_dvl_cam is not the inverse of T_cam_dvl".to_string(),
+            ));
+        }
+        let q = self.quaternion_cam_dvl_xyzw;
+        let qn = q.iter().map(|c| c * c).sum::<f64>().sqrt();
+        if !qn.is_finite() || (qn - 1.0).abs() > RIGID_TOL {
+            return Err(Error::Input(format!(
+                "quaternion_cam_dvl_xyzw is not a unit quaternion (norm {qn})"
+            )));
+        }
+        let rq = Se3::from_quaternion_xyzw(&q, Vector3::zeros()).rot;
+        if max_abs((rq - t.rot).iter().copied()) > RIGID_TOL {
+            return Err(Error::Input(
+                "quaternion_cam_dvl_xyzw does not match the rotation of T_cam_dvl".to_string(),
+            ));
+        }
+        let arm = Vector3::from(self.lever_arm_cam_m);
+        if !arm.iter().all(|x| x.is_finite())
+            || max_abs((arm - t.trans).iter().copied()) > RIGID_TOL * scale
+        {
+            return Err(Error::Input(
+                "lever_arm_cam_m does not match the translation of T_cam_dvl".to_string(),
+            ));
+        }
+        if !self.time_offset_s.is_finite() {
+            return Err(Error::Input("time_offset_s is not finite".to_string()));
+        }
+        if !(self.velocity_scale.is_finite() && self.velocity_scale > 0.0) {
+            return Err(Error::Input(format!(
+                "velocity_scale {} is not a positive number",
+                self.velocity_scale
+            )));
+        }
+        Ok(CalibrationParams {
+            t_cam_dvl: t.renormalized(),
+            time_offset_s: self.time_offset_s,
+            velocity_scale: self.velocity_scale,
+        })
+    }
+}
+
+const HEADER: &str = "\
+# dvlcal calibration result.
+# T_cam_dvl maps DVL-frame points into the camera frame: p_cam = R_cam_dvl p_dvl + lever_arm_cam_m,
+# so lever_arm_cam_m is the DVL origin in camera coordinates. Matrices are listed by rows.
+# Clocks: t_cam = t_dvl + time_offset_s. Velocities: v_dvl = velocity_scale * R_dvl_cam * v_cam(DVL origin).
+";
+
+/// A YAML flow sequence of numbers (shortest digits that read back exactly).
+fn flow(v: &[f64]) -> String {
+    let items: Vec<String> = v.iter().map(|x| format!("{x:?}")).collect();
+    format!("[{}]", items.join(", "))
+}
+
+/// The file contents: a comment header, the main keys (matrices one row per line), then the
+/// optional sections.
+fn to_yaml(path: &Path, c: &CalibrationFile) -> Result<String> {
+    let mut s = String::from(HEADER);
+    for (key, m) in [("T_cam_dvl", &c.t_cam_dvl), ("T_dvl_cam", &c.t_dvl_cam)] {
+        let _ = writeln!(s, "{key}:");
+        for row in m {
+            let _ = writeln!(s, "  - {}", flow(row));
+        }
+    }
+    let _ = writeln!(
+        s,
+        "quaternion_cam_dvl_xyzw: {}",
+        flow(&c.quaternion_cam_dvl_xyzw)
+    );
+    let _ = writeln!(s, "lever_arm_cam_m: {}", flow(&c.lever_arm_cam_m));
+    let _ = writeln!(s, "time_offset_s: {:?}", c.time_offset_s);
+    let _ = writeln!(s, "velocity_scale: {:?}", c.velocity_scale);
+
+    #[derive(Serialize)]
+    struct Optional<'a> {
+        #[serde(skip_serializing_if = "Option::is_none")]
+        std: &'a Option<CalibrationStd>,
+        #[serde(skip_serializing_if = "Option::is_none")]
+        observability: &'a Option<ObservabilityFlags>,
+        #[serde(skip_serializing_if = "Option::is_none")]
+        info: &'a Option<CalibrationInfo>,
+    }
+    if c.std.is_some() || c.observability.is_some() || c.info.is_some() {
+        let tail = serde_yaml::to_string(&Optional {
+            std: &c.std,
+            observability: &c.observability,
+            info: &c.info,
+        })
+        .map_err(|e| Error::Input(format!("{}: {e}", path.display())))?;
+        s.push_str(&tail);
+    }
+    Ok(s)
+}
+
+/// Writes the calibration file with a comment header explaining the conventions, atomically.
+/// Non-finite numbers in the main keys are refused.
+pub fn write_calib_yaml(path: &Path, c: &CalibrationFile) -> Result<()> {
+    let scalars = [c.time_offset_s, c.velocity_scale];
+    let mut main = c
+        .t_cam_dvl
+        .iter()
+        .chain(c.t_dvl_cam.iter())
+        .flatten()
+        .chain(c.quaternion_cam_dvl_xyzw.iter())
+        .chain(c.lever_arm_cam_m.iter())
+        .chain(scalars.iter());
+    if main.any(|x| !x.is_finite()) {
+        return Err(super::non_finite(path, "a calibration value".to_string()));
+    }
+    let text = to_yaml(path, c)?;
+    super::write_atomic(path, text.as_bytes())
+}
+
+/// Reads a calibration file and checks it with [`CalibrationFile::to_params`]. Errors name the
+/// file, and the line where the YAML parser reports one.
+pub fn read_calib_yaml(path: &Path) -> Result<CalibrationFile> {
+    let text = read_text(path)?;
+    let c: CalibrationFile = serde_yaml::from_str(&text).map_err(|e| match e.location() {
+        Some(loc) => Error::parse(path, loc.line(), format!("column {}: {e}", loc.column())),
+        None => Error::Input(format!("{}: {e}", path.display())),
+    })?;
+    c.to_params()
+        .map_err(|e| Error::Input(format!("{}: {e}", path.display())))?;
+    Ok(c)
+}
