@@ -142,7 +142,7 @@ fn check_poses(poses: &[PoseMeasurement]) -> Result<()> {
         )));
     }
     for (i, w) in poses.windows(2).enumerate() {
-        if !(w[1].t > w[0].t) {
+        if w[1].t.partial_cmp(&w[0].t) != Some(std::cmp::Ordering::Greater) {
             return Err(Error::Input(format!(
                 "pose times must increase: pose {} (t = {}) follows pose {} (t = {})",
                 i + 2,

@@ -1,0 +1,35 @@
+# Two commands on a fresh Debian machine: `make demo` and `make test`.
+# Both install the Debian packages the build needs first (root, or sudo).
+
+SHELL := /bin/bash
+CARGO ?= cargo
+DEBIAN_PACKAGES := pkg-config
+SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
+OUT ?= out
+
+.PHONY: deps build demo test bench clean
+
+deps:
+	@if ! dpkg -s $(DEBIAN_PACKAGES) >/dev/null 2>&1; then \
+		$(SUDO) apt-get update && $(SUDO) apt-get install -y --no-install-recommends $(DEBIAN_PACKAGES); \
+	fi
+
+build: deps
+	$(CARGO) build --release
+
+# Fits the continuous-time trajectory to the camera poses shipped in sample_data and compares
+# the estimated twist with the simulation's truth.
+demo: build
+	mkdir -p $(OUT)
+	./target/release/dvlcal fit-trajectory --poses sample_data/sim/poses.txt \
+		--out $(OUT)/twist.csv --truth sample_data/sim/truth_twist.csv
+
+test: deps
+	$(CARGO) test --release
+
+bench: deps
+	$(CARGO) bench --bench trajectory
+
+clean:
+	rm -rf $(OUT)
+	$(CARGO) clean
