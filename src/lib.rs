@@ -3,11 +3,13 @@
 //! Data flows through the modules in this order:
 //! - [`io`]: file formats in and out (TUM poses, A50 logs, CSV, YAML). No estimation here.
 //! - [`trajectory`]: Lie groups and the white-noise-on-jerk Gaussian-process trajectory on SE(3).
+//! - [`calib`]: the UIC calibration (initialisation, refinement, uncertainty).
 //! - [`sim`]: synthetic datasets with known truth.
 //! - [`eval`]: accuracy of estimates against known truth.
 //!
 //! Conventions (frames, time offsets, twist order) are in `docs/conventions.md`.
 
+pub mod calib;
 pub mod error;
 pub mod eval;
 pub mod io;

@@ -1,5 +1,6 @@
 //! The `dvlcal` command line: a thin layer over the library, one module per subcommand.
 
+mod calibrate;
 mod eval;
 mod fit;
 mod simulate;
@@ -24,6 +25,8 @@ enum Command {
     /// Fit the continuous-time trajectory to camera poses and write body twists with their
     /// standard deviations.
     FitTrajectory(fit::FitArgs),
+    /// Estimate the DVL's rotation, lever arm, clock offset and velocity scale.
+    Calibrate(calibrate::CalibrateArgs),
     /// Compare a twist CSV with a truth twist CSV (RMS errors and normalised errors).
     EvalTwist(eval::EvalTwistArgs),
 }
@@ -34,6 +37,7 @@ fn main() {
         Command::Simulate(a) => simulate::run(a),
         Command::FitTrajectory(a) => fit::run(a),
         Command::EvalTwist(a) => eval::run(a),
+        Command::Calibrate(a) => calibrate::run(a),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");

@@ -1,0 +1,268 @@
+//! `dvlcal calibrate`: DVL extrinsics, clock offset and scale from camera poses and a DVL log.
+
+use anyhow::{Context, Result, bail};
+use clap::ValueEnum;
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+use std::time::Instant;
+
+use dvlcal::calib::model::Params;
+use dvlcal::calib::offset::OffsetMethod;
+use dvlcal::calib::{CalibOptions, CalibrationOutcome, Method, Verdict, calibrate};
+use dvlcal::io::a50_json::read_a50_velocities;
+use dvlcal::io::calib_yaml::{
+    CalibrationFile, CalibrationInfo, CalibrationStd, Observability, ObservabilityFlags,
+    read_calib_yaml, write_calib_yaml,
+};
+use dvlcal::io::tum::read_tum;
+
+#[derive(Clone, Copy, ValueEnum)]
+pub enum MethodArg {
+    /// Initialise from the data alone, then refine (no guess needed).
+    Uic,
+    /// Refine from the guess given with --init.
+    Bcd,
+    /// Keep the extrinsics of --init; with --estimate-offset estimate clock offset and scale.
+    Fixed,
+}
+
+#[derive(clap::Args)]
+pub struct CalibrateArgs {
+    /// TUM file of T_world_cam (camera clock).
+    #[arg(long)]
+    pub poses: PathBuf,
+    /// Water Linked A50 log.
+    #[arg(long)]
+    pub dvl: PathBuf,
+    /// Result YAML (written atomically).
+    #[arg(long)]
+    pub out: PathBuf,
+    #[arg(long, value_enum, default_value = "uic")]
+    pub method: MethodArg,
+    /// Initial guess or fixed extrinsics (result YAML schema), for --method bcd and fixed.
+    #[arg(long)]
+    pub init: Option<PathBuf>,
+    /// Per-axis DVL velocity noise, m/s, replacing the reports' covariance.
+    #[arg(long)]
+    pub dvl_sigma: Option<f64>,
+    /// Clock offsets searched, `min,max` seconds (t_cam = t_dvl + offset).
+    #[arg(long, value_delimiter = ',', default_values_t = [-1.0, 1.0])]
+    pub offset_range: Vec<f64>,
+    /// With --method fixed: estimate clock offset and scale with the extrinsics held.
+    #[arg(long)]
+    pub estimate_offset: bool,
+    /// Use the closed form without bias elimination (for comparison only).
+    #[arg(long)]
+    pub biased: bool,
+}
+
+fn flag(v: &Verdict) -> Observability {
+    if v.ok {
+        Observability::Ok
+    } else {
+        Observability::Weak
+    }
+}
+
+fn method_name(m: &Method) -> &'static str {
+    match m {
+        Method::Uic => "uic",
+        Method::Bcd(_) => "bcd",
+        Method::Fixed {
+            estimate_offset: true,
+            ..
+        } => "fixed extrinsics, estimated clock offset",
+        Method::Fixed { .. } => "fixed extrinsics",
+    }
+}
+
+/// The result file of an outcome.
+pub fn result_file(o: &CalibrationOutcome) -> CalibrationFile {
+    let mut f = CalibrationFile::from_params(&o.params.to_calibration());
+    let v = |x: &nalgebra::Vector3<f64>| [x.x, x.y, x.z];
+    f.std = Some(CalibrationStd {
+        rotation_deg: v(&o.std.rotation_deg),
+        lever_arm_m: v(&o.std.lever_arm_m),
+        time_offset_s: o.std.time_offset_s,
+        velocity_scale: o.std.velocity_scale,
+    });
+    f.observability = Some(ObservabilityFlags {
+        rotation: flag(&o.verdicts.rotation),
+        lever_arm: flag(&o.verdicts.lever_arm),
+        time_offset: flag(&o.verdicts.time_offset),
+        velocity_scale: flag(&o.verdicts.velocity_scale),
+    });
+    let mut extra = BTreeMap::new();
+    let mut put = |k: &str, val: serde_yaml::Value| {
+        extra.insert(k.to_owned(), val);
+    };
+    put("poses", o.counts.poses.into());
+    put("dvl_samples", o.counts.dvl_samples.into());
+    put("dvl_invalid", o.counts.dvl_invalid.into());
+    put("dvl_used", o.counts.dvl_used.into());
+    put("dvl_outside_camera_span", o.counts.dvl_outside_span.into());
+    put(
+        "dvl_residual_rms_mps",
+        vec![o.residual_rms.x, o.residual_rms.y, o.residual_rms.z].into(),
+    );
+    put("dvl_normalized_cost", o.normalized_cost.into());
+    put(
+        "cost_per_iteration",
+        o.iterations
+            .iter()
+            .map(|i| i.cost)
+            .collect::<Vec<_>>()
+            .into(),
+    );
+    put(
+        "rms_angular_speed_radps",
+        o.excitation.rms_angular_speed.into(),
+    );
+    put("rms_speed_mps", o.excitation.rms_speed.into());
+    put(
+        "lever_arm_velocity_ratio",
+        o.excitation.lever_arm_ratio.into(),
+    );
+    put(
+        "trajectory_qc",
+        o.trajectory.qc.iter().copied().collect::<Vec<_>>().into(),
+    );
+    if let Some(init) = &o.init {
+        put(
+            "clock_offset_init",
+            match init.offset.method {
+                OffsetMethod::CalmSubset => "calm subset",
+                OffsetMethod::SpeedCorrelation => "speed correlation (no calm segment)",
+            }
+            .into(),
+        );
+        put("calm_samples", o.counts.calm.into());
+    }
+    let mut warnings = o.warnings.clone();
+    for (name, vd) in [
+        ("rotation", &o.verdicts.rotation),
+        ("lever arm", &o.verdicts.lever_arm),
+        ("time offset", &o.verdicts.time_offset),
+        ("velocity scale", &o.verdicts.velocity_scale),
+    ] {
+        if !vd.ok {
+            warnings.push(format!("{name} is weakly observable: {}", vd.reason));
+        }
+    }
+    f.info = Some(CalibrationInfo {
+        method: Some(method_name(&o.method).into()),
+        iterations: Some(o.iterations.len() as u64),
+        warnings,
+        notes: Vec::new(),
+        extra,
+    });
+    f
+}
+
+pub fn run(a: CalibrateArgs) -> Result<()> {
+    let tum = read_tum(&a.poses, None)?;
+    let log = read_a50_velocities(&a.dvl, Some(tum.epoch))?;
+    if a.offset_range.len() != 2 || !(a.offset_range[0] < a.offset_range[1]) {
+        bail!("--offset-range takes two increasing values: min,max");
+    }
+    let guess = match &a.init {
+        Some(p) => Some(Params::from_calibration(&read_calib_yaml(p)?.to_params()?)),
+        None => None,
+    };
+    let method = match (a.method, guess) {
+        (MethodArg::Uic, _) => Method::Uic,
+        (MethodArg::Bcd, Some(g)) => Method::Bcd(g),
+        (MethodArg::Fixed, Some(g)) => Method::Fixed {
+            guess: g,
+            estimate_offset: a.estimate_offset,
+        },
+        (_, None) => bail!("--method bcd and fixed need --init FILE"),
+    };
+    if let Some(s) = a.dvl_sigma
+        && !(s.is_finite() && s > 0.0)
+    {
+        bail!("--dvl-sigma must be positive");
+    }
+    let mut opts = CalibOptions {
+        method,
+        dvl_sigma: a.dvl_sigma,
+        bias_corrected: !a.biased,
+        ..CalibOptions::default()
+    };
+    opts.offset.range = (a.offset_range[0], a.offset_range[1]);
+    let start = Instant::now();
+    let o = calibrate(&tum.poses, &log.samples, &opts).with_context(|| {
+        format!(
+            "calibrating {} against {}",
+            a.dvl.display(),
+            a.poses.display()
+        )
+    })?;
+    let elapsed = start.elapsed().as_secs_f64();
+    let file = result_file(&o);
+    write_calib_yaml(&a.out, &file)?;
+    print_summary(&o, &file, elapsed);
+    println!("wrote {}", a.out.display());
+    Ok(())
+}
+
+fn print_summary(o: &CalibrationOutcome, f: &CalibrationFile, secs: f64) {
+    let ok = |v: &Verdict| if v.ok { "ok" } else { "WEAK" };
+    let s = &o.std;
+    println!(
+        "method {}; {} poses, {} DVL reports ({} used, {} invalid, {} outside the camera span); {:.2} s",
+        method_name(&o.method),
+        o.counts.poses,
+        o.counts.dvl_samples,
+        o.counts.dvl_used,
+        o.counts.dvl_invalid,
+        o.counts.dvl_outside_span,
+        secs
+    );
+    let q = f.quaternion_cam_dvl_xyzw;
+    println!(
+        "rotation  q_cam_dvl (xyzw) [{:.5}, {:.5}, {:.5}, {:.5}]  std [{:.3}, {:.3}, {:.3}] deg  {}",
+        q[0],
+        q[1],
+        q[2],
+        q[3],
+        s.rotation_deg.x,
+        s.rotation_deg.y,
+        s.rotation_deg.z,
+        ok(&o.verdicts.rotation)
+    );
+    let p = o.params.lever_arm;
+    println!(
+        "lever arm p_cam_dvl [{:.4}, {:.4}, {:.4}] m  std [{:.4}, {:.4}, {:.4}] m  {}",
+        p.x,
+        p.y,
+        p.z,
+        s.lever_arm_m.x,
+        s.lever_arm_m.y,
+        s.lever_arm_m.z,
+        ok(&o.verdicts.lever_arm)
+    );
+    println!(
+        "clock     time_offset_s {:.5} s  std {:.5} s  {}",
+        o.params.time_offset,
+        s.time_offset_s,
+        ok(&o.verdicts.time_offset)
+    );
+    println!(
+        "scale     velocity_scale {:.5}  std {:.5}  {}",
+        o.params.scale,
+        s.velocity_scale,
+        ok(&o.verdicts.velocity_scale)
+    );
+    println!(
+        "residuals {:.4} {:.4} {:.4} m/s RMS; normalized cost {:.2}; {} iterations",
+        o.residual_rms.x,
+        o.residual_rms.y,
+        o.residual_rms.z,
+        o.normalized_cost,
+        o.iterations.len()
+    );
+    for w in f.info.iter().flat_map(|i| i.warnings.iter()) {
+        println!("warning: {w}");
+    }
+}

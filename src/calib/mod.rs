@@ -1,0 +1,482 @@
+//! Spatiotemporal DVL-camera calibration: the UIC method.
+//!
+//! 1. Fit the camera trajectory (GP regression on the poses).
+//! 2. Clock offset and scale from speed magnitudes on calm samples ([`offset`]).
+//! 3. Rotation, lever arm and scale in closed form with bias elimination ([`closed_form`]).
+//! 4. Block-coordinate refinement: calibration update with the trajectory fixed ([`refine`]),
+//!    state update with the calibration fixed, until nothing changes.
+//! 5. Uncertainty from the information matrix of the final problem and a verdict per parameter.
+
+pub mod closed_form;
+pub mod model;
+pub mod offset;
+pub mod refine;
+
+use nalgebra::{Matrix3, Vector3};
+
+use crate::error::{Error, Result};
+use crate::trajectory::{FitOptions, FitReport, Trajectory};
+use crate::types::{DvlSample, PoseMeasurement};
+use closed_form::{ClosedForm, ClosedFormRow, closed_form};
+use model::{NPARAM, Params, predict};
+use offset::{DvlObs, OffsetMethod, OffsetOptions, OffsetResult, estimate_offset};
+use refine::{FreeParams, ParamMat, calibration_update, linearize};
+
+/// How the calibration starts.
+#[derive(Clone, Debug)]
+pub enum Method {
+    /// UIC: initialisation from the data alone, then refinement.
+    Uic,
+    /// Block-coordinate refinement from a user guess.
+    Bcd(Params),
+    /// The user's extrinsics kept fixed; with `estimate_offset` the clock offset (and scale)
+    /// is estimated with the extrinsics held, otherwise the guess is only evaluated.
+    Fixed {
+        guess: Params,
+        estimate_offset: bool,
+    },
+}
+
+/// Standard deviations above which a parameter is reported as weakly observable.
+#[derive(Clone, Debug)]
+pub struct WeakThresholds {
+    pub rotation_deg: f64,
+    pub lever_arm_m: f64,
+    pub time_offset_s: f64,
+    pub velocity_scale: f64,
+}
+
+impl Default for WeakThresholds {
+    fn default() -> Self {
+        WeakThresholds {
+            rotation_deg: 0.5,
+            lever_arm_m: 0.02,
+            time_offset_s: 0.01,
+            velocity_scale: 0.005,
+        }
+    }
+}
+
+/// Settings of a calibration.
+#[derive(Clone, Debug)]
+pub struct CalibOptions {
+    pub method: Method,
+    /// Per-axis DVL noise (m/s) replacing the reports' own covariance.
+    pub dvl_sigma: Option<f64>,
+    /// DVL noise used for reports without a covariance.
+    pub default_dvl_sigma: f64,
+    pub offset: OffsetOptions,
+    /// Use the bias-eliminated closed form (the paper's estimator); `false` gives the biased one.
+    pub bias_corrected: bool,
+    /// Outer block-coordinate iterations.
+    pub max_outer_iterations: usize,
+    pub fit: FitOptions,
+    pub weak: WeakThresholds,
+}
+
+impl Default for CalibOptions {
+    fn default() -> Self {
+        CalibOptions {
+            method: Method::Uic,
+            dvl_sigma: None,
+            default_dvl_sigma: 0.01,
+            offset: OffsetOptions::default(),
+            bias_corrected: true,
+            max_outer_iterations: 10,
+            fit: FitOptions::default(),
+            weak: WeakThresholds::default(),
+        }
+    }
+}
+
+/// Verdict on one parameter.
+#[derive(Clone, Debug)]
+pub struct Verdict {
+    pub ok: bool,
+    /// Why the parameter is weak (empty when ok).
+    pub reason: String,
+}
+
+/// Verdicts on all parameters.
+#[derive(Clone, Debug)]
+pub struct Verdicts {
+    pub rotation: Verdict,
+    pub lever_arm: Verdict,
+    pub time_offset: Verdict,
+    pub velocity_scale: Verdict,
+}
+
+/// Standard deviations of the estimate.
+#[derive(Clone, Debug)]
+pub struct ParamStd {
+    /// About the DVL frame's x, y, z axes (left perturbation of `R_dvl_cam`), degrees.
+    pub rotation_deg: Vector3<f64>,
+    pub lever_arm_m: Vector3<f64>,
+    pub time_offset_s: f64,
+    pub velocity_scale: f64,
+}
+
+/// The initialisation stage of UIC.
+#[derive(Clone, Debug)]
+pub struct InitReport {
+    pub offset: OffsetResult,
+    pub closed_form: ClosedForm,
+    /// Parameters after initialisation (closed form with the searched offset).
+    pub params: Params,
+}
+
+/// One block-coordinate iteration.
+#[derive(Clone, Debug)]
+pub struct IterationRecord {
+    /// DVL cost (sum of squared residuals weighted by the DVL noise) after the iteration.
+    pub cost: f64,
+    pub params: Params,
+}
+
+/// Measures of the motion's excitation.
+#[derive(Clone, Debug, Default)]
+pub struct Excitation {
+    /// RMS camera speed and angular speed over the DVL samples used.
+    pub rms_speed: f64,
+    pub rms_angular_speed: f64,
+    /// RMS of `|w x p|` over RMS of `|v|` at the estimated lever arm: how much the lever arm
+    /// shows in the DVL velocities.
+    pub lever_arm_ratio: f64,
+}
+
+/// Counts of the data used.
+#[derive(Clone, Debug, Default)]
+pub struct Counts {
+    pub poses: usize,
+    pub dvl_samples: usize,
+    pub dvl_invalid: usize,
+    pub dvl_used: usize,
+    pub dvl_outside_span: usize,
+    pub calm: usize,
+}
+
+/// Everything a calibration run produced.
+#[derive(Clone, Debug)]
+pub struct CalibrationOutcome {
+    pub params: Params,
+    pub covariance: ParamMat,
+    pub std: ParamStd,
+    pub verdicts: Verdicts,
+    pub method: Method,
+    pub init: Option<InitReport>,
+    pub iterations: Vec<IterationRecord>,
+    pub counts: Counts,
+    /// RMS of DVL residuals per axis, m/s.
+    pub residual_rms: Vector3<f64>,
+    /// Weighted residual sum over its degrees of freedom: about 1 when the DVL noise is right.
+    pub normalized_cost: f64,
+    pub excitation: Excitation,
+    pub trajectory: FitReport,
+    pub warnings: Vec<String>,
+}
+
+/// DVL observations with their noise, on the camera epoch.
+fn observations(dvl: &[DvlSample], opts: &CalibOptions) -> Vec<DvlObs> {
+    dvl.iter()
+        .filter(|s| s.valid && s.v.iter().all(|x| x.is_finite()))
+        .map(|s| {
+            let cov = match (opts.dvl_sigma, &s.cov) {
+                (Some(sd), _) => Matrix3::identity() * sd * sd,
+                (None, Some(c)) if c.iter().all(|x| x.is_finite()) && c.trace() > 0.0 => *c,
+                _ => Matrix3::identity() * opts.default_dvl_sigma.powi(2),
+            };
+            DvlObs {
+                t: s.t,
+                v: s.v,
+                cov,
+            }
+        })
+        .collect()
+}
+
+/// Samples usable at offsets within `margin` of `offset`.
+fn usable(traj: &Trajectory, obs: &[DvlObs], offset: f64, margin: f64) -> Vec<usize> {
+    let (a, b) = traj.span();
+    (0..obs.len())
+        .filter(|&i| obs[i].t + offset - margin >= a && obs[i].t + offset + margin <= b)
+        .collect()
+}
+
+/// Calibrates the DVL against the camera poses.
+pub fn calibrate(
+    poses: &[PoseMeasurement],
+    dvl: &[DvlSample],
+    opts: &CalibOptions,
+) -> Result<CalibrationOutcome> {
+    let obs = observations(dvl, opts);
+    let mut counts = Counts {
+        poses: poses.len(),
+        dvl_samples: dvl.len(),
+        dvl_invalid: dvl.len() - obs.len(),
+        ..Counts::default()
+    };
+    if obs.len() < 10 {
+        return Err(Error::Input(format!(
+            "{} valid DVL velocity reports: at least 10 are needed",
+            obs.len()
+        )));
+    }
+    let traj = Trajectory::fit(poses, &opts.fit)?;
+    let mut warnings = Vec::new();
+
+    let (start, init) = match &opts.method {
+        Method::Uic => {
+            let off = estimate_offset(&traj, &obs, &opts.offset)?;
+            warnings.extend(off.notes.iter().cloned());
+            let idx = usable(&traj, &obs, off.offset, 0.0);
+            let rows: Vec<ClosedFormRow> = idx
+                .iter()
+                .map(|&i| {
+                    let q = traj.query(obs[i].t + off.offset)?;
+                    Ok(ClosedFormRow {
+                        v_dvl: obs[i].v,
+                        twist: q.twist,
+                        twist_cov: q.twist_cov.unwrap_or_else(nalgebra::Matrix6::zeros),
+                    })
+                })
+                .collect::<Result<_>>()?;
+            let cf = closed_form(&rows, opts.bias_corrected)?;
+            let params = Params {
+                time_offset: off.offset,
+                ..cf.params
+            };
+            counts.calm = off.calm.len();
+            (
+                params,
+                Some(InitReport {
+                    offset: off,
+                    closed_form: cf,
+                    params,
+                }),
+            )
+        }
+        Method::Bcd(g) => (*g, None),
+        Method::Fixed { guess, .. } => (*guess, None),
+    };
+
+    let free = match &opts.method {
+        Method::Fixed {
+            estimate_offset: true,
+            ..
+        } => FreeParams {
+            rotation: false,
+            lever_arm: false,
+            scale: true,
+            time_offset: true,
+        },
+        Method::Fixed { .. } => FreeParams {
+            rotation: false,
+            lever_arm: false,
+            scale: false,
+            time_offset: false,
+        },
+        _ => FreeParams::ALL,
+    };
+
+    // Samples kept for every offset the refinement may reach.
+    let margin = (opts.offset.range.1 - opts.offset.range.0).abs().min(0.5);
+    let idx = usable(&traj, &obs, start.time_offset, margin);
+    counts.dvl_used = idx.len();
+    counts.dvl_outside_span = obs.len() - idx.len();
+    if idx.len() < 10 {
+        return Err(Error::Input(format!(
+            "only {} DVL samples fall inside the camera time span at offset {:.3} s",
+            idx.len(),
+            start.time_offset
+        )));
+    }
+
+    let mut params = start;
+    let mut iterations = Vec::new();
+    for _ in 0..opts.max_outer_iterations.max(1) {
+        let up = calibration_update(&traj, &obs, &idx, &params, free, 50)?;
+        let change = (up.params.r_dvl_cam - params.r_dvl_cam).abs().max()
+            + (up.params.lever_arm - params.lever_arm).abs().max()
+            + (up.params.scale - params.scale).abs()
+            + (up.params.time_offset - params.time_offset).abs();
+        params = up.params;
+        iterations.push(IterationRecord {
+            cost: up.cost,
+            params,
+        });
+        if change < 1e-9 {
+            break;
+        }
+    }
+
+    let lin = linearize(&traj, &obs, &idx, &params)?;
+    let dof = (3 * idx.len()).saturating_sub(NPARAM).max(1) as f64;
+    let normalized_cost = lin.cost / dof;
+    let mut info = lin.hessian;
+    let mask = [
+        free.rotation,
+        free.rotation,
+        free.rotation,
+        free.lever_arm,
+        free.lever_arm,
+        free.lever_arm,
+        free.scale,
+        free.time_offset,
+    ];
+    for k in 0..NPARAM {
+        if !mask[k] {
+            info.row_mut(k).fill(0.0);
+            info.column_mut(k).fill(0.0);
+            info[(k, k)] = 1.0;
+        }
+    }
+    let mut covariance = info
+        .try_inverse()
+        .unwrap_or_else(|| ParamMat::from_diagonal_element(f64::INFINITY));
+    for k in 0..NPARAM {
+        if !mask[k] {
+            covariance[(k, k)] = 0.0;
+        }
+    }
+    if normalized_cost > 1.5 {
+        warnings.push(format!(
+            "DVL residuals are {:.1} times the stated DVL variance; the standard deviations are \
+             inflated by that factor (set --dvl-sigma to the real noise)",
+            normalized_cost
+        ));
+        covariance *= normalized_cost;
+    }
+
+    let mut sq = Vector3::zeros();
+    let (mut sv, mut sw, mut sl) = (0.0, 0.0, 0.0);
+    for &i in &idx {
+        let q = traj.query(obs[i].t + params.time_offset)?;
+        let r = obs[i].v - predict(&params, &q.twist);
+        sq += r.component_mul(&r);
+        let v = q.twist.fixed_rows::<3>(0).into_owned();
+        let w = q.twist.fixed_rows::<3>(3).into_owned();
+        sv += v.norm_squared();
+        sw += w.norm_squared();
+        sl += w.cross(&params.lever_arm).norm_squared();
+    }
+    let n = idx.len() as f64;
+    let excitation = Excitation {
+        rms_speed: (sv / n).sqrt(),
+        rms_angular_speed: (sw / n).sqrt(),
+        lever_arm_ratio: (sl / sv.max(1e-300)).sqrt(),
+    };
+    let std = param_std(&covariance);
+    let verdicts = verdicts(&std, &opts.weak, &excitation, init.as_ref(), &mask);
+    Ok(CalibrationOutcome {
+        params,
+        covariance,
+        std,
+        verdicts,
+        method: opts.method.clone(),
+        init,
+        iterations,
+        counts,
+        residual_rms: (sq / n).map(f64::sqrt),
+        normalized_cost,
+        excitation,
+        trajectory: traj.report().clone(),
+        warnings,
+    })
+}
+
+fn param_std(c: &ParamMat) -> ParamStd {
+    let s = |k: usize| c[(k, k)].max(0.0).sqrt();
+    ParamStd {
+        rotation_deg: Vector3::new(s(0), s(1), s(2)).map(f64::to_degrees),
+        lever_arm_m: Vector3::new(s(3), s(4), s(5)),
+        velocity_scale: s(6),
+        time_offset_s: s(7),
+    }
+}
+
+fn verdicts(
+    std: &ParamStd,
+    th: &WeakThresholds,
+    ex: &Excitation,
+    init: Option<&InitReport>,
+    free: &[bool; NPARAM],
+) -> Verdicts {
+    let judge = |free: bool, worst: f64, limit: f64, what: &str, unit: &str, why: &str| {
+        if !free {
+            Verdict {
+                ok: true,
+                reason: "held fixed at the given value".into(),
+            }
+        } else if worst.is_finite() && worst <= limit {
+            Verdict {
+                ok: true,
+                reason: String::new(),
+            }
+        } else {
+            Verdict {
+                ok: false,
+                reason: format!(
+                    "{what} standard deviation {worst:.3e} {unit} exceeds {limit} {unit}: {why}"
+                ),
+            }
+        }
+    };
+    let lever_why = format!(
+        "the camera rotated too little (RMS {:.3} rad/s, lever-arm velocity {:.1}% of the speed); \
+         record strong rotations about several axes",
+        ex.rms_angular_speed,
+        100.0 * ex.lever_arm_ratio
+    );
+    let mut lever = judge(
+        free[3],
+        std.lever_arm_m.max(),
+        th.lever_arm_m,
+        "lever arm",
+        "m",
+        &lever_why,
+    );
+    if let Some(i) = init
+        && !i.closed_form.lever_arm_solved
+        && lever.ok
+        && free[3]
+    {
+        lever = Verdict {
+            ok: false,
+            reason: "angular velocity too small to solve the lever arm in closed form".into(),
+        };
+    }
+    let offset_why = match init.map(|i| i.offset.method) {
+        Some(OffsetMethod::SpeedCorrelation) => {
+            "no calm segment and little change of speed; start the recording with a calm stretch \
+             of varying speed"
+        }
+        _ => "the speed changed too little; vary the speed during the recording",
+    };
+    Verdicts {
+        rotation: judge(
+            free[0],
+            std.rotation_deg.max(),
+            th.rotation_deg,
+            "rotation",
+            "deg",
+            "the camera moved along too few directions",
+        ),
+        lever_arm: lever,
+        time_offset: judge(
+            free[7],
+            std.time_offset_s,
+            th.time_offset_s,
+            "clock offset",
+            "s",
+            offset_why,
+        ),
+        velocity_scale: judge(
+            free[6],
+            std.velocity_scale,
+            th.velocity_scale,
+            "velocity scale",
+            "",
+            "the camera moved too little",
+        ),
+    }
+}

@@ -1,0 +1,149 @@
+//! Calibration update with the trajectory held fixed: Levenberg-Marquardt on rotation, lever arm,
+//! scale and clock offset (the offset's derivative comes from the GP's twist rate).
+
+use nalgebra::{SMatrix, SVector};
+
+use super::model::{NPARAM, Params, d_predict_d_params, predict};
+use super::offset::DvlObs;
+use crate::error::{Error, Result};
+use crate::trajectory::Trajectory;
+
+pub type ParamVec = SVector<f64, NPARAM>;
+pub type ParamMat = SMatrix<f64, NPARAM, NPARAM>;
+
+/// Which parameters the update may change (`true` = free).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FreeParams {
+    pub rotation: bool,
+    pub lever_arm: bool,
+    pub scale: bool,
+    pub time_offset: bool,
+}
+
+impl FreeParams {
+    pub const ALL: FreeParams = FreeParams {
+        rotation: true,
+        lever_arm: true,
+        scale: true,
+        time_offset: true,
+    };
+
+    fn mask(&self) -> [bool; NPARAM] {
+        let (r, p, s, t) = (self.rotation, self.lever_arm, self.scale, self.time_offset);
+        [r, r, r, p, p, p, s, t]
+    }
+}
+
+/// Sum of weighted squared DVL residuals at `p`, with the normal equations of the update.
+pub struct Linearized {
+    pub cost: f64,
+    pub hessian: ParamMat,
+    pub gradient: ParamVec,
+    pub used: usize,
+}
+
+/// Linearises the DVL term at `p` on the samples `idx`.
+pub fn linearize(
+    traj: &Trajectory,
+    obs: &[DvlObs],
+    idx: &[usize],
+    p: &Params,
+) -> Result<Linearized> {
+    let mut hessian = ParamMat::zeros();
+    let mut gradient = ParamVec::zeros();
+    let mut cost = 0.0;
+    for &i in idx {
+        let o = &obs[i];
+        let s = traj.query(o.t + p.time_offset)?;
+        let r = o.v - predict(p, &s.twist);
+        let j = d_predict_d_params(p, &s.twist, &s.rate);
+        let w = o.cov.try_inverse().ok_or_else(|| {
+            Error::Input(format!("DVL sample at t = {}: singular covariance", o.t))
+        })?;
+        let wj = w * j;
+        hessian += j.transpose() * wj;
+        gradient += wj.transpose() * r;
+        cost += (r.transpose() * w * r)[0];
+    }
+    Ok(Linearized {
+        cost,
+        hessian,
+        gradient,
+        used: idx.len(),
+    })
+}
+
+/// Outcome of a calibration update.
+#[derive(Clone, Debug)]
+pub struct UpdateResult {
+    pub params: Params,
+    pub cost: f64,
+    pub iterations: usize,
+}
+
+/// Levenberg-Marquardt on the free parameters, trajectory fixed.
+pub fn calibration_update(
+    traj: &Trajectory,
+    obs: &[DvlObs],
+    idx: &[usize],
+    start: &Params,
+    free: FreeParams,
+    max_iterations: usize,
+) -> Result<UpdateResult> {
+    let mask = free.mask();
+    let mut p = *start;
+    let mut lin = linearize(traj, obs, idx, &p)?;
+    let mut lambda = 1e-4;
+    let mut iterations = 0;
+    while iterations < max_iterations {
+        iterations += 1;
+        let mut h = lin.hessian;
+        let mut g = lin.gradient;
+        for k in 0..NPARAM {
+            if !mask[k] {
+                h.row_mut(k).fill(0.0);
+                h.column_mut(k).fill(0.0);
+                h[(k, k)] = 1.0;
+                g[k] = 0.0;
+            }
+        }
+        let mut improved = false;
+        for _ in 0..10 {
+            let mut hd = h;
+            for k in 0..NPARAM {
+                hd[(k, k)] += lambda * h[(k, k)].max(1e-12);
+            }
+            let Some(d) = hd.cholesky().map(|c| c.solve(&g)) else {
+                lambda *= 10.0;
+                continue;
+            };
+            let trial = p.updated(&d);
+            let tl = linearize(traj, obs, idx, &trial)?;
+            if tl.cost <= lin.cost {
+                let rel = (lin.cost - tl.cost) / lin.cost.max(1e-300);
+                let step = d.abs().max();
+                p = trial;
+                lin = tl;
+                lambda = (lambda * 0.3).max(1e-9);
+                improved = true;
+                if rel < 1e-10 || step < 1e-10 {
+                    return Ok(UpdateResult {
+                        params: p,
+                        cost: lin.cost,
+                        iterations,
+                    });
+                }
+                break;
+            }
+            lambda *= 10.0;
+        }
+        if !improved {
+            break;
+        }
+    }
+    Ok(UpdateResult {
+        params: p,
+        cost: lin.cost,
+        iterations,
+    })
+}
