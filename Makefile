@@ -17,12 +17,16 @@ deps:
 build: deps
 	$(CARGO) build --release
 
-# Fits the continuous-time trajectory to the camera poses shipped in sample_data and compares
-# the estimated twist with the simulation's truth.
+# Calibrates the simulated recording shipped in sample_data, then checks the trajectory fit
+# against the simulation's truth.
 demo: build
 	mkdir -p $(OUT)
-	./target/release/dvlcal fit-trajectory --poses sample_data/sim/poses.txt \
-		--out $(OUT)/twist.csv --truth sample_data/sim/truth_twist.csv
+	./target/release/dvlcal calibrate --poses sample_data/sim/poses.txt \
+		--dvl sample_data/sim/dvl.jsonl --out $(OUT)/calibration.yaml
+	@echo "truth: sample_data/sim/truth.yaml"
+	./target/release/dvlcal fit-trajectory --poses sample_data/sim/poses.txt --out $(OUT)/twist.csv
+	./target/release/dvlcal eval-twist --estimate $(OUT)/twist.csv \
+		--truth sample_data/sim/truth_twist.csv
 
 test: deps
 	$(CARGO) test --release
