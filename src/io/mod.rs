@@ -6,6 +6,7 @@
 
 pub mod a50_json;
 pub mod calib_yaml;
+pub mod dvl;
 pub mod times;
 pub mod tum;
 pub mod twist_csv;

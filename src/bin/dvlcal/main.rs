@@ -1,8 +1,10 @@
 //! The `dvlcal` command line: a thin layer over the library, one module per subcommand.
 
 mod calibrate;
+mod dvl_info;
 mod eval;
 mod fit;
+mod record_dvl;
 mod simulate;
 
 use clap::{Parser, Subcommand};
@@ -29,6 +31,10 @@ enum Command {
     Calibrate(calibrate::CalibrateArgs),
     /// Compare a twist CSV with a truth twist CSV (RMS errors and normalised errors).
     EvalTwist(eval::EvalTwistArgs),
+    /// Summarise a DVL log (any format): counts, time span, rate, velocity statistics, problems.
+    DvlInfo(dvl_info::DvlInfoArgs),
+    /// Record a DVL's TCP JSON stream to a log, adding the host receive time to each line.
+    RecordDvl(record_dvl::RecordDvlArgs),
 }
 
 fn main() {
@@ -37,6 +43,8 @@ fn main() {
         Command::Simulate(a) => simulate::run(a),
         Command::FitTrajectory(a) => fit::run(a),
         Command::EvalTwist(a) => eval::run(a),
+        Command::DvlInfo(a) => dvl_info::run(a),
+        Command::RecordDvl(a) => record_dvl::run(a),
         Command::Calibrate(a) => calibrate::run(a),
     };
     if let Err(e) = result {

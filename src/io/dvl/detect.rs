@@ -1,0 +1,46 @@
+//! Recognises the format of a DVL log from its first bytes and lines.
+
+use super::DvlFormat;
+
+/// The first bytes of a ROS1 bag.
+pub const ROSBAG_MAGIC: &[u8] = b"#ROSBAG V2.0\n";
+/// The first bytes of an MCAP file (ROS2).
+pub const MCAP_MAGIC: &[u8] = b"\x89MCAP0\r\n";
+
+/// How many non-blank lines of a text log are looked at.
+const SAMPLE_LINES: usize = 200;
+
+/// The format of a DVL log, or `None` when nothing in it looks like one.
+///
+/// A ROS1 bag is known by its magic; a text log by a vote over its first non-blank lines:
+/// lines starting with `{` count for JSON, lines holding a `wr<letter>` sentence for serial.
+pub fn detect_format(bytes: &[u8]) -> Option<DvlFormat> {
+    if bytes.starts_with(ROSBAG_MAGIC) {
+        return Some(DvlFormat::RosBag);
+    }
+    if bytes.starts_with(MCAP_MAGIC) {
+        return None;
+    }
+    let (mut json, mut serial) = (0usize, 0usize);
+    for (_, line) in super::text_lines(bytes).take(SAMPLE_LINES) {
+        let t = line.trim_ascii();
+        if t.first() == Some(&b'{') {
+            json += 1;
+        } else if t
+            .windows(3)
+            .any(|w| w[0] == b'w' && w[1] == b'r' && w[2].is_ascii_alphabetic())
+        {
+            serial += 1;
+        }
+    }
+    match (json, serial) {
+        (0, 0) => None,
+        (j, s) if j >= s => Some(DvlFormat::JsonLines),
+        _ => Some(DvlFormat::Serial),
+    }
+}
+
+/// Whether `bytes` start like an MCAP (ROS2) file, which is not read yet.
+pub fn is_mcap(bytes: &[u8]) -> bool {
+    bytes.starts_with(MCAP_MAGIC)
+}
