@@ -6,12 +6,11 @@ use std::collections::HashMap;
 use std::fmt::Write as _;
 use std::path::Path;
 
-use nalgebra::{Matrix3, Vector3};
 use serde::{Deserialize, Serialize};
 
-use super::read_text;
-use crate::error::{Error, Result};
-use crate::time::{Epoch, RawTime};
+use super::dvl::{DvlReadOptions, read_dvl_log};
+use crate::error::Result;
+use crate::time::Epoch;
 use crate::types::DvlSample;
 
 /// One beam of a velocity report.
@@ -424,85 +423,25 @@ pub struct A50Log {
     pub other_reports: usize,
 }
 
-/// The fields of a velocity report that a [`DvlSample`] needs.
-#[derive(Deserialize)]
-struct VelocityFields {
-    vx: f64,
-    vy: f64,
-    vz: f64,
-    #[serde(default)]
-    covariance: Option<[[f64; 3]; 3]>,
-    velocity_valid: bool,
-    time_of_validity: i64,
-}
-
-/// Reads the bottom-tracking velocity reports (`"type": "velocity"`, json_v3 and later) of an
-/// A50 JSON-lines log. Times are `time_of_validity` relative to `epoch`, or, when it is `None`,
-/// to the whole second of the first report's `time_of_validity`. Reports of other types are
-/// counted and skipped. A line that is not JSON, has no `type`, or is a velocity report without
-/// a required field is an error naming its line.
+/// Reads the bottom-tracking velocity reports of an A50 log, valid and invalid, strictly: the
+/// first malformed line is an error naming it. Times are `time_of_validity` relative to
+/// `epoch`, or, when it is `None`, to the whole second of the earliest report. Reports of other
+/// types are counted and skipped; exact repeats are kept once; samples are in time order.
+///
+/// A thin wrapper over [`crate::io::dvl::read_dvl_log`], which reads every A50 format (JSON
+/// lines, serial, ROS1 bags) and has a lenient mode: use that for new code.
 pub fn read_a50_velocities(path: &Path, epoch: Option<Epoch>) -> Result<A50Log> {
-    let text = read_text(path)?;
-    let mut epoch = epoch;
-    let mut samples = Vec::new();
-    let mut lines = Vec::new();
-    let mut other_reports = 0;
-    for (i, raw) in text.lines().enumerate() {
-        let line = i + 1;
-        let content = raw.trim();
-        if content.is_empty() {
-            continue;
-        }
-        let value: serde_json::Value = serde_json::from_str(content)
-            .map_err(|e| Error::parse(path, line, format!("not valid JSON: {e}")))?;
-        let report_type = match value.get("type") {
-            Some(serde_json::Value::String(s)) => s.as_str(),
-            Some(_) => {
-                return Err(Error::parse(path, line, "field 'type' is not a string"));
-            }
-            None => {
-                return Err(Error::parse(
-                    path,
-                    line,
-                    "no 'type' field (only json_v3 and later reports are read)",
-                ));
-            }
-        };
-        if report_type != "velocity" {
-            other_reports += 1;
-            continue;
-        }
-        let f: VelocityFields = serde_json::from_value(value)
-            .map_err(|e| Error::parse(path, line, format!("velocity report: {e}")))?;
-        let lits = number_literals(content);
-        let cov = f.covariance.map(|c| {
-            Matrix3::from_fn(|i, j| exact(&lits, &format!("covariance.{i}.{j}"), c[i][j]))
-        });
-        let t_raw = RawTime::from_micros(f.time_of_validity);
-        let ep = *epoch.get_or_insert_with(|| Epoch::at(t_raw));
-        samples.push(DvlSample {
-            t: ep.rel(t_raw),
-            v: Vector3::new(
-                exact(&lits, "vx", f.vx),
-                exact(&lits, "vy", f.vy),
-                exact(&lits, "vz", f.vz),
-            ),
-            cov,
-            valid: f.velocity_valid,
-        });
-        lines.push(line);
-    }
-    match epoch {
-        Some(epoch) if !samples.is_empty() => Ok(A50Log {
-            epoch,
-            samples,
-            lines,
-            other_reports,
-        }),
-        _ => Err(Error::parse(
-            path,
-            super::last_line(&text),
-            "no velocity reports in file",
-        )),
-    }
+    let opts = DvlReadOptions {
+        strict: true,
+        epoch,
+        include_invalid: true,
+        ..DvlReadOptions::default()
+    };
+    let log = read_dvl_log(path, &opts)?;
+    Ok(A50Log {
+        epoch: log.epoch,
+        samples: log.samples,
+        lines: log.lines,
+        other_reports: log.stats.other_reports + log.stats.water_velocity_reports,
+    })
 }

@@ -36,6 +36,7 @@ impl DvlInputArgs {
             sigma_override: self.dvl_sigma,
             topic: self.dvl_topic.clone(),
             epoch: None,
+            include_invalid: false,
         }
     }
 }

@@ -139,6 +139,9 @@ pub struct DvlReadOptions {
     pub topic: Option<String>,
     /// Epoch of the sample times; `None`: the whole second of the earliest sample.
     pub epoch: Option<Epoch>,
+    /// Also hand on the reports the DVL marked invalid (with `valid: false`), for callers that
+    /// count them themselves. They are never velocities to fit.
+    pub include_invalid: bool,
 }
 
 /// How many rejected lines are kept with their reason in [`DvlLogStats::rejected`].
@@ -374,6 +377,8 @@ struct Accumulator {
     reports: Vec<(usize, VelocityReport)>,
     /// Hash of a report's identity -> indices into `reports` with that hash.
     seen: HashMap<u64, Vec<usize>>,
+    /// The last line (or message) number seen.
+    last_line: usize,
 }
 
 impl Accumulator {
@@ -386,6 +391,7 @@ impl Accumulator {
         parsed: std::result::Result<Parsed, Reject>,
     ) -> Result<()> {
         stats.lines += 1;
+        self.last_line = line;
         match parsed {
             Err(r) => stats.reject(path, strict, line, r)?,
             Ok(Parsed::Velocity(r)) => {
@@ -419,13 +425,16 @@ impl Accumulator {
 
     fn finish(self, path: &Path, opts: &DvlReadOptions, mut stats: DvlLogStats) -> Result<DvlLog> {
         if self.reports.is_empty() {
-            return Err(Error::Input(format!(
-                "{}: no velocity reports ({} lines, {} rejected, {} of other types)",
-                path.display(),
-                stats.lines,
-                stats.rejected_lines,
-                stats.other_reports + stats.water_velocity_reports
-            )));
+            return Err(Error::parse(
+                path,
+                self.last_line.max(1),
+                format!(
+                    "no velocity reports in the log ({} lines, {} rejected, {} of other types)",
+                    stats.lines,
+                    stats.rejected_lines,
+                    stats.other_reports + stats.water_velocity_reports
+                ),
+            ));
         }
         let times = choose_times(path, opts.time_source, &self.reports, &mut stats)?;
         // Epoch: given, or the whole second of the earliest time.
@@ -445,7 +454,7 @@ impl Accumulator {
         let mut samples: Vec<(usize, DvlSample)> = Vec::with_capacity(self.reports.len());
         for ((line, r), t) in self.reports.iter().zip(&times) {
             let Some(t) = t else { continue };
-            if !r.valid {
+            if !r.valid && !opts.include_invalid {
                 continue;
             }
             let cov = match opts.sigma_override {
@@ -458,7 +467,7 @@ impl Accumulator {
                     t: epoch.rel(*t),
                     v: Vector3::new(r.v[0], r.v[1], r.v[2]),
                     cov,
-                    valid: true,
+                    valid: r.valid,
                 },
             ));
         }
