@@ -5,15 +5,160 @@
 //! order (a block Cholesky, O(N) time and memory); the factor then solves for a step, gives the
 //! log-determinant, and yields the blocks of the inverse (the posterior covariance) that lie on
 //! and next to the diagonal.
+//!
+//! The elimination works in place on the system's storage with small dense kernels on the
+//! column-major arrays of the blocks (18 is too small for blocked algorithms and too large for
+//! full unrolling; the kernels keep every inner loop a contiguous `y += a x` that vectorises).
 
 use nalgebra::{SMatrix, SVector};
 
 use crate::error::{Error, Result};
 
+/// Block size.
+const N: usize = 18;
+
 /// 18x18 block.
 pub type M18 = SMatrix<f64, 18, 18>;
 /// 18-vector.
 pub type V18 = SVector<f64, 18>;
+
+/// Column-major storage of a block: `cols(m)[c][r] == m[(r, c)]`.
+type Cols = [[f64; N]; N];
+
+#[inline]
+fn cols(m: &M18) -> &Cols {
+    &m.data.0
+}
+
+#[inline]
+fn cols_mut(m: &mut M18) -> &mut Cols {
+    &mut m.data.0
+}
+
+/// In-place Cholesky factorisation `S = L L^T` of a symmetric matrix (only its lower triangle is
+/// read). On success the lower triangle holds `L`, the strict upper triangle is zeroed, and the
+/// result is `log det S`; `None` when `S` is not (numerically) positive definite.
+pub fn cholesky_in_place(s: &mut M18) -> Option<f64> {
+    let a = cols_mut(s);
+    let mut log_det = 0.0;
+    for j in 0..N {
+        let d = a[j][j];
+        // Also rejects NaN.
+        if !(d > 0.0 && d.is_finite()) {
+            return None;
+        }
+        let d = d.sqrt();
+        log_det += 2.0 * d.ln();
+        a[j][j] = d;
+        a[j][j + 1..].iter_mut().for_each(|v| *v /= d);
+        a[j][..j].fill(0.0);
+        // Right-looking update of the trailing lower triangle.
+        let lj = a[j];
+        for (k, col) in a.iter_mut().enumerate().skip(j + 1) {
+            let l_kj = lj[k];
+            for r in k..N {
+                col[r] -= lj[r] * l_kj;
+            }
+        }
+    }
+    Some(log_det)
+}
+
+/// `x <- L^-1 x` for the lower-triangular `L` of [`cholesky_in_place`].
+#[inline]
+fn forward_substitute(l: &Cols, x: &mut [f64; N]) {
+    for j in 0..N {
+        x[j] /= l[j][j];
+        let xj = x[j];
+        for r in j + 1..N {
+            x[r] -= l[j][r] * xj;
+        }
+    }
+}
+
+/// `x <- L^-T x`, with `lt` the columns of `L^T` (the rows of `L`).
+#[inline]
+fn backward_substitute(lt: &Cols, x: &mut [f64; N]) {
+    for j in (0..N).rev() {
+        x[j] /= lt[j][j];
+        let xj = x[j];
+        for r in 0..j {
+            x[r] -= lt[j][r] * xj;
+        }
+    }
+}
+
+/// Transpose of a block.
+#[inline]
+fn transpose(m: &Cols) -> Cols {
+    let mut t = [[0.0; N]; N];
+    for (c, col) in m.iter().enumerate() {
+        for (r, v) in col.iter().enumerate() {
+            t[r][c] = *v;
+        }
+    }
+    t
+}
+
+/// `out = a b`.
+pub fn mul(a: &M18, b: &M18) -> M18 {
+    let (a, b) = (cols(a), cols(b));
+    let mut out = M18::zeros();
+    for (o, bc) in cols_mut(&mut out).iter_mut().zip(b) {
+        for (ak, bkj) in a.iter().zip(bc) {
+            for r in 0..N {
+                o[r] += ak[r] * bkj;
+            }
+        }
+    }
+    out
+}
+
+/// `out += sign a b^T` on the lower triangle of `out`, then mirrored to the upper triangle (for
+/// products known to be symmetric).
+fn add_symmetric_abt(out: &mut M18, a: &Cols, b: &Cols, sign: f64) {
+    let o = cols_mut(out);
+    let mut acc = [[0.0; N]; N];
+    for (m, am) in a.iter().enumerate() {
+        for (j, accj) in acc.iter_mut().enumerate() {
+            let bjm = b[m][j];
+            for r in j..N {
+                accj[r] += am[r] * bjm;
+            }
+        }
+    }
+    for j in 0..N {
+        for (v, s) in o[j][j..].iter_mut().zip(&acc[j][j..]) {
+            *v += sign * s;
+        }
+        let (left, right) = o.split_at_mut(j);
+        for (r, col) in left.iter().enumerate() {
+            right[0][r] = col[j];
+        }
+    }
+}
+
+/// `S^-1` from the Cholesky factor `L` of `S` (lower triangle of `l`).
+pub fn inverse_from_cholesky(l: &M18) -> M18 {
+    // V = L^-T (upper triangular); S^-1 = V V^T, the sum of outer products of V's columns.
+    let lt = transpose(cols(l));
+    let mut v = [[0.0; N]; N];
+    for (c, vc) in v.iter_mut().enumerate() {
+        vc[c] = 1.0;
+        backward_substitute(&lt, vc);
+    }
+    let mut out = M18::zeros();
+    let o = cols_mut(&mut out);
+    for (k, vk) in v.iter().enumerate() {
+        for j in 0..=k {
+            let s = vk[j];
+            for r in 0..=k {
+                o[j][r] += vk[r] * s;
+            }
+        }
+    }
+    out
+}
 
 /// `A` with diagonal blocks `diag[k]` and upper blocks `upper[k] = A[k, k+1]`; the lower blocks
 /// are their transposes. `rhs` is the right-hand side of `A x = rhs`.
@@ -24,11 +169,14 @@ pub struct BlockTridiagonal {
     pub rhs: Vec<V18>,
 }
 
-/// The eliminated system: Schur complements `S_k` (as Cholesky factors) and `G_k = S_k^-1 B_k`.
+/// The eliminated system, in the storage of the [`BlockTridiagonal`] it came from: the Cholesky
+/// factors `L_k` of the Schur complements `S_k`, the gains `G_k = S_k^-1 B_k` and the forward
+/// solution `w_k = L_k^-1 z_k` of the eliminated right-hand side.
 pub struct Factored {
-    chol: Vec<nalgebra::Cholesky<f64, nalgebra::Const<18>>>,
+    chol: Vec<M18>,
     gain: Vec<M18>,
-    z: Vec<V18>,
+    w: Vec<V18>,
+    log_det: f64,
 }
 
 /// Diagonal and first off-diagonal blocks of `A^-1`.
@@ -59,72 +207,100 @@ impl BlockTridiagonal {
     }
 
     /// Block elimination; fails when a Schur complement is not positive definite.
+    ///
+    /// With `S_0 = D_0`, `z_0 = r_0` and `S_k = L_k L_k^T`: `Y_k = L_k^-1 B_k`,
+    /// `S_{k+1} = D_{k+1} - Y_k^T Y_k`, `G_k = L_k^-T Y_k`, `w_k = L_k^-1 z_k`,
+    /// `z_{k+1} = r_{k+1} - Y_k^T w_k`.
     pub fn factor(self) -> Result<Factored> {
-        let n = self.diag.len();
-        let mut chol = Vec::with_capacity(n);
-        let mut gain = Vec::with_capacity(n.saturating_sub(1));
-        let mut z = Vec::with_capacity(n);
-        let mut s = match self.diag.first() {
-            Some(d) => *d,
-            None => return Err(Error::Numerical("empty system".into())),
-        };
-        let mut zk = self.rhs[0];
+        let BlockTridiagonal {
+            diag: mut chol,
+            upper: mut gain,
+            rhs: mut w,
+        } = self;
+        let n = chol.len();
+        if n == 0 {
+            return Err(Error::Numerical("empty system".into()));
+        }
+        let mut log_det = 0.0;
         for k in 0..n {
-            let c = s.cholesky().ok_or_else(|| {
+            log_det += cholesky_in_place(&mut chol[k]).ok_or_else(|| {
                 Error::Numerical(format!(
                     "information matrix not positive definite at knot {k} (too few or degenerate measurements)"
                 ))
             })?;
+            let l = cols(&chol[k]);
+            let mut wk: [f64; N] = w[k].into();
+            forward_substitute(l, &mut wk);
+            w[k] = wk.into();
             if k + 1 < n {
-                let g = c.solve(&self.upper[k]);
-                s = self.diag[k + 1] - self.upper[k].transpose() * g;
-                // Keep the complement exactly symmetric.
-                s = (s + s.transpose()) * 0.5;
-                let zn = self.rhs[k + 1] - g.transpose() * zk;
-                gain.push(g);
-                z.push(zk);
-                zk = zn;
-            } else {
-                z.push(zk);
+                let lt = transpose(l);
+                // Y = L^-1 B, column by column (in place in `gain[k]`).
+                let y = cols_mut(&mut gain[k]);
+                y.iter_mut().for_each(|c| forward_substitute(l, c));
+                let yt = transpose(y);
+                add_symmetric_abt(&mut chol[k + 1], &yt, &yt, -1.0);
+                // z_{k+1} = r_{k+1} - Y^T w_k.
+                let z = &mut w[k + 1];
+                for (c, yc) in y.iter().enumerate() {
+                    z[c] -= yc.iter().zip(&wk).map(|(a, b)| a * b).sum::<f64>();
+                }
+                // G = L^-T Y.
+                y.iter_mut().for_each(|c| backward_substitute(&lt, c));
             }
-            chol.push(c);
         }
-        Ok(Factored { chol, gain, z })
+        Ok(Factored {
+            chol,
+            gain,
+            w,
+            log_det,
+        })
     }
 }
 
 impl Factored {
-    /// The solution `x` of `A x = rhs`.
+    /// The solution `x` of `A x = rhs`: `x_k = L_k^-T w_k - G_k x_{k+1}`.
     pub fn solve(&self) -> Vec<V18> {
         let n = self.chol.len();
         let mut x = vec![V18::zeros(); n];
-        x[n - 1] = self.chol[n - 1].solve(&self.z[n - 1]);
-        for k in (0..n - 1).rev() {
-            x[k] = self.chol[k].solve(&self.z[k]) - self.gain[k] * x[k + 1];
+        for k in (0..n).rev() {
+            let mut xk: [f64; N] = self.w[k].into();
+            backward_substitute(&transpose(cols(&self.chol[k])), &mut xk);
+            if k + 1 < n {
+                let g = cols(&self.gain[k]);
+                for (gc, xc) in g.iter().zip(x[k + 1].iter()) {
+                    for r in 0..N {
+                        xk[r] -= gc[r] * xc;
+                    }
+                }
+            }
+            x[k] = xk.into();
         }
         x
     }
 
     /// `log det A`.
     pub fn log_det(&self) -> f64 {
-        self.chol
-            .iter()
-            .map(|c| 2.0 * c.l_dirty().diagonal().iter().map(|d| d.ln()).sum::<f64>())
-            .sum()
+        self.log_det
     }
 
     /// Blocks of `A^-1` on and next to the diagonal, by the backward recursion
-    /// `Sigma_k = S_k^-1 + G_k Sigma_{k+1} G_k^T`, `Sigma_{k,k+1} = -G_k Sigma_{k+1}`.
-    pub fn banded_inverse(&self) -> BandedInverse {
-        let n = self.chol.len();
-        let mut diag = vec![M18::zeros(); n];
-        let mut upper = vec![M18::zeros(); n.saturating_sub(1)];
-        diag[n - 1] = self.chol[n - 1].inverse();
-        for k in (0..n - 1).rev() {
-            let off = -(self.gain[k] * diag[k + 1]);
-            let d = self.chol[k].inverse() - off * self.gain[k].transpose();
-            diag[k] = (d + d.transpose()) * 0.5;
-            upper[k] = off;
+    /// `Sigma_k = S_k^-1 + G_k Sigma_{k+1} G_k^T`, `Sigma_{k,k+1} = -G_k Sigma_{k+1}`. Reuses the
+    /// factor's storage.
+    pub fn banded_inverse(self) -> BandedInverse {
+        let Factored {
+            chol: mut diag,
+            gain: mut upper,
+            ..
+        } = self;
+        let n = diag.len();
+        for k in (0..n).rev() {
+            let mut d = inverse_from_cholesky(&diag[k]);
+            if k + 1 < n {
+                let off = -mul(&upper[k], &diag[k + 1]);
+                add_symmetric_abt(&mut d, cols(&off), cols(&upper[k]), -1.0);
+                upper[k] = off;
+            }
+            diag[k] = d;
         }
         BandedInverse { diag, upper }
     }
@@ -213,6 +389,42 @@ mod tests {
                 }
             }
         }
+    }
+
+    fn random_spd(seed: &mut u64) -> M18 {
+        let mut j = M18::zeros();
+        j.iter_mut().for_each(|v| *v = pseudo_random(seed));
+        // Widely spread scales, as in the trajectory's normal equations.
+        let scale = M18::from_diagonal(&V18::from_fn(|i, _| 10f64.powi(i as i32 % 6 - 2)));
+        scale * (j.transpose() * j + M18::identity() * 0.1) * scale
+    }
+
+    #[test]
+    fn cholesky_and_inverse_match_nalgebra() {
+        let mut seed = 11;
+        for _ in 0..20 {
+            let s = random_spd(&mut seed);
+            let reference = s.cholesky().unwrap();
+            let mut l = s;
+            let log_det = cholesky_in_place(&mut l).unwrap();
+            let lr = reference.l();
+            assert!((l - lr).abs().max() <= 1e-13 * lr.abs().max(), "{}", l - lr);
+            let ld: f64 = lr.diagonal().iter().map(|d| 2.0 * d.ln()).sum();
+            assert!((log_det - ld).abs() < 1e-12 * ld.abs().max(1.0));
+            let inv = inverse_from_cholesky(&l);
+            let ir = reference.inverse();
+            assert!((inv - ir).abs().max() <= 1e-10 * ir.abs().max());
+            assert_eq!(inv, inv.transpose());
+            let a = random_spd(&mut seed);
+            let p = mul(&s, &a);
+            assert!((p - s * a).abs().max() <= 1e-13 * (s * a).abs().max());
+        }
+        let mut indefinite = M18::identity();
+        indefinite[(7, 7)] = -1.0;
+        assert!(cholesky_in_place(&mut indefinite).is_none());
+        let mut nan = M18::identity();
+        nan[(3, 3)] = f64::NAN;
+        assert!(cholesky_in_place(&mut nan).is_none());
     }
 
     #[test]
