@@ -1,6 +1,8 @@
 //! `dvlcal dvl-info`: what is in a DVL log (formats, counts, time span, rate, velocity
 //! statistics, problems with file:line).
 
+use std::fmt::Write as _;
+use std::io::Write as _;
 use std::path::PathBuf;
 
 use clap::Args;
@@ -116,36 +118,40 @@ fn summary_json(log: &DvlLog) -> serde_json::Value {
     })
 }
 
-fn print_summary(log: &DvlLog, v: &serde_json::Value) {
+fn summary_text(log: &DvlLog, v: &serde_json::Value) -> String {
+    let mut o = String::new();
     let s = &log.stats;
     let file = s.path.display();
-    println!("{file}");
-    println!(
+    let _ = writeln!(o, "{file}");
+    let _ = writeln!(
+        o,
         "  format            {}",
         s.format.map(|f| f.name()).unwrap_or("?")
     );
     for (label, n) in &s.formats_seen {
-        println!("    {label}: {n} reports");
+        let _ = writeln!(o, "    {label}: {n} reports");
     }
     if let Some(t) = &s.topic {
-        println!("  topic             {t}");
+        let _ = writeln!(o, "  topic             {t}");
     }
-    println!("  time source       {}", s.time_source_used);
-    println!("  lines             {}", s.lines);
-    println!(
+    let _ = writeln!(o, "  time source       {}", s.time_source_used);
+    let _ = writeln!(o, "  lines             {}", s.lines);
+    let _ = writeln!(
+        o,
         "  velocity reports  {} (valid {}, invalid {}, duplicates {})",
         s.velocity_reports, s.valid, s.invalid, s.duplicates
     );
-    println!("  samples used      {}", log.samples.len());
+    let _ = writeln!(o, "  samples used      {}", log.samples.len());
     if s.water_velocity_reports > 0 {
-        println!("  water-track       {}", s.water_velocity_reports);
+        let _ = writeln!(o, "  water-track       {}", s.water_velocity_reports);
     }
-    println!("  other reports     {}", s.other_reports);
+    let _ = writeln!(o, "  other reports     {}", s.other_reports);
     for (k, n) in &s.other_by_type {
-        println!("    {k}: {n}");
+        let _ = writeln!(o, "    {k}: {n}");
     }
     if let (Some(a), Some(b)) = (s.first_time_s, s.last_time_s) {
-        println!(
+        let _ = writeln!(
+            o,
             "  time span         {} .. {} ({:.3} s)",
             log.epoch.format_abs(a, 6),
             log.epoch.format_abs(b, 6),
@@ -153,12 +159,13 @@ fn print_summary(log: &DvlLog, v: &serde_json::Value) {
         );
     }
     if let Some(r) = s.rate_hz(log.samples.len()) {
-        println!("  mean rate         {r:.3} Hz");
+        let _ = writeln!(o, "  mean rate         {r:.3} Hz");
     }
     for k in ["vx", "vy", "vz", "speed"] {
         let m = &v["velocity"][k];
         if m.is_object() {
-            println!(
+            let _ = writeln!(
+                o,
                 "  {k:<6} m/s        mean {:+.4}  std {:.4}  min {:+.4}  max {:+.4}",
                 m["mean"].as_f64().unwrap_or(f64::NAN),
                 m["std"].as_f64().unwrap_or(f64::NAN),
@@ -167,38 +174,47 @@ fn print_summary(log: &DvlLog, v: &serde_json::Value) {
             );
         }
     }
-    println!("  rejected lines    {}", s.rejected_lines);
+    let _ = writeln!(o, "  rejected lines    {}", s.rejected_lines);
     for (reason, n) in &s.rejected_by_reason {
-        println!("    {reason}: {n}");
+        let _ = writeln!(o, "    {reason}: {n}");
     }
     for r in &s.rejected {
-        println!("    {file}:{}: {}: {}", r.line, r.reason, r.detail);
+        let _ = writeln!(o, "    {file}:{}: {}: {}", r.line, r.reason, r.detail);
     }
     if s.rejected_lines > s.rejected.len() {
-        println!("    ... {} more", s.rejected_lines - s.rejected.len());
+        let _ = writeln!(o, "    ... {} more", s.rejected_lines - s.rejected.len());
     }
     if s.time_backwards + s.time_repeats > 0 {
-        println!(
+        let _ = writeln!(
+            o,
             "  time problems     {} backwards, {} repeated",
             s.time_backwards, s.time_repeats
         );
         for p in &s.time_problems {
-            println!("    {file}:{}: step {:+.6} s", p.line, p.step_s);
+            let _ = writeln!(o, "    {file}:{}: step {:+.6} s", p.line, p.step_s);
         }
     }
     for w in &s.warnings {
-        println!("  warning: {w}");
+        let _ = writeln!(o, "  warning: {w}");
     }
+    o
 }
 
 pub fn run(args: DvlInfoArgs) -> anyhow::Result<()> {
     let opts = args.input.read_options(args.strict);
     let log = read_dvl_log(&args.log, &opts)?;
     let v = summary_json(&log);
-    if args.json {
-        println!("{}", serde_json::to_string_pretty(&v)?);
+    let mut text = if args.json {
+        serde_json::to_string_pretty(&v)?
     } else {
-        print_summary(&log, &v);
+        summary_text(&log, &v)
+    };
+    if !text.ends_with('\n') {
+        text.push('\n');
     }
-    Ok(())
+    // A closed pipe (`dvlcal dvl-info LOG | head`) is not an error.
+    match std::io::stdout().lock().write_all(text.as_bytes()) {
+        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => Err(e.into()),
+        _ => Ok(()),
+    }
 }

@@ -371,6 +371,16 @@ pub fn text_lines(bytes: &[u8]) -> impl Iterator<Item = (usize, &[u8])> {
         })
 }
 
+/// Counts one more `key` without allocating when it is already there.
+fn bump(map: &mut BTreeMap<String, usize>, key: &str) {
+    match map.get_mut(key) {
+        Some(n) => *n += 1,
+        None => {
+            map.insert(key.to_string(), 1);
+        }
+    }
+}
+
 /// Velocity reports kept (first occurrences) with their line numbers.
 #[derive(Default)]
 struct Accumulator {
@@ -396,7 +406,7 @@ impl Accumulator {
             Err(r) => stats.reject(path, strict, line, r)?,
             Ok(Parsed::Velocity(r)) => {
                 stats.velocity_reports += 1;
-                *stats.formats_seen.entry(r.label.clone()).or_default() += 1;
+                bump(&mut stats.formats_seen, &r.label);
                 if r.valid {
                     stats.valid += 1;
                 } else {
@@ -412,12 +422,12 @@ impl Accumulator {
             }
             Ok(Parsed::WaterVelocity { label }) => {
                 stats.water_velocity_reports += 1;
-                *stats.formats_seen.entry(label).or_default() += 1;
+                bump(&mut stats.formats_seen, &label);
             }
             Ok(Parsed::Other { label, kind }) => {
                 stats.other_reports += 1;
-                *stats.formats_seen.entry(label).or_default() += 1;
-                *stats.other_by_type.entry(kind).or_default() += 1;
+                bump(&mut stats.formats_seen, &label);
+                bump(&mut stats.other_by_type, &kind);
             }
         }
         Ok(())
