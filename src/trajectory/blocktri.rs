@@ -278,6 +278,36 @@ impl Factored {
         x
     }
 
+    /// The solution `x` of `A x = rhs` for another right-hand side (one block per knot).
+    ///
+    /// Forward: `z_0 = r_0`, `z_{k+1} = r_{k+1} - G_k^T z_k` (since `Y_k^T L_k^-1 = G_k^T`),
+    /// `w_k = L_k^-1 z_k`; backward as in [`Factored::solve`].
+    pub fn solve_rhs(&self, rhs: &[V18]) -> Vec<V18> {
+        let n = self.chol.len();
+        let mut w = Vec::with_capacity(n);
+        let mut z = rhs.first().copied().unwrap_or_else(V18::zeros);
+        for k in 0..n {
+            let mut wk: [f64; N] = z.into();
+            forward_substitute(cols(&self.chol[k]), &mut wk);
+            w.push(V18::from(wk));
+            if k + 1 < n {
+                z = rhs.get(k + 1).copied().unwrap_or_else(V18::zeros)
+                    - self.gain[k].transpose() * z;
+            }
+        }
+        let mut x = vec![V18::zeros(); n];
+        for k in (0..n).rev() {
+            let mut xk: [f64; N] = w[k].into();
+            backward_substitute(&transpose(cols(&self.chol[k])), &mut xk);
+            let mut xv = V18::from(xk);
+            if k + 1 < n {
+                xv -= self.gain[k] * x[k + 1];
+            }
+            x[k] = xv;
+        }
+        x
+    }
+
     /// `log det A`.
     pub fn log_det(&self) -> f64 {
         self.log_det
@@ -364,6 +394,10 @@ mod tests {
             let b = DMatrix::from_fn(18 * n, 1, |i, _| sys.rhs[i / 18][i % 18]);
             let f = sys.clone().factor().unwrap();
             let x = f.solve();
+            let x2 = f.solve_rhs(&sys.rhs);
+            for (a, b) in x.iter().zip(&x2) {
+                assert!((a - b).abs().max() < 1e-9 * (1.0 + a.abs().max()));
+            }
             let xd = a.clone().lu().solve(&b).unwrap();
             for i in 0..18 * n {
                 assert!((x[i / 18][i % 18] - xd[i]).abs() < 1e-9 * (1.0 + xd[i].abs()));
