@@ -43,8 +43,7 @@ pub fn cholesky_in_place(s: &mut M18) -> Option<f64> {
     let mut log_det = 0.0;
     for j in 0..N {
         let d = a[j][j];
-        // Also rejects NaN.
-        if !(d > 0.0 && d.is_finite()) {
+        if d.is_nan() || d <= 0.0 || d.is_infinite() {
             return None;
         }
         let d = d.sqrt();
@@ -306,6 +305,15 @@ impl Factored {
             x[k] = xv;
         }
         x
+    }
+
+    /// The storage of the factor, as a system to assemble into (its contents are meaningless).
+    pub fn into_system(self) -> BlockTridiagonal {
+        BlockTridiagonal {
+            diag: self.chol,
+            upper: self.gain,
+            rhs: self.w,
+        }
     }
 
     /// `log det A`.

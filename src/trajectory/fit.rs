@@ -9,8 +9,9 @@ use nalgebra::{Matrix3, Matrix6, SMatrix, Vector6};
 
 use super::blocktri::{BandedInverse, BlockTridiagonal, Factored, M18, V18};
 use super::gp::{
-    Knot, apply_scalar, d_jr_times, first_local_state, interpolation_weights, knot_from_local,
-    kron_diag, kron_diag_mul, kron_identity, local_state, prior_factor, q_scalar_inv,
+    Knot, PriorNormal, apply_scalar, d_jr_times, first_local_state, interpolation_weights,
+    knot_from_local, kron_diag, kron_identity, local_state, prior_factor, prior_normal,
+    q_scalar_inv,
 };
 use super::hyper;
 use super::lie::{Se3, se3_right_jacobian, se3_right_jacobian_inv};
@@ -179,37 +180,108 @@ pub(crate) struct Problem<'a> {
     pub qc_inv: Vector6<f64>,
 }
 
+/// Knots per unit of work of the parallel assembly. The cost is summed per chunk and then over
+/// chunks in order, so the result does not depend on the number of threads.
+const ASSEMBLY_CHUNK: usize = 256;
+
+/// The blocks of the normal equations of the knots `first..first + diag.len()`.
+struct AssemblyChunk<'s> {
+    first: usize,
+    diag: &'s mut [M18],
+    upper: &'s mut [M18],
+    rhs: &'s mut [V18],
+    cost: f64,
+}
+
 impl Problem<'_> {
     /// Normal equations linearised at `knots`, and the cost there.
     pub fn assemble(&self, knots: &[Knot]) -> (BlockTridiagonal, f64) {
+        let mut sys = BlockTridiagonal::zeros(knots.len());
+        let cost = self.assemble_into(knots, &mut sys);
+        (sys, cost)
+    }
+
+    /// As [`Problem::assemble`], overwriting every block of `sys` (which must have `knots.len()`
+    /// blocks). Chunks of knots are assembled on all available cores.
+    pub fn assemble_into(&self, knots: &[Knot], sys: &mut BlockTridiagonal) -> f64 {
         let n = knots.len();
-        let mut sys = BlockTridiagonal::zeros(n);
-        let mut cost = 0.0;
-        for (k, kn) in knots.iter().enumerate() {
-            let e = (self.meas[k].inverse() * kn.pose).log();
+        assert_eq!(sys.len(), n, "system size does not match the knots");
+        let mut chunks = Vec::with_capacity(n.div_ceil(ASSEMBLY_CHUNK));
+        let (mut diag, mut upper, mut rhs) =
+            (&mut sys.diag[..], &mut sys.upper[..], &mut sys.rhs[..]);
+        let mut first = 0;
+        while first < n {
+            let len = ASSEMBLY_CHUNK.min(n - first);
+            let (d, d_rest) = std::mem::take(&mut diag).split_at_mut(len);
+            let (u, u_rest) = std::mem::take(&mut upper).split_at_mut(len.min(n - 1 - first));
+            let (r, r_rest) = std::mem::take(&mut rhs).split_at_mut(len);
+            (diag, upper, rhs) = (d_rest, u_rest, r_rest);
+            chunks.push(AssemblyChunk {
+                first,
+                diag: d,
+                upper: u,
+                rhs: r,
+                cost: 0.0,
+            });
+            first += len;
+        }
+        let threads = std::thread::available_parallelism()
+            .map_or(1, |t| t.get())
+            .min(chunks.len());
+        if threads <= 1 {
+            chunks
+                .iter_mut()
+                .for_each(|c| self.assemble_chunk(knots, c));
+        } else {
+            let per_thread = chunks.len().div_ceil(threads);
+            std::thread::scope(|scope| {
+                for group in chunks.chunks_mut(per_thread) {
+                    scope.spawn(move || {
+                        group.iter_mut().for_each(|c| self.assemble_chunk(knots, c))
+                    });
+                }
+            });
+        }
+        chunks.iter().map(|c| c.cost).sum()
+    }
+
+    /// Fills one chunk: for each knot the pose term, then the prior terms of the intervals
+    /// before and after it (the interval before the chunk is recomputed here).
+    fn assemble_chunk(&self, knots: &[Knot], chunk: &mut AssemblyChunk) {
+        let n = knots.len();
+        let mut before = (chunk.first > 0).then(|| self.prior_terms(knots, chunk.first - 1));
+        chunk.cost = 0.0;
+        for (i, (diag, rhs)) in chunk.diag.iter_mut().zip(chunk.rhs.iter_mut()).enumerate() {
+            let k = chunk.first + i;
+            *diag = M18::zeros();
+            *rhs = V18::zeros();
+            let e = (self.meas[k].inverse() * knots[k].pose).log();
             let j = se3_right_jacobian_inv(&e);
             let wj = self.info[k] * j;
-            let mut d = sys.diag[k].fixed_view_mut::<6, 6>(0, 0);
-            d += j.transpose() * wj;
-            let mut r = sys.rhs[k].fixed_rows_mut::<6>(0);
-            r -= wj.transpose() * e;
-            cost += (e.transpose() * self.info[k] * e)[0];
+            diag.fixed_view_mut::<6, 6>(0, 0)
+                .copy_from(&(j.transpose() * wj));
+            rhs.fixed_rows_mut::<6>(0).copy_from(&-(wj.transpose() * e));
+            chunk.cost += (e.transpose() * self.info[k] * e)[0];
+            if let Some(t) = &before {
+                *diag += t.d2;
+                *rhs += t.r2;
+            }
+            if k + 1 < n {
+                let t = self.prior_terms(knots, k);
+                *diag += t.d1;
+                *rhs += t.r1;
+                chunk.upper[i] = t.upper;
+                chunk.cost += t.cost;
+                before = Some(t);
+            }
         }
-        for k in 0..n - 1 {
-            let f = prior_factor(&knots[k], &knots[k + 1], self.times[k + 1] - self.times[k]);
-            // The weight is Q(dt)^-1 (x) Qc^-1: apply it through its Kronecker structure.
-            let qi = q_scalar_inv(self.times[k + 1] - self.times[k]);
-            let wj1 = kron_diag_mul(&qi, &self.qc_inv, &f.j1);
-            let wj2 = kron_diag_mul(&qi, &self.qc_inv, &f.j2);
-            sys.diag[k] += f.j1.transpose() * wj1;
-            sys.diag[k + 1] += f.j2.transpose() * wj2;
-            sys.upper[k] += wj1.transpose() * f.j2;
-            let we = kron_diag_mul(&qi, &self.qc_inv, &f.e);
-            sys.rhs[k] -= f.j1.transpose() * we;
-            sys.rhs[k + 1] -= f.j2.transpose() * we;
-            cost += (f.e.transpose() * we)[0];
-        }
-        (sys, cost)
+    }
+
+    /// The normal-equation blocks of the prior factor between knots `k` and `k + 1`.
+    fn prior_terms(&self, knots: &[Knot], k: usize) -> PriorNormal {
+        let dt = self.times[k + 1] - self.times[k];
+        let f = prior_factor(&knots[k], &knots[k + 1], dt);
+        prior_normal(&f, &q_scalar_inv(dt), &self.qc_inv)
     }
 }
 
@@ -243,6 +315,8 @@ pub(crate) fn gauss_newton(
     max_iterations: usize,
 ) -> Result<Solved> {
     let (mut sys, mut cost) = problem.assemble(&knots);
+    // Trial systems are assembled into storage recycled from the previous factorisation.
+    let mut spare = None;
     let mut iterations = 0;
     let mut converged = false;
     loop {
@@ -257,13 +331,16 @@ pub(crate) fn gauss_newton(
             });
         }
         let dx = factor.solve();
+        let mut trial_sys = spare
+            .take()
+            .unwrap_or_else(|| BlockTridiagonal::zeros(knots.len()));
         let mut scale = 1.0;
         let mut accepted = None;
         for _ in 0..12 {
             let trial = step(&knots, &dx, scale);
-            let (tsys, tcost) = problem.assemble(&trial);
+            let tcost = problem.assemble_into(&trial, &mut trial_sys);
             if tcost.is_finite() && tcost <= cost * (1.0 + 1e-12) + 1e-300 {
-                accepted = Some((trial, tsys, tcost));
+                accepted = Some((trial, tcost));
                 break;
             }
             scale *= 0.5;
@@ -271,10 +348,11 @@ pub(crate) fn gauss_newton(
         iterations += 1;
         let max_step = dx.iter().map(|d| d.abs().max()).fold(0.0, f64::max) * scale;
         match accepted {
-            Some((trial, tsys, tcost)) => {
+            Some((trial, tcost)) => {
                 let rel = (cost - tcost).abs() / cost.max(1e-300);
                 knots = trial;
-                sys = tsys;
+                sys = trial_sys;
+                spare = Some(factor.into_system());
                 cost = tcost;
                 // The pose-only problem is nearly linear: once a full step changes the cost by
                 // less than a part in 1e9, the next step is far below the posterior spread.
@@ -282,8 +360,8 @@ pub(crate) fn gauss_newton(
             }
             None => {
                 // No decrease along the step: the current point is as good as we can do.
-                let (s, _) = problem.assemble(&knots);
-                sys = s;
+                problem.assemble_into(&knots, &mut trial_sys);
+                sys = trial_sys;
                 converged = true;
             }
         }
@@ -413,10 +491,10 @@ impl Trajectory {
         dg1.fixed_view_mut::<18, 6>(0, 0).fill(0.0);
         dg1 += om.fixed_view::<18, 18>(0, 0) * {
             let mut m = M18::zeros();
-            m.fixed_view_mut::<18, 6>(0, 0).copy_from(&ls.d_pose1);
+            m.fixed_view_mut::<18, 6>(0, 0).copy_from(&ls.d_pose1());
             m
         };
-        let dg2 = om * ls.d_knot2;
+        let dg2 = om * ls.d_knot2();
         let mut jacobian = SMatrix::<f64, 6, 36>::zeros();
         jacobian
             .fixed_view_mut::<6, 18>(0, 0)

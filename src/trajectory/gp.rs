@@ -112,46 +112,167 @@ fn stack(a: &Vector6<f64>, b: &Vector6<f64>, c: &Vector6<f64>) -> V18 {
     v
 }
 
-/// Step of the central differences in [`d_jr_inv_times`] and [`d_jr_times`].
-const DIFF_STEP: f64 = 1e-6;
+/// `B_2k / (2k)!` for `k = 1..=40` (`B_n` the Bernoulli numbers): the coefficients of `ad^2k` in
+/// `J_r^-1(xi) = I + ad/2 + sum_k B_2k/(2k)! ad^2k`, `ad = curly(xi)`.
+const BERNOULLI_OVER_FACTORIAL: [f64; 40] = [
+    0.08333333333333333,
+    -0.001388888888888889,
+    3.306878306878307e-05,
+    -8.267195767195768e-07,
+    2.08767569878681e-08,
+    -5.284190138687493e-10,
+    1.3382536530684679e-11,
+    -3.3896802963225827e-13,
+    8.586062056277845e-15,
+    -2.174868698558062e-16,
+    5.5090028283602295e-18,
+    -1.3954464685812522e-19,
+    3.534707039629467e-21,
+    -8.953517427037546e-23,
+    2.267952452337683e-24,
+    -5.744790668872202e-26,
+    1.455172475614865e-27,
+    -3.6859949406653103e-29,
+    9.336734257095045e-31,
+    -2.36502241570063e-32,
+    5.990671762482134e-34,
+    -1.5174548844682903e-35,
+    3.843758125454189e-37,
+    -9.736353072646691e-39,
+    2.466247044200681e-40,
+    -6.247076741820743e-42,
+    1.5824030244644914e-43,
+    -4.008273685948936e-45,
+    1.0153075855569557e-46,
+    -2.5718041582418717e-48,
+    6.514456035233815e-50,
+    -1.6501309906896525e-51,
+    4.179830628539476e-53,
+    -1.058763466770291e-54,
+    2.6818791912607708e-56,
+    -6.793279351107421e-58,
+    1.7207577616681404e-59,
+    -4.358730329348894e-61,
+    1.1040792903684666e-62,
+    -2.7966655133781345e-64,
+];
 
-/// Derivative with respect to `xi` of `J_r^-1(xi) c`.
-pub fn d_jr_inv_times(xi: &Vector6<f64>, c: &[&Vector6<f64>]) -> Vec<Matrix6<f64>> {
-    central_difference(xi, c, se3_right_jacobian_inv)
+/// `curly(xi) v` without forming the matrix: `[phi x v_rho + rho x v_phi; phi x v_phi]`.
+#[inline]
+fn curly_times(xi: &Vector6<f64>, v: &Vector6<f64>) -> Vector6<f64> {
+    let (rho, phi) = (xi.fixed_rows::<3>(0), xi.fixed_rows::<3>(3));
+    let (vr, vp) = (v.fixed_rows::<3>(0), v.fixed_rows::<3>(3));
+    let top = phi.cross(&vr) + rho.cross(&vp);
+    let bottom = phi.cross(&vp);
+    Vector6::new(top.x, top.y, top.z, bottom.x, bottom.y, bottom.z)
 }
 
-/// Derivative with respect to `xi` of `J_r(xi) c`.
-pub fn d_jr_times(xi: &Vector6<f64>, c: &[&Vector6<f64>]) -> Vec<Matrix6<f64>> {
-    central_difference(xi, c, se3_right_jacobian)
-}
-
-fn central_difference(
+/// Derivative with respect to `xi` of `(sum_n a_n ad^n) c`, `ad = curly(xi)`, for a power series
+/// with coefficients `coef(n)` (`n >= 1`; the constant term does not depend on `xi`).
+///
+/// With `v_n = ad^n c`, `d v_n / d xi = D_n = ad D_{n-1} - curly(v_{n-1})` (`D_0 = 0`), because
+/// `curly(a) b = -curly(b) a`. The sum stops once two successive non-zero terms are below 1e-17
+/// of the sum (or after `max_n` terms).
+fn d_series_times(
     xi: &Vector6<f64>,
-    c: &[&Vector6<f64>],
-    f: fn(&Vector6<f64>) -> Matrix6<f64>,
-) -> Vec<Matrix6<f64>> {
-    let mut out = vec![Matrix6::zeros(); c.len()];
-    for i in 0..6 {
-        let mut xp = *xi;
-        let mut xm = *xi;
-        xp[i] += DIFF_STEP;
-        xm[i] -= DIFF_STEP;
-        let diff = (f(&xp) - f(&xm)) / (2.0 * DIFF_STEP);
-        for (o, ci) in out.iter_mut().zip(c) {
-            o.set_column(i, &(diff * **ci));
+    c: &Vector6<f64>,
+    coef: impl Fn(usize) -> f64,
+    max_n: usize,
+) -> Matrix6<f64> {
+    let mut v = *c;
+    let mut d = Matrix6::<f64>::zeros();
+    let mut sum = Matrix6::<f64>::zeros();
+    let mut negligible = 0;
+    for n in 1..=max_n {
+        let cv = curly(&v);
+        for j in 0..6 {
+            let col = curly_times(xi, &d.column(j).into_owned()) - cv.column(j);
+            d.set_column(j, &col);
+        }
+        v = curly_times(xi, &v);
+        let a = coef(n);
+        if a != 0.0 {
+            sum += d * a;
+            if d.amax() * a.abs() <= 1e-17 * sum.amax() {
+                negligible += 1;
+                if negligible == 2 {
+                    break;
+                }
+            } else {
+                negligible = 0;
+            }
         }
     }
-    out
+    sum
 }
 
-/// The local state of the second knot relative to the first, with its Jacobians.
+/// Derivative with respect to `xi` of `J_r^-1(xi) c`, from the Bernoulli series of `J_r^-1`
+/// (which converges for rotation angles below 2 pi; the local states use angles up to pi).
+pub fn d_jr_inv_times(xi: &Vector6<f64>, c: &[&Vector6<f64>]) -> Vec<Matrix6<f64>> {
+    let coef = |n: usize| match n {
+        1 => 0.5,
+        _ if n % 2 == 1 => 0.0,
+        _ => BERNOULLI_OVER_FACTORIAL[n / 2 - 1],
+    };
+    c.iter()
+        .map(|c| d_series_times(xi, c, coef, 2 * BERNOULLI_OVER_FACTORIAL.len()))
+        .collect()
+}
+
+/// Derivative with respect to `xi` of `J_r(xi) c`, from `J_r(xi) = sum_n (-ad)^n / (n+1)!`.
+pub fn d_jr_times(xi: &Vector6<f64>, c: &[&Vector6<f64>]) -> Vec<Matrix6<f64>> {
+    // (-1)^n / (n+1)!; 60 terms reach 1e-17 for any angle below ~10 rad.
+    let coef = |n: usize| {
+        let f: f64 = (2..=n + 1).map(|k| k as f64).product();
+        if n % 2 == 0 { 1.0 / f } else { -1.0 / f }
+    };
+    c.iter().map(|c| d_series_times(xi, c, coef, 60)).collect()
+}
+
+/// The local state of the second knot relative to the first, with the 6x6 pieces of its
+/// Jacobians (see [`LocalState::d_pose1`] and [`LocalState::d_knot2`]).
 pub struct LocalState {
     /// `gamma_2 = [xi21; xi'; xi'']`.
     pub gamma: V18,
-    /// Derivative of `gamma_2` with respect to the right perturbation of `T_1` (18x6).
-    pub d_pose1: SMatrix<f64, 18, 6>,
+    /// `J_r^-1(xi21)`.
+    pub jri: Matrix6<f64>,
+    /// `J_l^-1(xi21)`.
+    pub jli: Matrix6<f64>,
+    /// `d xi' / d xi21`.
+    pub du_dxi: Matrix6<f64>,
+    /// `d xi'' / d xi21`.
+    pub da_dxi: Matrix6<f64>,
+    /// `d xi'' / d w_2`.
+    pub da_dw2: Matrix6<f64>,
+}
+
+impl LocalState {
+    /// Derivative of `gamma_2` with respect to the right perturbation of `T_1` (18x6):
+    /// `-[I; du_dxi; da_dxi] J_l^-1`.
+    pub fn d_pose1(&self) -> SMatrix<f64, 18, 6> {
+        let mut d = SMatrix::<f64, 18, 6>::zeros();
+        for (i, b) in self.pose_blocks(&self.jli).iter().enumerate() {
+            d.fixed_view_mut::<6, 6>(6 * i, 0).copy_from(&-b);
+        }
+        d
+    }
+
     /// Derivative of `gamma_2` with respect to knot 2's variables `[dT_2; dw_2; ddw_2]`.
-    pub d_knot2: M18,
+    pub fn d_knot2(&self) -> M18 {
+        let mut d = M18::zeros();
+        for (i, b) in self.pose_blocks(&self.jri).iter().enumerate() {
+            d.fixed_view_mut::<6, 6>(6 * i, 0).copy_from(b);
+        }
+        d.fixed_view_mut::<6, 6>(6, 6).copy_from(&self.jri);
+        d.fixed_view_mut::<6, 6>(12, 6).copy_from(&self.da_dw2);
+        d.fixed_view_mut::<6, 6>(12, 12).copy_from(&self.jri);
+        d
+    }
+
+    /// `[I; du_dxi; da_dxi] m` as three 6x6 blocks.
+    fn pose_blocks(&self, m: &Matrix6<f64>) -> [Matrix6<f64>; 3] {
+        [*m, self.du_dxi * m, self.da_dxi * m]
+    }
 }
 
 /// `gamma_2` of knot `k2` in the local frame of `k1`, and its Jacobians.
@@ -169,32 +290,13 @@ pub fn local_state(k1: &Knot, k2: &Knot) -> LocalState {
     let cw2 = curly(&w2);
     let da_dxi = ddw_dxi - cw2 * du_dxi * 0.5;
     let da_dw2 = (curly(&u) - cw2 * jri) * 0.5;
-
-    let mut d_pose1 = SMatrix::<f64, 18, 6>::zeros();
-    d_pose1.fixed_view_mut::<6, 6>(0, 0).copy_from(&-jli);
-    d_pose1
-        .fixed_view_mut::<6, 6>(6, 0)
-        .copy_from(&(-(du_dxi * jli)));
-    d_pose1
-        .fixed_view_mut::<6, 6>(12, 0)
-        .copy_from(&(-(da_dxi * jli)));
-
-    let mut d_knot2 = M18::zeros();
-    d_knot2.fixed_view_mut::<6, 6>(0, 0).copy_from(&jri);
-    d_knot2
-        .fixed_view_mut::<6, 6>(6, 0)
-        .copy_from(&(du_dxi * jri));
-    d_knot2.fixed_view_mut::<6, 6>(6, 6).copy_from(&jri);
-    d_knot2
-        .fixed_view_mut::<6, 6>(12, 0)
-        .copy_from(&(da_dxi * jri));
-    d_knot2.fixed_view_mut::<6, 6>(12, 6).copy_from(&da_dw2);
-    d_knot2.fixed_view_mut::<6, 6>(12, 12).copy_from(&jri);
-
     LocalState {
         gamma: stack(&xi, &u, &a),
-        d_pose1,
-        d_knot2,
+        jri,
+        jli,
+        du_dxi,
+        da_dxi,
+        da_dw2,
     }
 }
 
@@ -221,25 +323,191 @@ pub fn kron_identity(s: &Matrix3<f64>) -> M18 {
     kron_diag(s, &Vector6::repeat(1.0))
 }
 
-/// Prior residual between consecutive knots, `e = gamma_2 - Phi(dt) gamma_1`, and its Jacobians
-/// with respect to the variables `[dT; dw; ddw]` of each knot.
+/// Prior residual between consecutive knots, `e = gamma_2 - Phi(dt) gamma_1`, and the pieces of
+/// its Jacobians with respect to the variables `[dT; dw; ddw]` of each knot: `j1` is
+/// `-Phi (x) I6` with its first block column replaced by [`LocalState::d_pose1`]; `j2` is
+/// [`LocalState::d_knot2`] (block lower triangular).
 pub struct PriorFactor {
     pub e: V18,
-    pub j1: M18,
-    pub j2: M18,
+    /// `Phi(dt)`.
+    pub phi: Matrix3<f64>,
+    pub local: LocalState,
+}
+
+impl PriorFactor {
+    /// `d e / d x_1` (18x18).
+    pub fn j1(&self) -> M18 {
+        let mut j1 = -kron_identity(&self.phi);
+        j1.fixed_view_mut::<18, 6>(0, 0)
+            .copy_from(&self.local.d_pose1());
+        j1
+    }
+
+    /// `d e / d x_2` (18x18).
+    pub fn j2(&self) -> M18 {
+        self.local.d_knot2()
+    }
 }
 
 pub fn prior_factor(k1: &Knot, k2: &Knot, dt: f64) -> PriorFactor {
-    let ls = local_state(k1, k2);
+    let local = local_state(k1, k2);
     let phi = phi_scalar(dt);
-    let e = ls.gamma - apply_scalar(&phi, &first_local_state(k1));
-    // gamma_1 depends on (w1, dw1) through a selector; on T1 only via gamma_2.
-    let mut j1 = -kron_identity(&phi);
-    j1.fixed_view_mut::<18, 6>(0, 0).copy_from(&ls.d_pose1);
-    PriorFactor {
-        e,
-        j1,
-        j2: ls.d_knot2,
+    let e = local.gamma - apply_scalar(&phi, &first_local_state(k1));
+    PriorFactor { e, phi, local }
+}
+
+/// The contribution of a prior factor to the normal equations: with the weight
+/// `W = Q(dt)^-1 (x) diag(qc_inv)`, `d1 = J1^T W J1`, `d2 = J2^T W J2`, `upper = J1^T W J2`,
+/// `r1 = -J1^T W e`, `r2 = -J2^T W e` and `cost = e^T W e`.
+pub struct PriorNormal {
+    pub d1: M18,
+    pub d2: M18,
+    pub upper: M18,
+    pub r1: V18,
+    pub r2: V18,
+    pub cost: f64,
+}
+
+/// `diag(d) m`.
+fn scale_rows(d: &Vector6<f64>, m: &Matrix6<f64>) -> Matrix6<f64> {
+    Matrix6::from_fn(|r, c| d[r] * m[(r, c)])
+}
+
+/// `(qi (x) diag(d)) x` for a block column `x` of three 6x6 blocks.
+fn weigh(qi: &Matrix3<f64>, d: &Vector6<f64>, x: &[Matrix6<f64>; 3]) -> [Matrix6<f64>; 3] {
+    std::array::from_fn(|i| {
+        scale_rows(
+            d,
+            &(x[0] * qi[(i, 0)] + x[1] * qi[(i, 1)] + x[2] * qi[(i, 2)]),
+        )
+    })
+}
+
+/// Writes the 6x6 block `(a, b)` of `out`, and its transpose at `(b, a)` when `mirror`.
+fn put(out: &mut M18, a: usize, b: usize, m: &Matrix6<f64>, mirror: bool) {
+    out.fixed_view_mut::<6, 6>(6 * a, 6 * b).copy_from(m);
+    if mirror && a != b {
+        out.fixed_view_mut::<6, 6>(6 * b, 6 * a)
+            .copy_from(&m.transpose());
+    }
+}
+
+/// [`PriorNormal`] of a prior factor. The Jacobians are mostly structure: the last two block
+/// columns of `J1` are scalar multiples of the identity, and `J2` is block lower triangular with
+/// `J_r^-1` on its diagonal, so the products are formed block by block from the 6x6 pieces
+/// (about a third of the flops of dense 18x18 products).
+pub fn prior_normal(f: &PriorFactor, qi: &Matrix3<f64>, d: &Vector6<f64>) -> PriorNormal {
+    let ls = &f.local;
+    let (jri, dw) = (&ls.jri, &ls.da_dw2);
+    let zero = Matrix6::zeros();
+    // Block columns: J1 = [p1 | S_1 S_2] with (S_b)_i = -phi[i][b] I, J2 = [p2 | t1 t2].
+    let p1 = ls.pose_blocks(&-ls.jli);
+    let p2 = ls.pose_blocks(jri);
+    let (wp1, wp2) = (weigh(qi, d, &p1), weigh(qi, d, &p2));
+    let wt1 = weigh(qi, d, &[zero, *jri, *dw]);
+    // (W S_b)_i = c[(i, b)] diag(d).
+    let c = -(qi * f.phi);
+    let s = |i: usize, b: usize| -f.phi[(i, b)];
+
+    let mut d1 = M18::zeros();
+    put(
+        &mut d1,
+        0,
+        0,
+        &(0..3).map(|i| p1[i].tr_mul(&wp1[i])).sum(),
+        true,
+    );
+    for b in 1..3 {
+        let x: Matrix6<f64> = (0..3).map(|i| wp1[i] * s(i, b)).sum();
+        put(&mut d1, b, 0, &x, true);
+        for a in 1..=b {
+            let sab: f64 = (0..3).map(|i| s(i, a) * c[(i, b)]).sum();
+            put(&mut d1, a, b, &Matrix6::from_diagonal(&(d * sab)), true);
+        }
+    }
+
+    let mut d2 = M18::zeros();
+    put(
+        &mut d2,
+        0,
+        0,
+        &(0..3).map(|i| p2[i].tr_mul(&wp2[i])).sum(),
+        true,
+    );
+    put(
+        &mut d2,
+        0,
+        1,
+        &(wp2[1].tr_mul(jri) + wp2[2].tr_mul(dw)),
+        true,
+    );
+    put(&mut d2, 0, 2, &wp2[2].tr_mul(jri), true);
+    put(
+        &mut d2,
+        1,
+        1,
+        &(jri.tr_mul(&wt1[1]) + dw.tr_mul(&wt1[2])),
+        true,
+    );
+    put(&mut d2, 1, 2, &wt1[2].tr_mul(jri), true);
+    put(
+        &mut d2,
+        2,
+        2,
+        &jri.tr_mul(&scale_rows(&(d * qi[(2, 2)]), jri)),
+        true,
+    );
+
+    let mut upper = M18::zeros();
+    put(
+        &mut upper,
+        0,
+        0,
+        &(0..3).map(|i| wp1[i].tr_mul(&p2[i])).sum(),
+        false,
+    );
+    put(
+        &mut upper,
+        0,
+        1,
+        &(wp1[1].tr_mul(jri) + wp1[2].tr_mul(dw)),
+        false,
+    );
+    put(&mut upper, 0, 2, &wp1[2].tr_mul(jri), false);
+    for a in 1..3 {
+        let col0: Matrix6<f64> = (0..3).map(|i| p2[i] * c[(i, a)]).sum();
+        put(&mut upper, a, 0, &scale_rows(d, &col0), false);
+        put(
+            &mut upper,
+            a,
+            1,
+            &scale_rows(d, &(jri * c[(1, a)] + dw * c[(2, a)])),
+            false,
+        );
+        put(&mut upper, a, 2, &scale_rows(d, &(jri * c[(2, a)])), false);
+    }
+
+    let we = kron_diag_mul(qi, d, &f.e);
+    let wb = |i: usize| we.fixed_rows::<6>(6 * i).into_owned();
+    let (mut r1, mut r2) = (V18::zeros(), V18::zeros());
+    let t: Vector6<f64> = (0..3).map(|i| p1[i].tr_mul(&wb(i))).sum();
+    r1.fixed_rows_mut::<6>(0).copy_from(&-t);
+    for b in 1..3 {
+        let t: Vector6<f64> = (0..3).map(|i| wb(i) * s(i, b)).sum();
+        r1.fixed_rows_mut::<6>(6 * b).copy_from(&-t);
+    }
+    let t: Vector6<f64> = (0..3).map(|i| p2[i].tr_mul(&wb(i))).sum();
+    r2.fixed_rows_mut::<6>(0).copy_from(&-t);
+    r2.fixed_rows_mut::<6>(6)
+        .copy_from(&-(jri.tr_mul(&wb(1)) + dw.tr_mul(&wb(2))));
+    r2.fixed_rows_mut::<6>(12).copy_from(&-jri.tr_mul(&wb(2)));
+    PriorNormal {
+        d1,
+        d2,
+        upper,
+        r1,
+        r2,
+        cost: f.e.dot(&we),
     }
 }
 
@@ -293,6 +561,63 @@ mod tests {
         }
     }
 
+    /// Fourth-order central differences of `f(xi) c` (truncation ~h^4, rounding ~eps/h).
+    fn numeric_derivative(
+        xi: &Vector6<f64>,
+        c: &Vector6<f64>,
+        f: fn(&Vector6<f64>) -> Matrix6<f64>,
+        h: f64,
+    ) -> Matrix6<f64> {
+        let mut out = Matrix6::zeros();
+        for i in 0..6 {
+            let at = |s: f64| {
+                let mut x = *xi;
+                x[i] += s * h;
+                f(&x) * c
+            };
+            let col = ((at(1.0) - at(-1.0)) * 8.0 - (at(2.0) - at(-2.0))) / (12.0 * h);
+            out.set_column(i, &col);
+        }
+        out
+    }
+
+    #[test]
+    fn series_derivatives_match_numeric_differentiation() {
+        use super::super::lie::{se3_right_jacobian, se3_right_jacobian_inv};
+        let c = Vector6::new(0.7, -1.3, 0.4, 2.1, -0.6, 1.1);
+        let dirs = [
+            Vector6::new(0.3, -0.2, 0.5, 0.4, -0.3, 0.2),
+            Vector6::new(-1.5, 0.7, 2.0, 0.1, 0.9, -0.5),
+            Vector6::new(0.01, 0.02, -0.03, 0.0, 0.0, 1e-7),
+        ];
+        for dir in &dirs {
+            // Angles from zero to close to pi (the largest a logarithm returns).
+            for scale in [0.0, 1e-6, 0.02, 0.3, 1.0, 2.5, 5.5] {
+                let xi = dir * scale;
+                if xi.fixed_rows::<3>(3).norm() > 3.1 {
+                    continue;
+                }
+                for (series, f, h) in [
+                    (
+                        d_jr_inv_times(&xi, &[&c])[0],
+                        se3_right_jacobian_inv as fn(&_) -> _,
+                        1e-3,
+                    ),
+                    (
+                        d_jr_times(&xi, &[&c])[0],
+                        se3_right_jacobian as fn(&_) -> _,
+                        1e-3,
+                    ),
+                ] {
+                    let numeric = numeric_derivative(&xi, &c, f, h);
+                    let err = (series - numeric).amax();
+                    // The reference itself is good to a few 1e-13.
+                    assert!(err < 1e-11 * numeric.amax().max(1.0), "xi {xi}: {err}");
+                }
+            }
+        }
+    }
+
     #[test]
     fn q_inverse_is_exact() {
         // Q(dt) spans dt^5 .. dt, so round-off grows as dt shrinks: check relative to that.
@@ -321,9 +646,32 @@ mod tests {
             let em2 = prior_factor(&k1, &perturb(&k2, &-d), dt).e;
             let n1 = (ep1 - em1) / (2.0 * h);
             let n2 = (ep2 - em2) / (2.0 * h);
-            assert!((n1 - f.j1.column(i)).abs().max() < 1e-6, "j1 col {i}");
-            assert!((n2 - f.j2.column(i)).abs().max() < 1e-6, "j2 col {i}");
+            assert!((n1 - f.j1().column(i)).abs().max() < 1e-6, "j1 col {i}");
+            assert!((n2 - f.j2().column(i)).abs().max() < 1e-6, "j2 col {i}");
         }
+    }
+
+    #[test]
+    fn structured_normal_blocks_match_dense_products() {
+        let k1 = knot(1.0);
+        let mut k2 = knot(-0.5);
+        k2.pose = k1.pose * Se3::exp(&Vector6::new(0.05, 0.02, -0.03, 0.1, 0.2, -0.15));
+        let dt = 0.1;
+        let f = prior_factor(&k1, &k2, dt);
+        let qc_inv = Vector6::new(1.0, 2.0, 3.0, 40.0, 50.0, 60.0);
+        let qi = q_scalar_inv(dt);
+        let w = kron_diag(&qi, &qc_inv);
+        let (j1, j2) = (f.j1(), f.j2());
+        let p = prior_normal(&f, &qi, &qc_inv);
+        let close = |a: &M18, b: &M18| (a - b).abs().max() <= 1e-12 * b.abs().max();
+        assert!(close(&p.d1, &(j1.transpose() * w * j1)));
+        assert!(close(&p.d2, &(j2.transpose() * w * j2)));
+        assert!(close(&p.upper, &(j1.transpose() * w * j2)));
+        let (r1, r2) = (-(j1.transpose() * w * f.e), -(j2.transpose() * w * f.e));
+        assert!((p.r1 - r1).abs().max() <= 1e-12 * r1.abs().max());
+        assert!((p.r2 - r2).abs().max() <= 1e-12 * r2.abs().max());
+        let cost = (f.e.transpose() * w * f.e)[0];
+        assert!((p.cost - cost).abs() <= 1e-12 * cost);
     }
 
     #[test]
