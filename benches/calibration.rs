@@ -2,8 +2,8 @@
 //! closed form, refinement, covariance) for 1k, 10k and 100k DVL samples.
 //!
 //! `cargo bench --bench calibration` (optionally `-- 1000 10000` for other sizes). Data: the
-//! calm-then-rotate simulation with the default truth (70 ms offset), camera and DVL at 10 Hz,
-//! N / 10 seconds long. Small sizes are repeated and the median is reported. Prints a markdown
+//! lively sinusoid motion (the sampled motions stop at 4000 s) with the default truth (70 ms
+//! offset, 1 % scale), camera and DVL at 10 Hz, N / 10 seconds long. Small sizes are repeated and the median is reported. Prints a markdown
 //! table.
 
 use std::time::Instant;
@@ -38,7 +38,7 @@ fn main() {
         let cfg = SimConfig {
             duration_s: n as f64 / 10.0,
             seed: 7,
-            motion: MotionKind::CalmThenRotate,
+            motion: MotionKind::Sinusoid,
             ..SimConfig::default()
         };
         let ds = simulate(&cfg).expect("simulate");
