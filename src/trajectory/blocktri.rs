@@ -227,24 +227,64 @@ impl BlockTridiagonal {
                     "information matrix not positive definite at knot {k} (too few or degenerate measurements)"
                 ))
             })?;
-            let l = cols(&chol[k]);
+            let l = *cols(&chol[k]);
             let mut wk: [f64; N] = w[k].into();
-            forward_substitute(l, &mut wk);
+            forward_substitute(&l, &mut wk);
             w[k] = wk.into();
             if k + 1 < n {
-                let lt = transpose(l);
-                // Y = L^-1 B, column by column (in place in `gain[k]`).
-                let y = cols_mut(&mut gain[k]);
-                y.iter_mut().for_each(|c| forward_substitute(l, c));
-                let yt = transpose(y);
-                add_symmetric_abt(&mut chol[k + 1], &yt, &yt, -1.0);
-                // z_{k+1} = r_{k+1} - Y^T w_k.
-                let z = &mut w[k + 1];
-                for (c, yc) in y.iter().enumerate() {
-                    z[c] -= yc.iter().zip(&wk).map(|(a, b)| a * b).sum::<f64>();
+                // Rows of Y = L^-1 B by forward substitution on the rows of B, so that every
+                // inner loop runs over a full row of 18.
+                let mut y = transpose(cols(&gain[k]));
+                for j in 0..N {
+                    let (done, rest) = y.split_at_mut(j);
+                    let yj = &mut rest[0];
+                    for (yk, lk) in done.iter().zip(&l) {
+                        let l_jk = lk[j];
+                        for (a, b) in yj.iter_mut().zip(yk) {
+                            *a -= l_jk * b;
+                        }
+                    }
+                    let d = l[j][j];
+                    yj.iter_mut().for_each(|a| *a /= d);
                 }
-                // G = L^-T Y.
-                y.iter_mut().for_each(|c| backward_substitute(&lt, c));
+                // S_{k+1} = D_{k+1} - Y^T Y (a sum of outer products of the rows of Y; both
+                // triangles are formed, with identical roundings, so it stays symmetric).
+                let s = cols_mut(&mut chol[k + 1]);
+                let mut yty = [[0.0; N]; N];
+                for yj in &y {
+                    for (col, yjc) in yty.iter_mut().zip(yj) {
+                        for (a, b) in col.iter_mut().zip(yj) {
+                            *a += b * yjc;
+                        }
+                    }
+                }
+                for (sc, pc) in s.iter_mut().zip(&yty) {
+                    for (a, b) in sc.iter_mut().zip(pc) {
+                        *a -= b;
+                    }
+                }
+                // z_{k+1} = r_{k+1} - Y^T w_k.
+                let mut ytw = [0.0; N];
+                for (yj, wj) in y.iter().zip(&wk) {
+                    for (a, b) in ytw.iter_mut().zip(yj) {
+                        *a += b * wj;
+                    }
+                }
+                w[k + 1] -= V18::from(ytw);
+                // Rows of G = L^-T Y by backward substitution (column j of L below the diagonal
+                // holds the multipliers of row j).
+                for j in (0..N).rev() {
+                    let (head, done) = y.split_at_mut(j + 1);
+                    let gj = &mut head[j];
+                    for (gk, l_kj) in done.iter().zip(&l[j][j + 1..]) {
+                        for (a, b) in gj.iter_mut().zip(gk) {
+                            *a -= l_kj * b;
+                        }
+                    }
+                    let d = l[j][j];
+                    gj.iter_mut().for_each(|a| *a /= d);
+                }
+                *cols_mut(&mut gain[k]) = transpose(&y);
             }
         }
         Ok(Factored {

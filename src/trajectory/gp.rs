@@ -157,53 +157,92 @@ const BERNOULLI_OVER_FACTORIAL: [f64; 40] = [
     -2.7966655133781345e-64,
 ];
 
+/// `a x b`.
+#[inline(always)]
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+/// The translation and rotation parts of a twist.
+#[inline(always)]
+fn split(v: &[f64; 6]) -> ([f64; 3], [f64; 3]) {
+    ([v[0], v[1], v[2]], [v[3], v[4], v[5]])
+}
+
 /// `curly(xi) v` without forming the matrix: `[phi x v_rho + rho x v_phi; phi x v_phi]`.
-#[inline]
-fn curly_times(xi: &Vector6<f64>, v: &Vector6<f64>) -> Vector6<f64> {
-    let (rho, phi) = (xi.fixed_rows::<3>(0), xi.fixed_rows::<3>(3));
-    let (vr, vp) = (v.fixed_rows::<3>(0), v.fixed_rows::<3>(3));
-    let top = phi.cross(&vr) + rho.cross(&vp);
-    let bottom = phi.cross(&vp);
-    Vector6::new(top.x, top.y, top.z, bottom.x, bottom.y, bottom.z)
+#[inline(always)]
+fn curly_times(xi: &[f64; 6], v: &[f64; 6]) -> [f64; 6] {
+    let ((rho, phi), (vr, vp)) = (split(xi), split(v));
+    let (a, b, c) = (cross(phi, vr), cross(rho, vp), cross(phi, vp));
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2], c[0], c[1], c[2]]
 }
 
 /// Derivative with respect to `xi` of `(sum_n a_n ad^n) c`, `ad = curly(xi)`, for a power series
 /// with coefficients `coef(n)` (`n >= 1`; the constant term does not depend on `xi`).
 ///
 /// With `v_n = ad^n c`, `d v_n / d xi = D_n = ad D_{n-1} - curly(v_{n-1})` (`D_0 = 0`), because
-/// `curly(a) b = -curly(b) a`. The sum stops once two successive non-zero terms are below 1e-17
-/// of the sum (or after `max_n` terms).
+/// `curly(a) b = -curly(b) a`. The sum stops at the first non-zero term (from `n = 4`) below
+/// 1e-16 of the sum, or after `max_n` terms. The series used here shrink by at least a factor
+/// of four per non-zero term (rotation angles up to pi), so the remainder is below 4e-17.
 fn d_series_times(
     xi: &Vector6<f64>,
     c: &Vector6<f64>,
     coef: impl Fn(usize) -> f64,
     max_n: usize,
 ) -> Matrix6<f64> {
-    let mut v = *c;
-    let mut d = Matrix6::<f64>::zeros();
-    let mut sum = Matrix6::<f64>::zeros();
-    let mut negligible = 0;
+    let xi: [f64; 6] = (*xi).into();
+    let mut v: [f64; 6] = (*c).into();
+    // Columns of D_n and of the sum.
+    let mut d = [[0.0; 6]; 6];
+    let mut sum = [[0.0; 6]; 6];
     for n in 1..=max_n {
-        let cv = curly(&v);
-        for j in 0..6 {
-            let col = curly_times(xi, &d.column(j).into_owned()) - cv.column(j);
-            d.set_column(j, &col);
+        // Column j of -curly(v) is curly(e_j) v: [e_j x v_phi; 0] for j < 3, and
+        // [e_i x v_rho; e_i x v_phi] for j = 3 + i; e_i x u = [0, -u2, u1], [u2, 0, -u0],
+        // [-u1, u0, 0].
+        let (vr, vp) = split(&v);
+        let e_cross = |i: usize, u: [f64; 3]| match i {
+            0 => [0.0, -u[2], u[1]],
+            1 => [u[2], 0.0, -u[0]],
+            _ => [-u[1], u[0], 0.0],
+        };
+        for (j, col) in d.iter_mut().enumerate() {
+            let new = curly_times(&xi, col);
+            let (top, bottom) = if j < 3 {
+                (e_cross(j, vp), [0.0; 3])
+            } else {
+                (e_cross(j - 3, vr), e_cross(j - 3, vp))
+            };
+            *col = [
+                new[0] + top[0],
+                new[1] + top[1],
+                new[2] + top[2],
+                new[3] + bottom[0],
+                new[4] + bottom[1],
+                new[5] + bottom[2],
+            ];
         }
-        v = curly_times(xi, &v);
+        v = curly_times(&xi, &v);
         let a = coef(n);
         if a != 0.0 {
-            sum += d * a;
-            if d.amax() * a.abs() <= 1e-17 * sum.amax() {
-                negligible += 1;
-                if negligible == 2 {
-                    break;
+            let (mut term, mut total) = (0.0f64, 0.0f64);
+            for (s, col) in sum.iter_mut().zip(&d) {
+                for (si, di) in s.iter_mut().zip(col) {
+                    let t = a * di;
+                    *si += t;
+                    term = term.max(t.abs());
+                    total = total.max(si.abs());
                 }
-            } else {
-                negligible = 0;
+            }
+            if n >= 4 && term <= 1e-16 * total {
+                break;
             }
         }
     }
-    sum
+    Matrix6::from_fn(|r, c| sum[c][r])
 }
 
 /// Derivative with respect to `xi` of `J_r^-1(xi) c`, from the Bernoulli series of `J_r^-1`
