@@ -11,16 +11,18 @@ pub mod closed_form;
 pub mod model;
 pub mod offset;
 pub mod refine;
+pub mod state;
 
 use nalgebra::{Matrix3, Vector3};
 
 use crate::error::{Error, Result};
-use crate::trajectory::{FitOptions, FitReport, Trajectory};
+use crate::trajectory::{FitOptions, FitReport, Knot, Trajectory};
 use crate::types::{DvlSample, PoseMeasurement};
 use closed_form::{ClosedForm, ClosedFormRow, closed_form};
 use model::{NPARAM, Params, predict};
 use offset::{DvlObs, OffsetMethod, OffsetOptions, OffsetResult, estimate_offset};
-use refine::{FreeParams, ParamMat, calibration_update, linearize};
+use refine::{FreeParams, ParamMat, calibration_update};
+use state::{JointProblem, joint_covariance, state_update};
 
 /// How the calibration starts.
 #[derive(Clone, Debug)]
@@ -50,7 +52,7 @@ impl Default for WeakThresholds {
     fn default() -> Self {
         WeakThresholds {
             rotation_deg: 0.5,
-            lever_arm_m: 0.02,
+            lever_arm_m: 0.01,
             time_offset_s: 0.01,
             velocity_scale: 0.005,
         }
@@ -291,53 +293,36 @@ pub fn calibrate(
         )));
     }
 
+    let mask = free.mask();
+    let jp = JointProblem::new(poses, &obs, &idx)?;
+    let mut traj = traj;
     let mut params = start;
     let mut iterations = Vec::new();
+    let mut last_cost = f64::INFINITY;
     for _ in 0..opts.max_outer_iterations.max(1) {
+        // Calibration update with the trajectory fixed, then state update with it fixed.
         let up = calibration_update(&traj, &obs, &idx, &params, free, 50)?;
         let change = (up.params.r_dvl_cam - params.r_dvl_cam).abs().max()
             + (up.params.lever_arm - params.lever_arm).abs().max()
             + (up.params.scale - params.scale).abs()
             + (up.params.time_offset - params.time_offset).abs();
         params = up.params;
-        iterations.push(IterationRecord {
-            cost: up.cost,
-            params,
-        });
-        if change < 1e-9 {
+        let (refit, cost) = state_update(&jp, &traj, &params, 5)?;
+        traj = refit;
+        iterations.push(IterationRecord { cost, params });
+        let rel = (last_cost - cost).abs() / cost.max(1e-300);
+        last_cost = cost;
+        // Both blocks have settled: parameters move by less than a micro-unit (1e-6 rad, um,
+        // us) and the joint cost by less than a part in 1e8.
+        if change < 1e-6 && rel < 1e-8 {
             break;
         }
     }
 
-    let lin = linearize(&traj, &obs, &idx, &params)?;
+    let (mut covariance, _) = joint_covariance(&jp, &traj, &params, &mask)?;
+    let dvl_cost: f64 = refine::linearize(&traj, &obs, &idx, &params)?.cost;
     let dof = (3 * idx.len()).saturating_sub(NPARAM).max(1) as f64;
-    let normalized_cost = lin.cost / dof;
-    let mut info = lin.hessian;
-    let mask = [
-        free.rotation,
-        free.rotation,
-        free.rotation,
-        free.lever_arm,
-        free.lever_arm,
-        free.lever_arm,
-        free.scale,
-        free.time_offset,
-    ];
-    for k in 0..NPARAM {
-        if !mask[k] {
-            info.row_mut(k).fill(0.0);
-            info.column_mut(k).fill(0.0);
-            info[(k, k)] = 1.0;
-        }
-    }
-    let mut covariance = info
-        .try_inverse()
-        .unwrap_or_else(|| ParamMat::from_diagonal_element(f64::INFINITY));
-    for k in 0..NPARAM {
-        if !mask[k] {
-            covariance[(k, k)] = 0.0;
-        }
-    }
+    let normalized_cost = dvl_cost / dof;
     if normalized_cost > 1.5 {
         warnings.push(format!(
             "DVL residuals are {:.1} times the stated DVL variance; the standard deviations are \
@@ -367,6 +352,7 @@ pub fn calibrate(
     };
     let std = param_std(&covariance);
     let verdicts = verdicts(&std, &opts.weak, &excitation, init.as_ref(), &mask);
+    let trajectory = traj.report().clone();
     Ok(CalibrationOutcome {
         params,
         covariance,
@@ -379,7 +365,7 @@ pub fn calibrate(
         residual_rms: (sq / n).map(f64::sqrt),
         normalized_cost,
         excitation,
-        trajectory: traj.report().clone(),
+        trajectory,
         warnings,
     })
 }
@@ -479,4 +465,30 @@ fn verdicts(
             "the camera moved too little",
         ),
     }
+}
+
+/// Cramer-Rao bound of the calibration parameters: the inverse of the calibration block's Schur
+/// complement in the Fisher information of the joint problem (GP prior, poses, DVL velocities),
+/// evaluated at the true trajectory `truth_knots` (one knot per pose) and the true parameters.
+/// The GP hyperparameters are those the estimator would choose from `poses` with `opts.fit`.
+pub fn cramer_rao(
+    poses: &[PoseMeasurement],
+    dvl: &[DvlSample],
+    truth_knots: &[Knot],
+    truth: &Params,
+    opts: &CalibOptions,
+) -> Result<ParamMat> {
+    if truth_knots.len() != poses.len() {
+        return Err(Error::Input(format!(
+            "{} true states for {} poses",
+            truth_knots.len(),
+            poses.len()
+        )));
+    }
+    let obs = observations(dvl, opts);
+    let fitted = Trajectory::fit(poses, &opts.fit)?;
+    let traj = fitted.with_knots(truth_knots.to_vec(), None);
+    let idx = usable(&traj, &obs, truth.time_offset, 0.0);
+    let jp = JointProblem::new(poses, &obs, &idx)?;
+    Ok(joint_covariance(&jp, &traj, truth, &FreeParams::ALL.mask())?.0)
 }

@@ -107,6 +107,9 @@ fn objective(traj: &Trajectory, obs: &[DvlObs], idx: &[usize], delta: f64) -> Op
     Some((j, 1.0 / u.sqrt()))
 }
 
+/// Best offset, the scale there, and the grid's objective curve.
+type SearchResult = (f64, f64, Vec<(f64, f64)>);
+
 /// Grid search then golden-section refinement of the offset on the samples `idx`.
 fn search(
     traj: &Trajectory,
@@ -115,7 +118,7 @@ fn search(
     lo: f64,
     hi: f64,
     step: f64,
-) -> Option<(f64, f64, Vec<(f64, f64)>)> {
+) -> Option<SearchResult> {
     let count = ((hi - lo) / step).ceil().max(1.0) as usize;
     let mut curve = Vec::with_capacity(count + 1);
     for k in 0..=count {
@@ -170,7 +173,7 @@ pub fn estimate_offset(
     opts: &OffsetOptions,
 ) -> Result<OffsetResult> {
     let (lo, hi) = opts.range;
-    if !(lo < hi) {
+    if lo.partial_cmp(&hi) != Some(std::cmp::Ordering::Less) {
         return Err(Error::Input(format!("empty offset range [{lo}, {hi}]")));
     }
     let all = inside(traj, obs, lo, hi);

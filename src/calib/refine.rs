@@ -28,7 +28,8 @@ impl FreeParams {
         time_offset: true,
     };
 
-    fn mask(&self) -> [bool; NPARAM] {
+    /// Per-parameter flags in the order `[rotation x3, lever arm x3, scale, offset]`.
+    pub fn mask(&self) -> [bool; NPARAM] {
         let (r, p, s, t) = (self.rotation, self.lever_arm, self.scale, self.time_offset);
         [r, r, r, p, p, p, s, t]
     }

@@ -309,12 +309,27 @@ pub(crate) struct Solved {
 }
 
 /// Gauss-Newton with step halving; returns the factorisation at the solution.
+/// Something that linearises a trajectory cost: the pose-only fit, or the fit with further
+/// factors (the calibration adds DVL velocities).
+pub(crate) trait NormalEquations {
+    /// Overwrites every block of `sys` (sized for `knots`) with the normal equations linearised
+    /// at `knots` and returns the cost there.
+    fn normal_equations(&self, knots: &[Knot], sys: &mut BlockTridiagonal) -> Result<f64>;
+}
+
+impl NormalEquations for Problem<'_> {
+    fn normal_equations(&self, knots: &[Knot], sys: &mut BlockTridiagonal) -> Result<f64> {
+        Ok(self.assemble_into(knots, sys))
+    }
+}
+
 pub(crate) fn gauss_newton(
-    problem: &Problem,
+    problem: &dyn NormalEquations,
     mut knots: Vec<Knot>,
     max_iterations: usize,
 ) -> Result<Solved> {
-    let (mut sys, mut cost) = problem.assemble(&knots);
+    let mut sys = BlockTridiagonal::zeros(knots.len());
+    let mut cost = problem.normal_equations(&knots, &mut sys)?;
     // Trial systems are assembled into storage recycled from the previous factorisation.
     let mut spare = None;
     let mut iterations = 0;
@@ -338,7 +353,7 @@ pub(crate) fn gauss_newton(
         let mut accepted = None;
         for _ in 0..12 {
             let trial = step(&knots, &dx, scale);
-            let tcost = problem.assemble_into(&trial, &mut trial_sys);
+            let tcost = problem.normal_equations(&trial, &mut trial_sys)?;
             if tcost.is_finite() && tcost <= cost * (1.0 + 1e-12) + 1e-300 {
                 accepted = Some((trial, tcost));
                 break;
@@ -360,7 +375,7 @@ pub(crate) fn gauss_newton(
             }
             None => {
                 // No decrease along the step: the current point is as good as we can do.
-                problem.assemble_into(&knots, &mut trial_sys);
+                problem.normal_equations(&knots, &mut trial_sys)?;
                 sys = trial_sys;
                 converged = true;
             }
@@ -369,6 +384,18 @@ pub(crate) fn gauss_newton(
 }
 
 impl Trajectory {
+    /// The same trajectory model (knot times, `Qc`, fit report) with other knot states, and
+    /// optionally their posterior covariance.
+    pub fn with_knots(&self, knots: Vec<Knot>, cov: Option<BandedInverse>) -> Trajectory {
+        Trajectory {
+            times: self.times.clone(),
+            knots,
+            qc: self.qc,
+            cov,
+            report: self.report.clone(),
+        }
+    }
+
     /// Fits a trajectory to at least three poses with strictly increasing times.
     pub fn fit(poses: &[PoseMeasurement], opts: &FitOptions) -> Result<Trajectory> {
         check_poses(poses)?;

@@ -6,14 +6,16 @@ use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::time::Instant;
 
+use crate::dvl_info::DvlInputArgs;
+
 use dvlcal::calib::model::Params;
 use dvlcal::calib::offset::OffsetMethod;
 use dvlcal::calib::{CalibOptions, CalibrationOutcome, Method, Verdict, calibrate};
-use dvlcal::io::a50_json::read_a50_velocities;
 use dvlcal::io::calib_yaml::{
     CalibrationFile, CalibrationInfo, CalibrationStd, Observability, ObservabilityFlags,
     read_calib_yaml, write_calib_yaml,
 };
+use dvlcal::io::dvl::{DvlLog, read_dvl_log};
 use dvlcal::io::tum::read_tum;
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -31,9 +33,14 @@ pub struct CalibrateArgs {
     /// TUM file of T_world_cam (camera clock).
     #[arg(long)]
     pub poses: PathBuf,
-    /// Water Linked A50 log.
+    /// Water Linked A50 log: JSON lines (any json_v1..v3 version), serial capture or ROS1 bag.
     #[arg(long)]
     pub dvl: PathBuf,
+    #[command(flatten)]
+    pub dvl_input: DvlInputArgs,
+    /// Stop at the first malformed DVL line instead of skipping and counting it.
+    #[arg(long)]
+    pub strict: bool,
     /// Result YAML (written atomically).
     #[arg(long)]
     pub out: PathBuf,
@@ -42,9 +49,6 @@ pub struct CalibrateArgs {
     /// Initial guess or fixed extrinsics (result YAML schema), for --method bcd and fixed.
     #[arg(long)]
     pub init: Option<PathBuf>,
-    /// Per-axis DVL velocity noise, m/s, replacing the reports' covariance.
-    #[arg(long)]
-    pub dvl_sigma: Option<f64>,
     /// Clock offsets searched, `min,max` seconds (t_cam = t_dvl + offset).
     #[arg(long, value_delimiter = ',', default_values_t = [-1.0, 1.0])]
     pub offset_range: Vec<f64>,
@@ -76,8 +80,8 @@ fn method_name(m: &Method) -> &'static str {
     }
 }
 
-/// The result file of an outcome.
-pub fn result_file(o: &CalibrationOutcome) -> CalibrationFile {
+/// The result file of an outcome, with the DVL log's own counts.
+pub fn result_file(o: &CalibrationOutcome, log: &DvlLog) -> CalibrationFile {
     let mut f = CalibrationFile::from_params(&o.params.to_calibration());
     let v = |x: &nalgebra::Vector3<f64>| [x.x, x.y, x.z];
     f.std = Some(CalibrationStd {
@@ -97,8 +101,14 @@ pub fn result_file(o: &CalibrationOutcome) -> CalibrationFile {
         extra.insert(k.to_owned(), val);
     };
     put("poses", o.counts.poses.into());
+    let st = &log.stats;
+    put("dvl_log", st.path.display().to_string().into());
+    put("dvl_time_source", st.time_source_used.clone().into());
+    put("dvl_velocity_reports", st.velocity_reports.into());
+    put("dvl_invalid", st.invalid.into());
+    put("dvl_duplicates", st.duplicates.into());
+    put("dvl_rejected_lines", st.rejected_lines.into());
     put("dvl_samples", o.counts.dvl_samples.into());
-    put("dvl_invalid", o.counts.dvl_invalid.into());
     put("dvl_used", o.counts.dvl_used.into());
     put("dvl_outside_camera_span", o.counts.dvl_outside_span.into());
     put(
@@ -138,7 +148,8 @@ pub fn result_file(o: &CalibrationOutcome) -> CalibrationFile {
         );
         put("calm_samples", o.counts.calm.into());
     }
-    let mut warnings = o.warnings.clone();
+    let mut warnings = st.warnings.clone();
+    warnings.extend(o.warnings.iter().cloned());
     for (name, vd) in [
         ("rotation", &o.verdicts.rotation),
         ("lever arm", &o.verdicts.lever_arm),
@@ -161,8 +172,20 @@ pub fn result_file(o: &CalibrationOutcome) -> CalibrationFile {
 
 pub fn run(a: CalibrateArgs) -> Result<()> {
     let tum = read_tum(&a.poses, None)?;
-    let log = read_a50_velocities(&a.dvl, Some(tum.epoch))?;
-    if a.offset_range.len() != 2 || !(a.offset_range[0] < a.offset_range[1]) {
+    let mut read = a.dvl_input.read_options(a.strict);
+    read.epoch = Some(tum.epoch);
+    let log = read_dvl_log(&a.dvl, &read)?;
+    let st = &log.stats;
+    if st.rejected_lines > 0 {
+        eprintln!(
+            "{}: {} malformed lines skipped (dvlcal dvl-info lists them)",
+            a.dvl.display(),
+            st.rejected_lines
+        );
+    }
+    if a.offset_range.len() != 2
+        || a.offset_range[0].partial_cmp(&a.offset_range[1]) != Some(std::cmp::Ordering::Less)
+    {
         bail!("--offset-range takes two increasing values: min,max");
     }
     let guess = match &a.init {
@@ -178,14 +201,14 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
         },
         (_, None) => bail!("--method bcd and fixed need --init FILE"),
     };
-    if let Some(s) = a.dvl_sigma
+    if let Some(s) = a.dvl_input.dvl_sigma
         && !(s.is_finite() && s > 0.0)
     {
         bail!("--dvl-sigma must be positive");
     }
     let mut opts = CalibOptions {
         method,
-        dvl_sigma: a.dvl_sigma,
+        dvl_sigma: a.dvl_input.dvl_sigma,
         bias_corrected: !a.biased,
         ..CalibOptions::default()
     };
@@ -199,23 +222,27 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
         )
     })?;
     let elapsed = start.elapsed().as_secs_f64();
-    let file = result_file(&o);
+    let file = result_file(&o, &log);
     write_calib_yaml(&a.out, &file)?;
-    print_summary(&o, &file, elapsed);
+    print_summary(&o, &log, &file, elapsed);
     println!("wrote {}", a.out.display());
     Ok(())
 }
 
-fn print_summary(o: &CalibrationOutcome, f: &CalibrationFile, secs: f64) {
+fn print_summary(o: &CalibrationOutcome, log: &DvlLog, f: &CalibrationFile, secs: f64) {
     let ok = |v: &Verdict| if v.ok { "ok" } else { "WEAK" };
     let s = &o.std;
+    let st = &log.stats;
     println!(
-        "method {}; {} poses, {} DVL reports ({} used, {} invalid, {} outside the camera span); {:.2} s",
+        "method {}; {} poses; DVL: {} velocity reports, {} invalid, {} duplicates, {} malformed lines; \
+         {} used, {} outside the camera span; {:.2} s",
         method_name(&o.method),
         o.counts.poses,
-        o.counts.dvl_samples,
+        st.velocity_reports,
+        st.invalid,
+        st.duplicates,
+        st.rejected_lines,
         o.counts.dvl_used,
-        o.counts.dvl_invalid,
         o.counts.dvl_outside_span,
         secs
     );

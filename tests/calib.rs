@@ -1,0 +1,190 @@
+//! Calibration on simulated data with known truth: accuracy against the reported uncertainty,
+//! observability verdicts, fallbacks and bad input.
+
+use dvlcal::calib::model::{NPARAM, Params};
+use dvlcal::calib::offset::OffsetMethod;
+use dvlcal::calib::{CalibOptions, CalibrationOutcome, Method, calibrate};
+use dvlcal::sim::dataset::{MotionKind, SimConfig, SimDataset, simulate};
+use dvlcal::trajectory::lie::so3;
+use nalgebra::{SVector, Vector3};
+
+fn dataset(seed: u64, motion: MotionKind, duration: f64) -> SimDataset {
+    simulate(&SimConfig {
+        seed,
+        motion,
+        duration_s: duration,
+        ..SimConfig::default()
+    })
+    .expect("simulation")
+}
+
+/// Error of an estimate in the parameterisation of the covariance:
+/// `[log(R_est R_true^T); p_est - p_true; kappa_est - kappa_true; delta_est - delta_true]`.
+fn error(est: &Params, truth: &Params) -> SVector<f64, NPARAM> {
+    let r = so3::log(&(est.r_dvl_cam * truth.r_dvl_cam.transpose()));
+    let p = est.lever_arm - truth.lever_arm;
+    SVector::<f64, NPARAM>::from_column_slice(&[
+        r.x,
+        r.y,
+        r.z,
+        p.x,
+        p.y,
+        p.z,
+        est.scale - truth.scale,
+        est.time_offset - truth.time_offset,
+    ])
+}
+
+fn nees(o: &CalibrationOutcome, truth: &Params) -> f64 {
+    let e = error(&o.params, truth);
+    let info = o.covariance.try_inverse().expect("invertible covariance");
+    (e.transpose() * info * e)[0]
+}
+
+#[test]
+fn errors_are_consistent_with_reported_uncertainty_over_seeds() {
+    // Sum over seeds of the 8-dof NEES is chi-square with 8 * seeds dof when the covariance is
+    // honest. With 10 seeds (80 dof) the two-sided 99.9% interval of chi2_80 / 80 is
+    // [0.58, 1.55].
+    let seeds = 1..=10u64;
+    let mut total = 0.0;
+    let mut count = 0;
+    for seed in seeds {
+        let ds = dataset(seed, MotionKind::CalmThenRotate, 60.0);
+        let truth = Params::from_calibration(&ds.truth);
+        let o = calibrate(&ds.poses, &ds.dvl, &CalibOptions::default()).expect("calibration");
+        let n = nees(&o, &truth);
+        eprintln!(
+            "seed {seed}: NEES {n:.2}; offset {:.4} (std {:.4}), lever {:?}",
+            o.params.time_offset,
+            o.std.time_offset_s,
+            o.params.lever_arm.as_slice()
+        );
+        assert!(
+            o.verdicts.rotation.ok && o.verdicts.lever_arm.ok,
+            "seed {seed}: {:?}",
+            o.verdicts
+        );
+        assert!(o.verdicts.time_offset.ok && o.verdicts.velocity_scale.ok);
+        total += n;
+        count += NPARAM;
+    }
+    let mean = total / count as f64;
+    assert!(
+        (0.58..=1.55).contains(&mean),
+        "mean NEES per dof {mean:.3} outside the 99.9% chi-square interval"
+    );
+}
+
+#[test]
+fn weak_rotation_flags_the_lever_arm_but_keeps_the_rest() {
+    let ds = dataset(3, MotionKind::WeakRotation, 60.0);
+    let truth = Params::from_calibration(&ds.truth);
+    let o = calibrate(&ds.poses, &ds.dvl, &CalibOptions::default()).expect("calibration");
+    assert!(
+        !o.verdicts.lever_arm.ok,
+        "lever arm should be weak: {:?}",
+        o.std
+    );
+    assert!(o.verdicts.lever_arm.reason.contains("rotated too little"));
+    assert!(o.verdicts.rotation.ok && o.verdicts.velocity_scale.ok && o.verdicts.time_offset.ok);
+    let e = error(&o.params, &truth);
+    // Rotation, scale and offset within four reported standard deviations.
+    for k in [0, 1, 2, 6, 7] {
+        let sd = o.covariance[(k, k)].sqrt();
+        assert!(
+            e[k].abs() < 4.0 * sd,
+            "param {k}: error {} vs std {sd}",
+            e[k]
+        );
+    }
+    assert!(e.fixed_rows::<3>(0).norm().to_degrees() < 0.5);
+    assert!(e[7].abs() < 0.01);
+}
+
+#[test]
+fn motion_without_calm_segment_falls_back_and_says_so() {
+    let ds = dataset(2, MotionKind::Sinusoid, 40.0);
+    let truth = Params::from_calibration(&ds.truth);
+    let o = calibrate(&ds.poses, &ds.dvl, &CalibOptions::default()).expect("calibration");
+    let init = o.init.as_ref().expect("UIC has an init report");
+    assert_eq!(init.offset.method, OffsetMethod::SpeedCorrelation);
+    assert!(o.warnings.iter().any(|w| w.contains("speed magnitudes")));
+    let e = error(&o.params, &truth);
+    assert!(e[7].abs() < 0.01, "offset error {}", e[7]);
+    assert!(e.fixed_rows::<3>(3).norm() < 0.01);
+}
+
+#[test]
+fn bcd_from_a_rough_guess_reaches_the_uic_answer() {
+    let ds = dataset(4, MotionKind::CalmThenRotate, 60.0);
+    let truth = Params::from_calibration(&ds.truth);
+    let uic = calibrate(&ds.poses, &ds.dvl, &CalibOptions::default()).unwrap();
+    let guess = Params {
+        r_dvl_cam: so3::exp(&Vector3::new(0.05, -0.04, 0.03)) * truth.r_dvl_cam,
+        lever_arm: truth.lever_arm + Vector3::new(0.05, -0.05, 0.05),
+        scale: 1.0,
+        time_offset: 0.0,
+    };
+    let bcd = calibrate(
+        &ds.poses,
+        &ds.dvl,
+        &CalibOptions {
+            method: Method::Bcd(guess),
+            ..CalibOptions::default()
+        },
+    )
+    .unwrap();
+    let d = error(&bcd.params, &uic.params);
+    for k in 0..NPARAM {
+        let sd = uic.covariance[(k, k)].sqrt();
+        assert!(
+            d[k].abs() < 0.05 * sd + 1e-9,
+            "param {k}: {} vs std {sd}",
+            d[k]
+        );
+    }
+}
+
+#[test]
+fn bad_input_is_an_error_not_a_panic() {
+    let ds = dataset(5, MotionKind::CalmThenRotate, 30.0);
+    let opts = CalibOptions::default();
+    // Empty and too short logs.
+    assert!(calibrate(&ds.poses, &[], &opts).is_err());
+    assert!(calibrate(&ds.poses, &ds.dvl[..5], &opts).is_err());
+    // No valid reports.
+    let mut invalid = ds.dvl.clone();
+    invalid.iter_mut().for_each(|s| s.valid = false);
+    let e = calibrate(&ds.poses, &invalid, &opts)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("valid"), "{e}");
+    // No overlap in time.
+    let mut shifted = ds.dvl.clone();
+    shifted.iter_mut().for_each(|s| s.t += 1000.0);
+    let e = calibrate(&ds.poses, &shifted, &opts)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("overlap"), "{e}");
+    // Too few poses.
+    assert!(calibrate(&ds.poses[..2], &ds.dvl, &opts).is_err());
+}
+
+#[test]
+fn a_still_camera_gives_an_error_or_weak_verdicts() {
+    // The camera does not move: every parameter is unobservable.
+    let mut ds = dataset(6, MotionKind::CalmThenRotate, 30.0);
+    let first = ds.poses[0].pose;
+    ds.poses.iter_mut().for_each(|p| p.pose = first);
+    ds.dvl
+        .iter_mut()
+        .for_each(|s| s.v = Vector3::new(0.001, -0.002, 0.0005));
+    match calibrate(&ds.poses, &ds.dvl, &CalibOptions::default()) {
+        Err(e) => assert!(!e.to_string().is_empty()),
+        Ok(o) => {
+            assert!(!o.verdicts.rotation.ok);
+            assert!(!o.verdicts.lever_arm.ok);
+        }
+    }
+}
