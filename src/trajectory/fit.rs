@@ -10,8 +10,7 @@ use nalgebra::{Matrix3, Matrix6, SMatrix, Vector6};
 use super::blocktri::{BandedInverse, BlockTridiagonal, Factored, M18, V18};
 use super::gp::{
     Knot, PriorNormal, apply_scalar, d_jr_times, first_local_state, interpolation_weights,
-    knot_from_local, kron_diag, kron_identity, local_state, prior_factor, prior_normal,
-    q_scalar_inv,
+    knot_from_local, kron_diag_mul, local_state, prior_factor, prior_normal, q_scalar_inv,
 };
 use super::hyper;
 use super::lie::{Se3, se3_right_jacobian, se3_right_jacobian_inv};
@@ -513,22 +512,30 @@ impl Trajectory {
             .fixed_view_mut::<6, 6>(0, 6)
             .copy_from(&se3_right_jacobian(&xi));
 
-        let om = kron_identity(&omega);
-        let mut dg1 = kron_identity(&lambda);
-        dg1.fixed_view_mut::<18, 6>(0, 0).fill(0.0);
-        dg1 += om.fixed_view::<18, 18>(0, 0) * {
-            let mut m = M18::zeros();
-            m.fixed_view_mut::<18, 6>(0, 0).copy_from(&ls.d_pose1());
+        // The twist depends on gamma_1 through Lambda (x) I6 and on gamma_2 through
+        // Omega (x) I6; fold those into d_local first (6x18 each, from 6x6 blocks).
+        let through = |s: &Matrix3<f64>| {
+            let mut m = SMatrix::<f64, 6, 18>::zeros();
+            for j in 0..3 {
+                let block: Matrix6<f64> = (0..3)
+                    .map(|i| d_local.fixed_view::<6, 6>(0, 6 * i) * s[(i, j)])
+                    .sum();
+                m.fixed_view_mut::<6, 6>(0, 6 * j).copy_from(&block);
+            }
             m
         };
-        let dg2 = om * ls.d_knot2();
+        let (via_gamma1, via_gamma2) = (through(&lambda), through(&omega));
         let mut jacobian = SMatrix::<f64, 6, 36>::zeros();
+        // gamma_1 = [0; w_1; dw_1] does not depend on T_1; gamma_2 does.
         jacobian
             .fixed_view_mut::<6, 18>(0, 0)
-            .copy_from(&(d_local * dg1));
+            .copy_from(&via_gamma1);
+        jacobian
+            .fixed_view_mut::<6, 6>(0, 0)
+            .copy_from(&(via_gamma2 * ls.d_pose1()));
         jacobian
             .fixed_view_mut::<6, 18>(0, 18)
-            .copy_from(&(d_local * dg2));
+            .copy_from(&(via_gamma2 * ls.d_knot2()));
         Ok(TwistJacobian {
             knot: k,
             state,
@@ -543,19 +550,15 @@ impl Trajectory {
         let tj = self.twist_jacobian(t)?;
         let twist_cov = self.cov.as_ref().map(|cov| {
             let k = tj.knot;
-            let mut joint = SMatrix::<f64, 36, 36>::zeros();
-            joint.fixed_view_mut::<18, 18>(0, 0).copy_from(&cov.diag[k]);
-            joint
-                .fixed_view_mut::<18, 18>(18, 18)
-                .copy_from(&cov.diag[k + 1]);
-            joint
-                .fixed_view_mut::<18, 18>(0, 18)
-                .copy_from(&cov.upper[k]);
-            joint
-                .fixed_view_mut::<18, 18>(18, 0)
-                .copy_from(&cov.upper[k].transpose());
-            let c = tj.jacobian * joint * tj.jacobian.transpose()
-                + tj.d_local * kron_diag(&tj.cond, &self.qc) * tj.d_local.transpose();
+            // J Sigma J^T over the two knots' blocks, without forming the 36x36 joint.
+            let j1 = tj.jacobian.fixed_view::<6, 18>(0, 0);
+            let j2 = tj.jacobian.fixed_view::<6, 18>(0, 18);
+            let cross = j1 * cov.upper[k] * j2.transpose();
+            let c = j1 * cov.diag[k] * j1.transpose()
+                + cross
+                + cross.transpose()
+                + j2 * cov.diag[k + 1] * j2.transpose()
+                + tj.d_local * kron_diag_mul(&tj.cond, &self.qc, &tj.d_local.transpose());
             (c + c.transpose()) * 0.5
         });
         Ok(TrajectoryState {
