@@ -16,6 +16,17 @@ use dvlcal::sim::dataset::{MotionKind, SimConfig, simulate};
 use dvlcal::trajectory::{FitOptions, Trajectory};
 use nalgebra::Vector6;
 
+/// CPU time (user + system, all threads) of this process in seconds, from `/proc/self/stat`
+/// (`None` where that is not available). Less sensitive than wall time to other load.
+fn cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // Fields after the parenthesised command name; utime and stime are fields 14 and 15.
+    let rest = &stat[stat.rfind(')')? + 2..];
+    let fields: Vec<&str> = rest.split_whitespace().collect();
+    let ticks: f64 = fields.get(11)?.parse::<f64>().ok()? + fields.get(12)?.parse::<f64>().ok()?;
+    Some(ticks / 100.0)
+}
+
 /// Queries per run (spread uniformly over the span).
 const QUERIES: usize = 20_000;
 
@@ -57,6 +68,7 @@ fn main() -> anyhow::Result<()> {
 
     let mut best = f64::INFINITY;
     let mut traj = None;
+    let cpu0 = cpu_seconds();
     for _ in 0..repeat.max(1) {
         let t0 = Instant::now();
         let tr = Trajectory::fit(&poses, &opts)?;
@@ -64,6 +76,12 @@ fn main() -> anyhow::Result<()> {
         traj = Some(tr);
     }
     let traj = traj.expect("at least one fit");
+    if let (Some(a), Some(b)) = (cpu0, cpu_seconds()) {
+        println!(
+            "fit cpu time {:.1} us/knot (mean over {repeat}, all threads)",
+            (b - a) / (repeat.max(1) * n) as f64 * 1e6
+        );
+    }
     let rep = traj.report();
     println!(
         "knots {n}: fit {:.1} us/knot ({:.3} s, best of {repeat}), {} iterations, cost {:.6e}",
