@@ -307,7 +307,8 @@ pub fn calibrate(
             + (up.params.scale - params.scale).abs()
             + (up.params.time_offset - params.time_offset).abs();
         params = up.params;
-        let (refit, cost) = state_update(&jp, &traj, &params, 5)?;
+        // Warm-started from the previous state, two Gauss-Newton steps suffice per round.
+        let (refit, cost) = state_update(&jp, &traj, &params, 2)?;
         traj = refit;
         iterations.push(IterationRecord { cost, params });
         let rel = (last_cost - cost).abs() / cost.max(1e-300);
@@ -335,7 +336,7 @@ pub fn calibrate(
     let mut sq = Vector3::zeros();
     let (mut sv, mut sw, mut sl) = (0.0, 0.0, 0.0);
     for &i in &idx {
-        let q = traj.query(obs[i].t + params.time_offset)?;
+        let q = traj.state(obs[i].t + params.time_offset)?;
         let r = obs[i].v - predict(&params, &q.twist);
         sq += r.component_mul(&r);
         let v = q.twist.fixed_rows::<3>(0).into_owned();

@@ -40,6 +40,8 @@ pub struct OffsetOptions {
     pub coarse_step: f64,
     /// Samples used by the coarse search (spread evenly over the log).
     pub coarse_samples: usize,
+    /// Samples used by the fine search (spread evenly over the calm subset).
+    pub fine_samples: usize,
 }
 
 impl Default for OffsetOptions {
@@ -50,6 +52,7 @@ impl Default for OffsetOptions {
             min_calm: 30,
             coarse_step: 0.02,
             coarse_samples: 600,
+            fine_samples: 3000,
         }
     }
 }
@@ -79,20 +82,24 @@ pub struct OffsetResult {
     pub notes: Vec<String>,
 }
 
-/// Value of the profiled objective and the scale that minimises it.
-fn objective(traj: &Trajectory, obs: &[DvlObs], idx: &[usize], delta: f64) -> Option<(f64, f64)> {
+/// Value of the profiled objective and the scale that minimises it. `tr_sv[i]` is the trace of
+/// the GP's velocity covariance at sample `i` (it changes little over the offsets searched, so
+/// it is evaluated once).
+fn objective(
+    traj: &Trajectory,
+    obs: &[DvlObs],
+    idx: &[usize],
+    tr_sv: &[f64],
+    delta: f64,
+) -> Option<(f64, f64)> {
     let (mut saa, mut sab, mut sbb) = (0.0, 0.0, 0.0);
     let mut n = 0usize;
     for &i in idx {
         let o = &obs[i];
-        let q = traj.query(o.t + delta).ok()?;
+        let q = traj.state(o.t + delta).ok()?;
         let v = q.twist.fixed_rows::<3>(0);
-        let tr_sv = q
-            .twist_cov
-            .map(|c| c[(0, 0)] + c[(1, 1)] + c[(2, 2)])
-            .unwrap_or(0.0);
         let a = o.v.norm_squared() - o.cov.trace();
-        let b = v.norm_squared() - tr_sv;
+        let b = v.norm_squared() - tr_sv[i];
         saa += a * a;
         sab += a * b;
         sbb += b * b;
@@ -115,6 +122,7 @@ fn search(
     traj: &Trajectory,
     obs: &[DvlObs],
     idx: &[usize],
+    tr_sv: &[f64],
     lo: f64,
     hi: f64,
     step: f64,
@@ -123,7 +131,7 @@ fn search(
     let mut curve = Vec::with_capacity(count + 1);
     for k in 0..=count {
         let d = lo + (hi - lo) * k as f64 / count as f64;
-        if let Some((j, _)) = objective(traj, obs, idx, d) {
+        if let Some((j, _)) = objective(traj, obs, idx, tr_sv, d) {
             curve.push((d, j));
         }
     }
@@ -132,7 +140,7 @@ fn search(
     let (mut a, mut b) = ((best - h).max(lo), (best + h).min(hi));
     let g = 0.5 * (5f64.sqrt() - 1.0);
     let f = |d: f64| {
-        objective(traj, obs, idx, d)
+        objective(traj, obs, idx, tr_sv, d)
             .map(|x| x.0)
             .unwrap_or(f64::INFINITY)
     };
@@ -154,8 +162,14 @@ fn search(
         }
     }
     let offset = 0.5 * (a + b);
-    let (_, scale) = objective(traj, obs, idx, offset)?;
+    let (_, scale) = objective(traj, obs, idx, tr_sv, offset)?;
     Some((offset, scale, curve))
+}
+
+/// At most `n` of `idx`, spread evenly.
+fn spread(idx: &[usize], n: usize) -> Vec<usize> {
+    let stride = idx.len().div_ceil(n.max(1)).max(1);
+    idx.iter().step_by(stride).copied().collect()
 }
 
 /// Samples whose camera times stay inside the trajectory for every offset in `[lo, hi]`.
@@ -185,10 +199,11 @@ pub fn estimate_offset(
             all.len()
         )));
     }
-    let stride = all.len().div_ceil(opts.coarse_samples.max(1));
-    let coarse_idx: Vec<usize> = all.iter().step_by(stride.max(1)).copied().collect();
+    let coarse_idx = spread(&all, opts.coarse_samples);
+    // The coarse stage ignores the GP's velocity variance; the fine stage uses it.
+    let mut tr_sv = vec![0.0; obs.len()];
     let (coarse_offset, coarse_scale, coarse_curve) =
-        search(traj, obs, &coarse_idx, lo, hi, opts.coarse_step).ok_or_else(|| {
+        search(traj, obs, &coarse_idx, &tr_sv, lo, hi, opts.coarse_step).ok_or_else(|| {
             Error::Input("the DVL speeds are all zero or below their noise: no clock offset".into())
         })?;
 
@@ -204,7 +219,7 @@ pub fn estimate_offset(
         .copied()
         .filter(|&i| {
             [flo, coarse_offset, fhi].iter().all(|d| {
-                traj.query(obs[i].t + d)
+                traj.state(obs[i].t + d)
                     .map(|q| q.twist.fixed_rows::<3>(3).norm() < opts.calm_threshold)
                     .unwrap_or(false)
             })
@@ -223,7 +238,16 @@ pub fn estimate_offset(
         ));
         (near.clone(), OffsetMethod::SpeedCorrelation)
     };
-    let (offset, scale, curve) = search(traj, obs, &idx, flo, fhi, opts.coarse_step / 4.0)
+    // The initial estimate needs no more than a few thousand samples; the refinement uses all.
+    let idx = spread(&idx, opts.fine_samples);
+    for &i in &idx {
+        if let Ok(q) = traj.query(obs[i].t + coarse_offset)
+            && let Some(c) = q.twist_cov
+        {
+            tr_sv[i] = c[(0, 0)] + c[(1, 1)] + c[(2, 2)];
+        }
+    }
+    let (offset, scale, curve) = search(traj, obs, &idx, &tr_sv, flo, fhi, opts.coarse_step / 4.0)
         .unwrap_or((coarse_offset, coarse_scale, Vec::new()));
     let jmin = curve
         .iter()

@@ -10,7 +10,8 @@ use nalgebra::{Matrix3, Matrix6, SMatrix, Vector6};
 use super::blocktri::{BandedInverse, BlockTridiagonal, Factored, M18, V18};
 use super::gp::{
     Knot, PriorNormal, apply_scalar, d_jr_times, first_local_state, interpolation_weights,
-    knot_from_local, kron_diag_mul, local_state, prior_factor, prior_normal, q_scalar_inv,
+    knot_from_local, kron_diag_mul, local_gamma, local_state, prior_factor, prior_normal,
+    q_scalar_inv,
 };
 use super::hyper;
 use super::lie::{Se3, se3_right_jacobian, se3_right_jacobian_inv};
@@ -484,6 +485,29 @@ impl Trajectory {
         }
         let i = self.times.partition_point(|&x| x <= t);
         Some(i.saturating_sub(1).min(self.times.len() - 2))
+    }
+
+    /// Pose, twist and twist rate at `t`, without covariance or Jacobians (the cheap query).
+    pub fn state(&self, t: f64) -> Result<TrajectoryState> {
+        let k = self.interval(t).ok_or_else(|| {
+            let (a, b) = self.span();
+            Error::Input(format!(
+                "time {t} is outside the trajectory span [{a}, {b}]"
+            ))
+        })?;
+        let (k1, k2) = (&self.knots[k], &self.knots[k + 1]);
+        let dt = self.times[k + 1] - self.times[k];
+        let (lambda, omega, _) = interpolation_weights((t - self.times[k]).clamp(0.0, dt), dt);
+        let gamma = apply_scalar(&lambda, &first_local_state(k1))
+            + apply_scalar(&omega, &local_gamma(k1, k2));
+        let s = knot_from_local(&k1.pose, &gamma);
+        Ok(TrajectoryState {
+            t,
+            pose: s.pose,
+            twist: s.twist,
+            rate: s.rate,
+            twist_cov: None,
+        })
     }
 
     /// The interpolated state at `t` with the twist's Jacobian with respect to the two knots.

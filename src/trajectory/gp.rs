@@ -314,6 +314,15 @@ impl LocalState {
     }
 }
 
+/// `gamma_2` of knot `k2` in the local frame of `k1`, without Jacobians (for queries).
+pub fn local_gamma(k1: &Knot, k2: &Knot) -> V18 {
+    let xi = (k1.pose.inverse() * k2.pose).log();
+    let jri = se3_right_jacobian_inv(&xi);
+    let u = jri * k2.twist;
+    let a = jri * k2.rate + curly(&u) * k2.twist * 0.5;
+    stack(&xi, &u, &a)
+}
+
 /// `gamma_2` of knot `k2` in the local frame of `k1`, and its Jacobians.
 pub fn local_state(k1: &Knot, k2: &Knot) -> LocalState {
     let xi = (k1.pose.inverse() * k2.pose).log();
