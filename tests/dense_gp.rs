@@ -112,11 +112,13 @@ impl DenseGp {
         let h = DMatrix::from_fn(n, 3 * n, |i, j| if j == 3 * i { 1.0 } else { 0.0 });
         let k1ht = &k1 * h.transpose();
         let s = &h * &k1ht + DMatrix::identity(n, n) * (sigma * sigma);
-        let s = s.cholesky().expect("R + H K1 H^T is positive definite");
+        let s = s.lu();
         // X_b = mu + K1 H^T (R + H K1 H^T)^-1 (M - H mu), mu = 0.
-        let xb = &k1ht * s.solve(y);
+        let xb = &k1ht * s.solve(y).expect("R + H K1 H^T is invertible");
         // K1 - Sigma_Xb = K1 H^T (R + H K1 H^T)^-1 H K1.
-        let k1_minus_sigma = &k1ht * s.solve(&k1ht.transpose());
+        let k1_minus_sigma = &k1ht
+            * s.solve(&k1ht.transpose())
+                .expect("R + H K1 H^T is invertible");
         DenseGp {
             times: times.to_vec(),
             t0,
