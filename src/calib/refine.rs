@@ -80,6 +80,8 @@ pub struct UpdateResult {
     pub params: Params,
     pub cost: f64,
     pub iterations: usize,
+    /// Information matrix of the DVL term at `params` (trajectory held fixed).
+    pub hessian: ParamMat,
 }
 
 /// Levenberg-Marquardt on the free parameters, trajectory fixed.
@@ -132,6 +134,7 @@ pub fn calibration_update(
                         params: p,
                         cost: lin.cost,
                         iterations,
+                        hessian: lin.hessian,
                     });
                 }
                 break;
@@ -146,5 +149,38 @@ pub fn calibration_update(
         params: p,
         cost: lin.cost,
         iterations,
+        hessian: lin.hessian,
     })
+}
+
+/// Largest parameter change between `a` and `b` in units of the standard deviations implied by
+/// `hessian` (free parameters only; rotation as the left perturbation of `R_dvl_cam`).
+pub fn change_in_std(a: &Params, b: &Params, hessian: &ParamMat, free: &[bool; NPARAM]) -> f64 {
+    let r = crate::trajectory::lie::so3::log(&(b.r_dvl_cam * a.r_dvl_cam.transpose()));
+    let p = b.lever_arm - a.lever_arm;
+    let d = [
+        r.x,
+        r.y,
+        r.z,
+        p.x,
+        p.y,
+        p.z,
+        b.scale - a.scale,
+        b.time_offset - a.time_offset,
+    ];
+    let mut h = *hessian;
+    for k in 0..NPARAM {
+        if !free[k] {
+            h.row_mut(k).fill(0.0);
+            h.column_mut(k).fill(0.0);
+            h[(k, k)] = 1.0;
+        }
+    }
+    let Some(cov) = h.try_inverse() else {
+        return f64::INFINITY;
+    };
+    (0..NPARAM)
+        .filter(|&k| free[k])
+        .map(|k| d[k].abs() / cov[(k, k)].max(1e-300).sqrt())
+        .fold(0.0, f64::max)
 }

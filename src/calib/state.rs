@@ -129,7 +129,8 @@ impl NormalEquations for WithDvl<'_> {
 }
 
 /// State update: the trajectory refitted with the DVL factors at fixed calibration `p`.
-/// Returns the new trajectory (with posterior covariance) and the total cost.
+/// Returns the new trajectory (without posterior covariance: the refinement only interpolates
+/// it, and the calibration's covariance comes from [`joint_covariance`]) and the total cost.
 pub fn state_update(
     jp: &JointProblem,
     traj: &Trajectory,
@@ -146,8 +147,7 @@ pub fn state_update(
         params: p,
     };
     let solved = gauss_newton(&problem, traj.knots().to_vec(), max_iterations)?;
-    let cov = solved.factor.banded_inverse();
-    Ok((traj.with_knots(solved.knots, Some(cov)), solved.cost))
+    Ok((traj.with_knots(solved.knots, None), solved.cost))
 }
 
 /// Marginal covariance of the calibration parameters in the joint problem (trajectory and
