@@ -1,7 +1,7 @@
 //! Calibration on simulated data with known truth: accuracy against the reported uncertainty,
 //! observability verdicts, fallbacks and bad input.
 
-use dvlcal::calib::model::{NPARAM, Params};
+use dvlcal::calib::model::{NPARAM, Params, difference};
 use dvlcal::calib::offset::OffsetMethod;
 use dvlcal::calib::{CalibOptions, CalibrationOutcome, Method, calibrate};
 use dvlcal::sim::dataset::{MotionKind, SimConfig, SimDataset, simulate};
@@ -18,21 +18,9 @@ fn dataset(seed: u64, motion: MotionKind, duration: f64) -> SimDataset {
     .expect("simulation")
 }
 
-/// Error of an estimate in the parameterisation of the covariance:
-/// `[log(R_est R_true^T); p_est - p_true; kappa_est - kappa_true; delta_est - delta_true]`.
+/// Error of an estimate in the parameterisation of the covariance.
 fn error(est: &Params, truth: &Params) -> SVector<f64, NPARAM> {
-    let r = so3::log(&(est.r_dvl_cam * truth.r_dvl_cam.transpose()));
-    let p = est.lever_arm - truth.lever_arm;
-    SVector::<f64, NPARAM>::from_column_slice(&[
-        r.x,
-        r.y,
-        r.z,
-        p.x,
-        p.y,
-        p.z,
-        est.scale - truth.scale,
-        est.time_offset - truth.time_offset,
-    ])
+    difference(est, truth)
 }
 
 fn nees(o: &CalibrationOutcome, truth: &Params) -> f64 {

@@ -56,6 +56,23 @@ impl Params {
     }
 }
 
+/// `self - other` in the coordinates of [`Params::updated`] and of the covariance:
+/// `[log(R_self R_other^T); p_self - p_other; kappa_self - kappa_other; delta_self - delta_other]`.
+pub fn difference(a: &Params, b: &Params) -> SMatrix<f64, NPARAM, 1> {
+    let r = so3::log(&(a.r_dvl_cam * b.r_dvl_cam.transpose()));
+    let p = a.lever_arm - b.lever_arm;
+    SMatrix::<f64, NPARAM, 1>::from_column_slice(&[
+        r.x,
+        r.y,
+        r.z,
+        p.x,
+        p.y,
+        p.z,
+        a.scale - b.scale,
+        a.time_offset - b.time_offset,
+    ])
+}
+
 /// Predicted DVL velocity from the camera twist `[v; w]`.
 pub fn predict(p: &Params, twist: &Vector6<f64>) -> Vector3<f64> {
     let v = twist.fixed_rows::<3>(0).into_owned();

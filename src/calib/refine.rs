@@ -3,7 +3,7 @@
 
 use nalgebra::{SMatrix, SVector};
 
-use super::model::{NPARAM, Params, d_predict_d_params, predict};
+use super::model::{NPARAM, Params, d_predict_d_params, difference, predict};
 use super::offset::DvlObs;
 use crate::error::{Error, Result};
 use crate::trajectory::Trajectory;
@@ -102,11 +102,9 @@ pub fn calibration_update(
         iterations += 1;
         let mut h = lin.hessian;
         let mut g = lin.gradient;
+        pin_fixed(&mut h, &mask);
         for k in 0..NPARAM {
             if !mask[k] {
-                h.row_mut(k).fill(0.0);
-                h.column_mut(k).fill(0.0);
-                h[(k, k)] = 1.0;
                 g[k] = 0.0;
             }
         }
@@ -156,26 +154,9 @@ pub fn calibration_update(
 /// Largest parameter change between `a` and `b` in units of the standard deviations implied by
 /// `hessian` (free parameters only; rotation as the left perturbation of `R_dvl_cam`).
 pub fn change_in_std(a: &Params, b: &Params, hessian: &ParamMat, free: &[bool; NPARAM]) -> f64 {
-    let r = crate::trajectory::lie::so3::log(&(b.r_dvl_cam * a.r_dvl_cam.transpose()));
-    let p = b.lever_arm - a.lever_arm;
-    let d = [
-        r.x,
-        r.y,
-        r.z,
-        p.x,
-        p.y,
-        p.z,
-        b.scale - a.scale,
-        b.time_offset - a.time_offset,
-    ];
+    let d = difference(b, a);
     let mut h = *hessian;
-    for k in 0..NPARAM {
-        if !free[k] {
-            h.row_mut(k).fill(0.0);
-            h.column_mut(k).fill(0.0);
-            h[(k, k)] = 1.0;
-        }
-    }
+    pin_fixed(&mut h, free);
     let Some(cov) = h.try_inverse() else {
         return f64::INFINITY;
     };
@@ -183,4 +164,16 @@ pub fn change_in_std(a: &Params, b: &Params, hessian: &ParamMat, free: &[bool; N
         .filter(|&k| free[k])
         .map(|k| d[k].abs() / cov[(k, k)].max(1e-300).sqrt())
         .fold(0.0, f64::max)
+}
+
+/// Decouples the fixed parameters in an information matrix: their rows and columns become those
+/// of the identity, so the free block can be solved or inverted on its own.
+pub fn pin_fixed(h: &mut ParamMat, free: &[bool; NPARAM]) {
+    for k in 0..NPARAM {
+        if !free[k] {
+            h.row_mut(k).fill(0.0);
+            h.column_mut(k).fill(0.0);
+            h[(k, k)] = 1.0;
+        }
+    }
 }

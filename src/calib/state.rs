@@ -9,7 +9,7 @@ use nalgebra::{Matrix3, SMatrix};
 
 use super::model::{NPARAM, Params, d_predict_d_params, d_predict_d_twist, predict};
 use super::offset::DvlObs;
-use super::refine::ParamMat;
+use super::refine::{ParamMat, pin_fixed};
 use crate::error::{Error, Result};
 use crate::trajectory::blocktri::{BlockTridiagonal, V18};
 use crate::trajectory::fit::{NormalEquations, Problem, gauss_newton, measurement_information};
@@ -187,13 +187,7 @@ pub fn joint_covariance(
             schur[(r, c)] -= dot;
         }
     }
-    for k in 0..NPARAM {
-        if !free[k] {
-            schur.row_mut(k).fill(0.0);
-            schur.column_mut(k).fill(0.0);
-            schur[(k, k)] = 1.0;
-        }
-    }
+    pin_fixed(&mut schur, free);
     let schur = (schur + schur.transpose()) * 0.5;
     let mut cov = schur
         .try_inverse()

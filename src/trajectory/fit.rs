@@ -487,17 +487,23 @@ impl Trajectory {
         Some(i.saturating_sub(1).min(self.times.len() - 2))
     }
 
-    /// Pose, twist and twist rate at `t`, without covariance or Jacobians (the cheap query).
-    pub fn state(&self, t: f64) -> Result<TrajectoryState> {
+    /// The interval holding `t`, the time since its first knot and its length.
+    fn locate(&self, t: f64) -> Result<(usize, f64, f64)> {
         let k = self.interval(t).ok_or_else(|| {
             let (a, b) = self.span();
             Error::Input(format!(
                 "time {t} is outside the trajectory span [{a}, {b}]"
             ))
         })?;
-        let (k1, k2) = (&self.knots[k], &self.knots[k + 1]);
         let dt = self.times[k + 1] - self.times[k];
-        let (lambda, omega, _) = interpolation_weights((t - self.times[k]).clamp(0.0, dt), dt);
+        Ok((k, (t - self.times[k]).clamp(0.0, dt), dt))
+    }
+
+    /// Pose, twist and twist rate at `t`, without covariance or Jacobians (the cheap query).
+    pub fn state(&self, t: f64) -> Result<TrajectoryState> {
+        let (k, s, dt) = self.locate(t)?;
+        let (k1, k2) = (&self.knots[k], &self.knots[k + 1]);
+        let (lambda, omega, _) = interpolation_weights(s, dt);
         let gamma = apply_scalar(&lambda, &first_local_state(k1))
             + apply_scalar(&omega, &local_gamma(k1, k2));
         let s = knot_from_local(&k1.pose, &gamma);
@@ -512,15 +518,8 @@ impl Trajectory {
 
     /// The interpolated state at `t` with the twist's Jacobian with respect to the two knots.
     pub fn twist_jacobian(&self, t: f64) -> Result<TwistJacobian> {
-        let k = self.interval(t).ok_or_else(|| {
-            let (a, b) = self.span();
-            Error::Input(format!(
-                "time {t} is outside the trajectory span [{a}, {b}]"
-            ))
-        })?;
+        let (k, s, dt) = self.locate(t)?;
         let (k1, k2) = (&self.knots[k], &self.knots[k + 1]);
-        let dt = self.times[k + 1] - self.times[k];
-        let s = (t - self.times[k]).clamp(0.0, dt);
         let (lambda, omega, cond) = interpolation_weights(s, dt);
         let ls = local_state(k1, k2);
         let gamma = apply_scalar(&lambda, &first_local_state(k1)) + apply_scalar(&omega, &ls.gamma);
