@@ -1,0 +1,2 @@
+//! Camera poses from stereo images of an AprilTag board: board and camera models, tag detection
+//! through libapriltag, stereo PnP through OpenCV, and a renderer for datasets with known truth.
