@@ -61,6 +61,7 @@ use crate::{Error, Result};
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum TagFamily {
     Tag36h11,
+    Tag36h10,
     Tag25h9,
     Tag16h5,
     TagCircle21h7,
@@ -72,8 +73,9 @@ pub enum TagFamily {
 
 impl TagFamily {
     /// Every family, in a fixed order.
-    pub const ALL: [TagFamily; 8] = [
+    pub const ALL: [TagFamily; 9] = [
         TagFamily::Tag36h11,
+        TagFamily::Tag36h10,
         TagFamily::Tag25h9,
         TagFamily::Tag16h5,
         TagFamily::TagCircle21h7,
@@ -87,6 +89,7 @@ impl TagFamily {
     pub fn name(&self) -> &'static str {
         match self {
             TagFamily::Tag36h11 => "tag36h11",
+            TagFamily::Tag36h10 => "tag36h10",
             TagFamily::Tag25h9 => "tag25h9",
             TagFamily::Tag16h5 => "tag16h5",
             TagFamily::TagCircle21h7 => "tagCircle21h7",
@@ -220,6 +223,7 @@ struct ListTag {
 #[derive(Deserialize)]
 #[serde(rename_all = "camelCase")]
 struct KalibrFile {
+    #[serde(rename = "target_type")]
     target_type: String,
     tag_cols: u32,
     tag_rows: u32,
@@ -480,6 +484,7 @@ impl Board {
 pub fn family_code_count(f: TagFamily) -> Option<usize> {
     Some(match f {
         TagFamily::Tag36h11 => 587,
+        TagFamily::Tag36h10 => 2320,
         TagFamily::Tag25h9 => 35,
         TagFamily::Tag16h5 => 30,
         TagFamily::TagCircle21h7 => 38,
