@@ -2,3 +2,4 @@
 //! through libapriltag, stereo PnP through OpenCV, and a renderer for datasets with known truth.
 pub mod board;
 pub mod camera;
+pub mod render;

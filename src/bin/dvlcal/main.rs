@@ -1,5 +1,6 @@
 //! The `dvlcal` command line: a thin layer over the library, one module per subcommand.
 
+mod board;
 mod calibrate;
 mod dvl_info;
 mod eval;
@@ -35,6 +36,8 @@ enum Command {
     DvlInfo(dvl_info::DvlInfoArgs),
     /// Record a DVL's TCP JSON stream to a log, adding the host receive time to each line.
     RecordDvl(record_dvl::RecordDvlArgs),
+    /// Draw a board definition as an SVG to print at exact scale.
+    Board(board::BoardArgs),
 }
 
 fn main() {
@@ -45,6 +48,7 @@ fn main() {
         Command::EvalTwist(a) => eval::run(a),
         Command::DvlInfo(a) => dvl_info::run(a),
         Command::RecordDvl(a) => record_dvl::run(a),
+        Command::Board(a) => board::run(a),
         Command::Calibrate(a) => calibrate::run(a),
     };
     if let Err(e) = result {
