@@ -3,3 +3,4 @@
 pub mod board;
 pub mod camera;
 pub mod render;
+pub mod detect;

@@ -7,6 +7,7 @@ mod eval;
 mod fit;
 mod record_dvl;
 mod simulate;
+mod tags;
 
 use clap::{Parser, Subcommand};
 
@@ -36,6 +37,8 @@ enum Command {
     DvlInfo(dvl_info::DvlInfoArgs),
     /// Record a DVL's TCP JSON stream to a log, adding the host receive time to each line.
     RecordDvl(record_dvl::RecordDvlArgs),
+    /// Detect AprilTags in images and print them as CSV (corners in the OpenCV pixel convention).
+    Tags(tags::TagsArgs),
     /// Draw a board definition as an SVG to print at exact scale.
     Board(board::BoardArgs),
 }
@@ -50,6 +53,7 @@ fn main() {
         Command::RecordDvl(a) => record_dvl::run(a),
         Command::Board(a) => board::run(a),
         Command::Calibrate(a) => calibrate::run(a),
+        Command::Tags(a) => tags::run(a),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");
