@@ -4,3 +4,6 @@ pub mod board;
 pub mod camera;
 pub mod render;
 pub mod detect;
+pub mod pnp;
+pub mod images;
+pub mod pipeline;

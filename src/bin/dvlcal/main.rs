@@ -2,6 +2,7 @@
 
 mod board;
 mod calibrate;
+mod detect;
 mod dvl_info;
 mod eval;
 mod fit;
@@ -29,6 +30,9 @@ enum Command {
     /// Fit the continuous-time trajectory to camera poses and write body twists with their
     /// standard deviations.
     FitTrajectory(fit::FitArgs),
+    /// Camera poses (TUM, board frame as world) with covariances from stereo images of an
+    /// AprilTag board.
+    Detect(detect::DetectArgs),
     /// Estimate the DVL's rotation, lever arm, clock offset and velocity scale.
     Calibrate(calibrate::CalibrateArgs),
     /// Compare a twist CSV with a truth twist CSV (RMS errors and normalised errors).
@@ -53,6 +57,7 @@ fn main() {
         Command::RecordDvl(a) => record_dvl::run(a),
         Command::Board(a) => board::run(a),
         Command::Calibrate(a) => calibrate::run(a),
+        Command::Detect(a) => detect::run(a),
         Command::Tags(a) => tags::run(a),
     };
     if let Err(e) = result {
