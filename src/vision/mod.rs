@@ -7,3 +7,4 @@ pub mod detect;
 pub mod pnp;
 pub mod images;
 pub mod pipeline;
+pub mod synth;
