@@ -5,9 +5,13 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use dvlcal::sim::dataset::{MotionKind, SimConfig, simulate};
+use dvlcal::trajectory::lie::Se3;
 use dvlcal::vision::board::Board;
 use dvlcal::vision::camera::Camchain;
 use dvlcal::vision::detect::{Detector, DetectorSettings, load_gray};
+use dvlcal::vision::images::scan_images;
+use dvlcal::vision::pipeline::detect_poses;
+use dvlcal::vision::pnp::PnpOptions;
 use dvlcal::vision::synth::{
     DEFAULT_BOARD_DISTANCE_M, board_centre, board_facing, board_fully_visible, board_in_cameras,
     default_board, default_stereo_camchain,
@@ -108,6 +112,26 @@ fn png_times(dir: &Path) -> Vec<i64> {
     t
 }
 
+/// `(t_ns, pose)` rows of a TUM file written by dvlcal (nine decimals).
+fn read_tum(path: &Path) -> Vec<(i64, Se3)> {
+    std::fs::read_to_string(path)
+        .unwrap()
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
+        .map(|l| {
+            let f: Vec<&str> = l.split_whitespace().collect();
+            let (sec, frac) = f[0].split_once('.').unwrap();
+            let t_ns = sec.parse::<i64>().unwrap() * 1_000_000_000 + frac.parse::<i64>().unwrap();
+            let v: Vec<f64> = f[1..].iter().map(|x| x.parse().unwrap()).collect();
+            let pose = Se3::from_quaternion_xyzw(
+                &[v[3], v[4], v[5], v[6]],
+                nalgebra::Vector3::new(v[0], v[1], v[2]),
+            );
+            (t_ns, pose)
+        })
+        .collect()
+}
+
 #[test]
 fn simulate_images_writes_a_usable_dataset() {
     let tmp = TempDir::new("images");
@@ -169,6 +193,29 @@ fn simulate_images_writes_a_usable_dataset() {
         dets.len(),
         first.display()
     );
+
+    // The detection pipeline recovers the truth poses (frames agree end to end).
+    let (frames, _) = scan_images(&out, 2, 2_000_000).unwrap();
+    assert_eq!(frames.len(), 7);
+    let (posed, _) = detect_poses(
+        &frames,
+        &board,
+        &chain,
+        &DetectorSettings::default(),
+        &PnpOptions::default(),
+        false,
+    );
+    let truth = read_tum(&out.join("poses_board_truth.txt"));
+    for ((frame, pose), (t_ns, want)) in posed.iter().zip(&truth) {
+        assert_eq!(frame.t_ns, *t_ns);
+        let got = pose.as_ref().expect("frame without a pose").t_board_cam0;
+        let d = (want.inverse() * got).log();
+        let (dt, dr) = (d.fixed_rows::<3>(0).norm(), d.fixed_rows::<3>(3).norm());
+        assert!(
+            dt < 0.02 && dr < 0.01,
+            "t_ns {t_ns}: error {dt} m, {dr} rad"
+        );
+    }
 
     // The truth pose of the first frame: the board 1.8 m straight ahead, upright.
     let line = std::fs::read_to_string(out.join("poses_board_truth.txt")).unwrap();
