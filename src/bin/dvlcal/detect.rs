@@ -46,6 +46,8 @@ pub struct VisionTuning {
 #[derive(Args, Debug)]
 pub struct DetectArgs {
     /// Image folder: DIR/cam0/<t_ns>.png (+ DIR/cam1/...) or EuRoC's DIR/mav0/camN/data.csv.
+    /// Without cam1 images the poses come from cam0 alone (with a warning); unreadable images
+    /// and unpaired frames are counted and skipped.
     #[arg(long, value_name = "DIR")]
     pub images: PathBuf,
     /// Kalibr camchain YAML (intrinsics, distortion, T_cn_cnm1).
