@@ -677,7 +677,7 @@ impl BoardViewMotion {
     /// Checks the fields.
     pub fn validate(&self) -> Result<()> {
         self.sinusoids.validate()?;
-        if !self.rotation_start_s.is_finite() || !(self.ramp_s.is_finite() && self.ramp_s >= 0.0) {
+        if !self.rotation_start_s.is_finite() || !self.ramp_s.is_finite() || self.ramp_s < 0.0 {
             return Err(input(
                 "board-view motion: rotation start must be finite and ramp non-negative",
             ));

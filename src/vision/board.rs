@@ -240,7 +240,11 @@ fn check_positive(path: &Path, what: &str, v: f64) -> Result<()> {
     if v.is_finite() && v > 0.0 {
         Ok(())
     } else {
-        Err(Error::parse(path, 0, format!("{what} must be positive, got {v}")))
+        Err(Error::parse(
+            path,
+            0,
+            format!("{what} must be positive, got {v}"),
+        ))
     }
 }
 
@@ -290,7 +294,11 @@ impl Board {
                 return Err(Error::parse(path, 0, "tagSpacing must be >= 0"));
             }
             if k.tag_cols == 0 || k.tag_rows == 0 {
-                return Err(Error::parse(path, 0, "tagCols and tagRows must be positive"));
+                return Err(Error::parse(
+                    path,
+                    0,
+                    "tagCols and tagRows must be positive",
+                ));
             }
             Board::grid(
                 TagFamily::Tag36h11,
@@ -350,7 +358,11 @@ impl Board {
                     }
                 };
                 if tags.iter().any(|x: &BoardTag| x.id == t.id) {
-                    return Err(Error::parse(path, 0, format!("tag id {} listed twice", t.id)));
+                    return Err(Error::parse(
+                        path,
+                        0,
+                        format!("tag id {} listed twice", t.id),
+                    ));
                 }
                 tags.push(BoardTag::from_pose(t.id, t.size, &pose));
             }

@@ -156,17 +156,22 @@ impl Camera {
     /// Pixel of a camera-frame point, OpenCV/Kalibr convention (centre of the top-left pixel at
     /// (0,0)); `None` behind the camera.
     pub fn project(&self, p: &Vector3<f64>) -> Option<Vector2<f64>> {
-        if !(p.z > 1e-12) {
+        // Behind or on the camera plane (NaN included).
+        if p.z.is_nan() || p.z <= 1e-12 {
             return None;
         }
         let n = Vector2::new(p.x / p.z, p.y / p.z);
         let (d, _) = self.distortion.distort(&n);
-        Some(Vector2::new(self.fu * d.x + self.pu, self.fv * d.y + self.pv))
+        Some(Vector2::new(
+            self.fu * d.x + self.pu,
+            self.fv * d.y + self.pv,
+        ))
     }
 
     /// Pixel and its Jacobian with respect to the camera-frame point.
     pub fn project_jacobian(&self, p: &Vector3<f64>) -> Option<(Vector2<f64>, Matrix2x3<f64>)> {
-        if !(p.z > 1e-12) {
+        // Behind or on the camera plane (NaN included).
+        if p.z.is_nan() || p.z <= 1e-12 {
             return None;
         }
         let iz = 1.0 / p.z;
@@ -301,7 +306,11 @@ impl Camchain {
                     return Err(bad(format!(
                         "distortion_model {} needs {} distortion_coeffs, got {}",
                         e.distortion_model,
-                        if e.distortion_model == "none" { "no" } else { "4" },
+                        if e.distortion_model == "none" {
+                            "no"
+                        } else {
+                            "4"
+                        },
                         c.len()
                     )));
                 }

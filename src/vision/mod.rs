@@ -2,9 +2,9 @@
 //! through libapriltag, stereo PnP through OpenCV, and a renderer for datasets with known truth.
 pub mod board;
 pub mod camera;
-pub mod render;
 pub mod detect;
-pub mod pnp;
 pub mod images;
 pub mod pipeline;
+pub mod pnp;
+pub mod render;
 pub mod synth;

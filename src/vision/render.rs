@@ -106,7 +106,10 @@ pub struct FamilyLayout {
 }
 
 /// Reads the family from libapriltag and calls `f` with its layout and a cell function.
-fn with_family<T>(family: TagFamily, f: impl FnOnce(&FamilyLayout, &dyn Fn(u32) -> Option<Vec<Vec<bool>>>) -> T) -> Option<T> {
+fn with_family<T>(
+    family: TagFamily,
+    f: impl FnOnce(&FamilyLayout, &dyn Fn(u32) -> Option<Vec<Vec<bool>>>) -> T,
+) -> Option<T> {
     let (create, destroy) = family_fns(family);
     // SAFETY: the family constructors return a heap-allocated family (or null); it is read only
     // here, while alive, through the counts it states, and freed with its own destructor.
@@ -140,6 +143,7 @@ fn with_family<T>(family: TagFamily, f: impl FnOnce(&FamilyLayout, &dyn Fn(u32) 
             let start = (tw as isize - ring as isize) / 2;
             if ring >= 2 && start >= 0 {
                 let (s, e) = (start as usize, start as usize + ring - 1);
+                #[allow(clippy::needless_range_loop)] // rows and columns of the same ring
                 for i in s..=e {
                     black[s][i] = false;
                     black[e][i] = false;
@@ -180,8 +184,13 @@ pub fn tag_cells(family: TagFamily, id: u32) -> Option<Vec<Vec<bool>>> {
 }
 
 /// The cells of several tags of one family at once (reads the family once).
-pub fn tags_cells(family: TagFamily, ids: &[u32]) -> Option<(FamilyLayout, Vec<Option<Vec<Vec<bool>>>>)> {
-    with_family(family, |l, cells| (l.clone(), ids.iter().map(|&i| cells(i)).collect()))
+/// Black/white cells of one tag, row 0 at the top (`true` = black).
+pub type TagCells = Vec<Vec<bool>>;
+
+pub fn tags_cells(family: TagFamily, ids: &[u32]) -> Option<(FamilyLayout, Vec<Option<TagCells>>)> {
+    with_family(family, |l, cells| {
+        (l.clone(), ids.iter().map(|&i| cells(i)).collect())
+    })
 }
 
 /// One tag, prepared for sampling: its black square's bottom-left corner and axes in its plane's
@@ -227,7 +236,7 @@ impl Plane {
             return None;
         }
         let lambda = n.dot(&self.trans) / den;
-        if !(lambda > 0.0) {
+        if lambda.is_nan() || lambda <= 0.0 {
             return None;
         }
         let p = self.rot.transpose() * (r * lambda - self.trans);
@@ -282,7 +291,11 @@ fn prepare(board: &Board, t_cam_board: &Se3) -> Vec<Plane> {
             Some((_, v)) => v.push(i),
             None => {
                 // Grid boards use the board frame itself as the plane frame.
-                let frame = if board.grid.is_some() { Se3::identity() } else { pose };
+                let frame = if board.grid.is_some() {
+                    Se3::identity()
+                } else {
+                    pose
+                };
                 groups.push((frame, vec![i]))
             }
         }
@@ -348,7 +361,10 @@ fn prepare(board: &Board, t_cam_board: &Se3) -> Vec<Plane> {
 /// The white paper of a grid board in the board plane: lower-left and upper-right corners. The
 /// margin around the outer tags' black squares is the gap between tags, and at least the pattern's
 /// own white ring plus one cell.
-pub fn grid_paper(board: &Board, g: &crate::vision::board::GridLayout) -> (Vector2<f64>, Vector2<f64>) {
+pub fn grid_paper(
+    board: &Board,
+    g: &crate::vision::board::GridLayout,
+) -> (Vector2<f64>, Vector2<f64>) {
     let layout = family_layout(board.family);
     let (tw, wab) = layout
         .map(|l| (l.total_width as f64, l.width_at_border.max(1) as f64))

@@ -28,7 +28,9 @@ fn legend(board: &Board, source: &str) -> Vec<String> {
 }
 
 fn escape(s: &str) -> String {
-    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
 }
 
 /// The SVG text of a board. Tags must lie in the board's z = 0 plane (grid boards always do).
@@ -39,7 +41,11 @@ pub fn board_svg(board: &Board, source: &str) -> Result<String> {
     let tw = layout.total_width as f64;
     let wab = layout.width_at_border.max(1) as f64;
     let off = (tw - wab) / 2.0;
-    if let Some(t) = board.tags.iter().find(|t| t.corners.iter().any(|c| c.z.abs() > 1e-9)) {
+    if let Some(t) = board
+        .tags
+        .iter()
+        .find(|t| t.corners.iter().any(|c| c.z.abs() > 1e-9))
+    {
         bail!(
             "tag {} is not in the board's z = 0 plane; only flat boards can be printed as one sheet",
             t.id

@@ -41,10 +41,10 @@ enum Command {
     DvlInfo(dvl_info::DvlInfoArgs),
     /// Record a DVL's TCP JSON stream to a log, adding the host receive time to each line.
     RecordDvl(record_dvl::RecordDvlArgs),
-    /// Detect AprilTags in images and print them as CSV (corners in the OpenCV pixel convention).
-    Tags(tags::TagsArgs),
     /// Draw a board definition as an SVG to print at exact scale.
     Board(board::BoardArgs),
+    /// Detect AprilTags in images and print them as CSV (corners in the OpenCV pixel convention).
+    Tags(tags::TagsArgs),
 }
 
 fn main() {

@@ -290,7 +290,7 @@ fn write_images(a: &SimulateArgs, ds: &SimDataset, board: &Board, chain: &Camcha
         .zip(&ds.truth_poses)
         .map(|(p, s)| PoseMeasurement {
             t: p.t,
-            pose: &t_board_world * &s.pose,
+            pose: t_board_world * s.pose,
             cov: None,
         })
         .collect();
