@@ -41,12 +41,21 @@ fn kalibr_grid_geometry_and_ids() {
     // id = row * cols + col: tag 8 is row 1, col 2.
     let t8 = b.tag(8).unwrap();
     assert!(close(&t8.corners[0], &Vector3::new(2.0 * d, d, 0.0)));
-    assert!(close(&t8.corners[2], &Vector3::new(2.0 * d + 0.088, d + 0.088, 0.0)));
+    assert!(close(
+        &t8.corners[2],
+        &Vector3::new(2.0 * d + 0.088, d + 0.088, 0.0)
+    ));
     let t35 = b.tag(35).unwrap();
-    assert!(close(&t35.corners[2], &Vector3::new(5.0 * d + 0.088, 5.0 * d + 0.088, 0.0)));
+    assert!(close(
+        &t35.corners[2],
+        &Vector3::new(5.0 * d + 0.088, 5.0 * d + 0.088, 0.0)
+    ));
     assert!(b.tag(36).is_none());
     // Same as the constructor.
-    assert_eq!(b.tags, Board::grid(TagFamily::Tag36h11, 6, 6, 0.088, 0.3, 0).tags);
+    assert_eq!(
+        b.tags,
+        Board::grid(TagFamily::Tag36h11, 6, 6, 0.088, 0.3, 0).tags
+    );
 }
 
 #[test]
@@ -61,7 +70,10 @@ fn grid_yaml_with_first_id_and_family() {
     assert_eq!(ids, vec![10, 11, 12, 13, 14, 15]);
     // Tag 14 = row 1, col 1.
     let d = 0.05 * 1.25;
-    assert!(close(&b.tag(14).unwrap().corners[0], &Vector3::new(d, d, 0.0)));
+    assert!(close(
+        &b.tag(14).unwrap().corners[0],
+        &Vector3::new(d, d, 0.0)
+    ));
     // to_yaml round trip.
     let back = Board::parse(&b.to_yaml(), Path::new("x.yaml")).unwrap();
     assert_eq!(back.tags, b.tags);
@@ -117,8 +129,13 @@ fn board_errors_name_file_and_line() {
     let e = err_of("rows: 6\ncols: 6\ntag_size: oops\nspacing: 0.3\n");
     assert!(e.starts_with("boards/bad.yaml:3:"), "{e}");
     let e = err_of("family: tag99h1\nrows: 1\ncols: 1\ntag_size: 0.1\nspacing: 0.3\n");
-    assert!(e.contains("boards/bad.yaml") && e.contains("tag99h1"), "{e}");
-    let e = err_of("target_type: 'checkerboard'\ntagCols: 1\ntagRows: 1\ntagSize: 0.1\ntagSpacing: 0.3\n");
+    assert!(
+        e.contains("boards/bad.yaml") && e.contains("tag99h1"),
+        "{e}"
+    );
+    let e = err_of(
+        "target_type: 'checkerboard'\ntagCols: 1\ntagRows: 1\ntagSize: 0.1\ntagSpacing: 0.3\n",
+    );
     assert!(e.contains("checkerboard"), "{e}");
     let e = err_of("rows: 6\ncols: 6\ntag_size: -0.1\nspacing: 0.3\n");
     assert!(e.contains("tag_size"), "{e}");
@@ -126,7 +143,9 @@ fn board_errors_name_file_and_line() {
     assert!(e.contains("does not exist"), "{e}");
     let e = err_of("tags:\n  - id: 1\n    size: 0.1\n");
     assert!(e.contains("position"), "{e}");
-    let e = err_of("tags:\n  - id: 1\n    size: 0.1\n    position: [0, 0, 0]\n  - id: 1\n    size: 0.1\n    position: [1, 0, 0]\n");
+    let e = err_of(
+        "tags:\n  - id: 1\n    size: 0.1\n    position: [0, 0, 0]\n  - id: 1\n    size: 0.1\n    position: [1, 0, 0]\n",
+    );
     assert!(e.contains("twice"), "{e}");
     let e = err_of("rows: 6\ncols: 6\ntag_size: 0.1\nspacing: 0.3\ncolour: red\n");
     assert!(e.contains("colour"), "{e}");
@@ -141,7 +160,12 @@ fn family_names_and_library_data() {
     for f in TagFamily::ALL {
         assert_eq!(TagFamily::from_name(f.name()), Some(f));
         let l = family_layout(f).unwrap();
-        assert_eq!(Some(l.ncodes as usize), family_code_count(f), "{}", f.name());
+        assert_eq!(
+            Some(l.ncodes as usize),
+            family_code_count(f),
+            "{}",
+            f.name()
+        );
         let c = tag_cells(f, 0).unwrap();
         assert_eq!(c.len(), l.total_width as usize);
         assert!(tag_cells(f, l.ncodes).is_none());
@@ -229,7 +253,11 @@ fn unprojection_round_trips() {
                 let r = cam.unproject(&px).unwrap();
                 assert_eq!(r.z, 1.0);
                 let back = cam.project(&(r * 2.5)).unwrap();
-                assert!((back - px).norm() < 1e-7, "{:?} {px} {back}", cam.distortion);
+                assert!(
+                    (back - px).norm() < 1e-7,
+                    "{:?} {px} {back}",
+                    cam.distortion
+                );
             }
         }
     }
@@ -240,8 +268,16 @@ fn stereo_chain() -> Camchain {
     let t10 = Se3::exp(&Vector6::new(-0.11, 0.001, -0.002, 0.01, -0.02, 0.005));
     Camchain {
         cams: vec![cams[1].clone(), cams[2].clone(), cams[0].clone()],
-        t_cn_c0: vec![Se3::identity(), t10, Se3::exp(&Vector6::new(0.1, 0.2, 0.0, 0.0, 0.3, 0.0)) * t10],
-        topics: vec![Some("/cam0/image_raw".into()), Some("/cam1/image_raw".into()), None],
+        t_cn_c0: vec![
+            Se3::identity(),
+            t10,
+            Se3::exp(&Vector6::new(0.1, 0.2, 0.0, 0.0, 0.3, 0.0)) * t10,
+        ],
+        topics: vec![
+            Some("/cam0/image_raw".into()),
+            Some("/cam1/image_raw".into()),
+            None,
+        ],
     }
 }
 
@@ -290,11 +326,25 @@ cam1:
     assert_eq!(c.topics[0].as_deref(), Some("/cam0/image_raw"));
     // Mono.
     let mono = text.split("cam1:").next().unwrap();
-    assert_eq!(Camchain::parse(mono, Path::new("m.yaml")).unwrap().cams.len(), 1);
+    assert_eq!(
+        Camchain::parse(mono, Path::new("m.yaml"))
+            .unwrap()
+            .cams
+            .len(),
+        1
+    );
     // Errors name the file and the camera's line.
-    let bad = text.replace("distortion_model: radtan\n  intrinsics: [457", "distortion_model: fov\n  intrinsics: [457");
-    let e = Camchain::parse(&bad, Path::new("camchain.yaml")).unwrap_err().to_string();
-    assert!(e.starts_with("camchain.yaml:9:") && e.contains("fov"), "{e}");
+    let bad = text.replace(
+        "distortion_model: radtan\n  intrinsics: [457",
+        "distortion_model: fov\n  intrinsics: [457",
+    );
+    let e = Camchain::parse(&bad, Path::new("camchain.yaml"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.starts_with("camchain.yaml:9:") && e.contains("fov"),
+        "{e}"
+    );
     let e = Camchain::parse("cam1:\n  camera_model: pinhole\n", Path::new("c.yaml"))
         .unwrap_err()
         .to_string();
