@@ -3,7 +3,7 @@
 
 SHELL := /bin/bash
 CARGO ?= cargo
-DEBIAN_PACKAGES := pkg-config
+DEBIAN_PACKAGES := pkg-config libopencv-dev clang libclang-dev libapriltag-dev apriltag
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 OUT ?= out
 

@@ -17,5 +17,6 @@ pub mod sim;
 pub mod time;
 pub mod trajectory;
 pub mod types;
+pub mod vision;
 
 pub use error::{Error, Result};

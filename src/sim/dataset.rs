@@ -11,7 +11,9 @@
 
 use nalgebra::{Matrix3, Matrix6, Vector3, Vector6};
 
-use super::motion::{Motion, MotionState, SampledMotion, SinusoidMotion, check_rotation};
+use super::motion::{
+    BoardViewMotion, Motion, MotionState, SampledMotion, SinusoidMotion, check_rotation,
+};
 use super::rng::Rng;
 use crate::time::Epoch;
 use crate::trajectory::lie::{Se3, so3};
@@ -38,6 +40,8 @@ pub enum MotionKind {
     WeakRotation,
     /// [`SinusoidMotion::lively`].
     Sinusoid,
+    /// [`BoardViewMotion::new`]: keeps a board about 2 m ahead of the starting camera in view.
+    BoardView,
 }
 
 /// Everything that defines a simulated dataset.
@@ -194,6 +198,7 @@ pub fn build_motion(cfg: &SimConfig) -> Result<Box<dyn Motion>> {
             Box::new(SampledMotion::weak_rotation(cfg.seed, cfg.duration_s)?)
         }
         MotionKind::Sinusoid => Box::new(SinusoidMotion::lively(cfg.duration_s)?),
+        MotionKind::BoardView => Box::new(BoardViewMotion::new(cfg.duration_s)?),
     })
 }
 

@@ -620,3 +620,116 @@ impl Motion for SampledMotion {
         }
     }
 }
+
+// ---------------------------------------------------------------------------------------------
+// Motion in front of a calibration board
+// ---------------------------------------------------------------------------------------------
+
+/// A camera moving in front of a board it keeps in view: a calm first part with translation only
+/// (about 0.2 m/s per axis, no rotation), then rotations that oscillate about the initial
+/// orientation with per-axis rates up to about 1 rad/s but amplitudes of only 0.12-0.26 rad, so
+/// that a board 1.5-2.5 m ahead of the starting camera stays in a 752x480 field of view.
+///
+/// Position: `p(t)` from [`BoardViewMotion::sinusoids`]' position terms (world frame = the
+/// starting camera's orientation: x right, y down, z forward). Rotation: `R(t) = exp(e(t) s(t))`
+/// where `s(t)` is the sum of the rotation terms and `e(t)` a quintic smooth step from 0 at
+/// `rotation_start_s` to 1 at `rotation_start_s + ramp_s` (so the twist and its rate stay
+/// continuous). Twist: `w = J_r(phi) phi'`, `v = R^T p'`; twist rate as for [`SinusoidMotion`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct BoardViewMotion {
+    /// Position terms and (envelope-free) rotation terms; its duration is the motion's.
+    pub sinusoids: SinusoidMotion,
+    /// End of the calm part, seconds.
+    pub rotation_start_s: f64,
+    /// Length of the ramp from no rotation to full rotation, seconds (may be 0).
+    pub ramp_s: f64,
+}
+
+impl BoardViewMotion {
+    /// The standard motion of `duration_s` seconds: calm first half, rotation ramped in over
+    /// `min(4 s, duration / 10)`. The camera starts at the world origin and stays within about
+    /// 0.25 m of it along x, 0.13 m along y and 0.23 m along z (the depth of a board ahead).
+    pub fn new(duration_s: f64) -> Result<BoardViewMotion> {
+        check_duration(duration_s)?;
+        let sinusoids = SinusoidMotion {
+            duration_s,
+            position_offset: Vector3::zeros(),
+            position: vec![
+                SinusoidTerm::new([0.22, 0.10, 0.20], [0.15, 0.19, 0.13], [0.0, 0.0, 0.0]),
+                SinusoidTerm::new([0.03, 0.03, 0.03], [0.7, 0.8, 0.55], [0.0, PI, PI]),
+            ],
+            rotation_offset: Vector3::zeros(),
+            // x: pitch (moves the board vertically), y: yaw (horizontally), z: roll.
+            rotation: vec![
+                SinusoidTerm::new([0.09, 0.16, 0.20], [0.70, 0.55, 0.60], [0.3, 1.1, 2.0]),
+                SinusoidTerm::new([0.035, 0.05, 0.06], [1.9, 1.7, 1.5], [0.9, 2.5, 0.4]),
+            ],
+        };
+        let m = BoardViewMotion {
+            sinusoids,
+            rotation_start_s: 0.5 * duration_s,
+            ramp_s: (0.1 * duration_s).min(4.0),
+        };
+        m.validate()?;
+        Ok(m)
+    }
+
+    /// Checks the fields.
+    pub fn validate(&self) -> Result<()> {
+        self.sinusoids.validate()?;
+        if !self.rotation_start_s.is_finite() || !self.ramp_s.is_finite() || self.ramp_s < 0.0 {
+            return Err(input(
+                "board-view motion: rotation start must be finite and ramp non-negative",
+            ));
+        }
+        Ok(())
+    }
+
+    /// Envelope and its derivative at `t`.
+    fn envelope(&self, t: f64) -> (f64, f64) {
+        let t0 = self.rotation_start_s;
+        if t <= t0 {
+            return (0.0, 0.0);
+        }
+        if t >= t0 + self.ramp_s {
+            return (1.0, 0.0);
+        }
+        let u = (t - t0) / self.ramp_s;
+        let e = u * u * u * (10.0 + u * (-15.0 + 6.0 * u));
+        let de = 30.0 * u * u * (1.0 - u) * (1.0 - u) / self.ramp_s;
+        (e, de)
+    }
+
+    fn rotation_parts(&self, t: f64) -> (Matrix3<f64>, Vector3<f64>) {
+        let s = &self.sinusoids;
+        let (sum, dsum, _) = sum_sinusoids(&Vector3::zeros(), &s.rotation, t);
+        let (e, de) = self.envelope(t);
+        let phi = s.rotation_offset + sum * e;
+        let dphi = dsum * e + sum * de;
+        (so3::exp(&phi), so3::right_jacobian(&phi) * dphi)
+    }
+}
+
+impl Motion for BoardViewMotion {
+    fn span(&self) -> (f64, f64) {
+        (0.0, self.sinusoids.duration_s)
+    }
+
+    fn state(&self, t: f64) -> MotionState {
+        let (r, w) = self.rotation_parts(t);
+        let s = &self.sinusoids;
+        let (p, dp, ddp) = sum_sinusoids(&s.position_offset, &s.position, t);
+        let rt = r.transpose();
+        let v = rt * dp;
+        let dv = rt * ddp - w.cross(&v);
+        let h = SinusoidMotion::RATE_STEP_S;
+        let ang = |t: f64| self.rotation_parts(t).1;
+        let dw =
+            (ang(t - 2.0 * h) - ang(t + 2.0 * h) + (ang(t + h) - ang(t - h)) * 8.0) / (12.0 * h);
+        MotionState {
+            pose: Se3::new(r, p),
+            twist: Vector6::new(v.x, v.y, v.z, w.x, w.y, w.z),
+            twist_rate: Vector6::new(dv.x, dv.y, dv.z, dw.x, dw.y, dw.z),
+        }
+    }
+}

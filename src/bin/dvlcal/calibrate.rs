@@ -31,8 +31,20 @@ pub enum MethodArg {
 #[derive(clap::Args)]
 pub struct CalibrateArgs {
     /// TUM file of T_world_cam (camera clock).
-    #[arg(long)]
-    pub poses: PathBuf,
+    #[arg(long, required_unless_present = "images", conflicts_with = "images")]
+    pub poses: Option<PathBuf>,
+    /// Image folder instead of --poses: poses and their covariances come from `dvlcal detect`'s
+    /// pipeline (needs --camchain and --target).
+    #[arg(long, value_name = "DIR", requires_all = ["camchain", "target"])]
+    pub images: Option<PathBuf>,
+    /// Kalibr camchain YAML, with --images.
+    #[arg(long, value_name = "FILE", requires = "images")]
+    pub camchain: Option<PathBuf>,
+    /// Board YAML, with --images.
+    #[arg(long, value_name = "FILE", requires = "images")]
+    pub target: Option<PathBuf>,
+    #[command(flatten)]
+    pub vision: crate::detect::VisionTuning,
     /// Water Linked A50 log: JSON lines (any json_v1..v3 version), serial capture or ROS1 bag.
     #[arg(long)]
     pub dvl: PathBuf,
@@ -171,9 +183,19 @@ pub fn result_file(o: &CalibrationOutcome, log: &DvlLog) -> CalibrationFile {
 }
 
 pub fn run(a: CalibrateArgs) -> Result<()> {
-    let tum = read_tum(&a.poses, None)?;
+    let (epoch, poses, poses_src) = match (&a.poses, &a.images, &a.camchain, &a.target) {
+        (Some(p), _, _, _) => {
+            let tum = read_tum(p, None)?;
+            (tum.epoch, tum.poses, p.clone())
+        }
+        (None, Some(dir), Some(chain), Some(target)) => {
+            let run = crate::detect::run_pipeline(dir, chain, target, &a.vision)?;
+            (run.epoch, run.poses, dir.clone())
+        }
+        _ => bail!("give --poses FILE, or --images DIR --camchain FILE --target FILE"),
+    };
     let mut read = a.dvl_input.read_options(a.strict);
-    read.epoch = Some(tum.epoch);
+    read.epoch = Some(epoch);
     let log = read_dvl_log(&a.dvl, &read)?;
     let st = &log.stats;
     if st.rejected_lines > 0 {
@@ -214,11 +236,11 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
     };
     opts.offset.range = (a.offset_range[0], a.offset_range[1]);
     let start = Instant::now();
-    let o = calibrate(&tum.poses, &log.samples, &opts).with_context(|| {
+    let o = calibrate(&poses, &log.samples, &opts).with_context(|| {
         format!(
             "calibrating {} against {}",
             a.dvl.display(),
-            a.poses.display()
+            poses_src.display()
         )
     })?;
     let elapsed = start.elapsed().as_secs_f64();

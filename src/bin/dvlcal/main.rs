@@ -1,11 +1,14 @@
 //! The `dvlcal` command line: a thin layer over the library, one module per subcommand.
 
+mod board;
 mod calibrate;
+mod detect;
 mod dvl_info;
 mod eval;
 mod fit;
 mod record_dvl;
 mod simulate;
+mod tags;
 
 use clap::{Parser, Subcommand};
 
@@ -27,6 +30,9 @@ enum Command {
     /// Fit the continuous-time trajectory to camera poses and write body twists with their
     /// standard deviations.
     FitTrajectory(fit::FitArgs),
+    /// Camera poses (TUM, board frame as world) with covariances from stereo images of an
+    /// AprilTag board.
+    Detect(detect::DetectArgs),
     /// Estimate the DVL's rotation, lever arm, clock offset and velocity scale.
     Calibrate(calibrate::CalibrateArgs),
     /// Compare a twist CSV with a truth twist CSV (RMS errors and normalised errors).
@@ -35,6 +41,10 @@ enum Command {
     DvlInfo(dvl_info::DvlInfoArgs),
     /// Record a DVL's TCP JSON stream to a log, adding the host receive time to each line.
     RecordDvl(record_dvl::RecordDvlArgs),
+    /// Draw a board definition as an SVG to print at exact scale.
+    Board(board::BoardArgs),
+    /// Detect AprilTags in images and print them as CSV (corners in the OpenCV pixel convention).
+    Tags(tags::TagsArgs),
 }
 
 fn main() {
@@ -45,7 +55,10 @@ fn main() {
         Command::EvalTwist(a) => eval::run(a),
         Command::DvlInfo(a) => dvl_info::run(a),
         Command::RecordDvl(a) => record_dvl::run(a),
+        Command::Board(a) => board::run(a),
         Command::Calibrate(a) => calibrate::run(a),
+        Command::Detect(a) => detect::run(a),
+        Command::Tags(a) => tags::run(a),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");

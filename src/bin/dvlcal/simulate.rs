@@ -1,9 +1,15 @@
 //! `dvlcal simulate`: a synthetic dataset with known truth.
+//!
+//! With `--images`, also the stereo images of a board along the motion (see
+//! `dvlcal::vision::synth` for the frames): `cam0/<ns>.png`, `cam1/<ns>.png` (absolute Unix
+//! nanoseconds of the camera pose times), `camchain.yaml`, `target.yaml`,
+//! `poses_board_truth.txt` (`T_board_cam0` at the image times, TUM) and `board_in_world.txt`
+//! (`T_world_board`).
 
 use anyhow::{Context, Result};
 use clap::ValueEnum;
 use nalgebra::Vector3;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use dvlcal::io::a50_json::{A50Transducer, A50VelocityReport, write_a50_jsonl};
 use dvlcal::io::calib_yaml::{CalibrationFile, CalibrationInfo, read_calib_yaml, write_calib_yaml};
@@ -12,7 +18,14 @@ use dvlcal::io::twist_csv::{TwistRow, write_twist_csv};
 use dvlcal::sim::dataset::{MotionKind, SimConfig, SimDataset, simulate};
 use dvlcal::sim::motion::MotionState;
 use dvlcal::time::Epoch;
+use dvlcal::trajectory::lie::Se3;
 use dvlcal::types::{DvlSample, PoseMeasurement};
+use dvlcal::vision::board::Board;
+use dvlcal::vision::camera::Camchain;
+use dvlcal::vision::synth::{
+    DEFAULT_BOARD_DISTANCE_M, FrameSpec, ImageSimSettings, board_facing, default_board,
+    default_stereo_camchain, write_image_dataset,
+};
 
 #[derive(Clone, Copy, ValueEnum)]
 pub enum MotionArg {
@@ -24,6 +37,9 @@ pub enum MotionArg {
     WeakRotation,
     /// Sums of sinusoids with rotation rates past 1 rad/s.
     Sinusoid,
+    /// Translation only in the first half, then rotations of about 1 rad/s that keep a board
+    /// 2 m ahead of the starting camera in view (the default with --images).
+    BoardView,
 }
 
 #[derive(clap::Args)]
@@ -36,8 +52,9 @@ pub struct SimulateArgs {
     /// Length of the recording, seconds.
     #[arg(long, default_value_t = 60.0)]
     pub duration: f64,
-    #[arg(long, value_enum, default_value = "calm-then-rotate")]
-    pub motion: MotionArg,
+    /// Default: calm-then-rotate, or board-view with --images.
+    #[arg(long, value_enum)]
+    pub motion: Option<MotionArg>,
     #[arg(long, default_value_t = 10.0)]
     pub camera_rate: f64,
     #[arg(long, default_value_t = 10.0)]
@@ -61,6 +78,26 @@ pub struct SimulateArgs {
     /// Override the velocity scale of the truth.
     #[arg(long)]
     pub velocity_scale: Option<f64>,
+    /// Also render the stereo images of a board at every camera pose time.
+    #[arg(long)]
+    pub images: bool,
+    /// Board of the images (board YAML or Kalibr aprilgrid); default: Kalibr's 6x6 tag36h11
+    /// aprilgrid geometry (88 mm tags).
+    #[arg(long, requires = "images")]
+    pub target: Option<PathBuf>,
+    /// Cameras of the images (Kalibr camchain); default: a 752x480 radtan stereo pair with a
+    /// 0.11 m baseline.
+    #[arg(long, requires = "images")]
+    pub camchain: Option<PathBuf>,
+    /// Distance from the starting camera to the board centre, metres.
+    #[arg(long, requires = "images", default_value_t = DEFAULT_BOARD_DISTANCE_M)]
+    pub board_distance: f64,
+    /// Samples per pixel along each axis of the rendered images.
+    #[arg(long, requires = "images", default_value_t = 4)]
+    pub supersample: u32,
+    /// Worker threads for the images (0: one per core).
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
 }
 
 fn truth_rows(states: &[MotionState], times: impl Iterator<Item = f64>) -> Vec<TwistRow> {
@@ -121,6 +158,11 @@ fn a50_report(
 }
 
 pub fn run(a: SimulateArgs) -> Result<()> {
+    let motion = a.motion.unwrap_or(if a.images {
+        MotionArg::BoardView
+    } else {
+        MotionArg::CalmThenRotate
+    });
     let mut cfg = SimConfig {
         duration_s: a.duration,
         seed: a.seed,
@@ -129,11 +171,12 @@ pub fn run(a: SimulateArgs) -> Result<()> {
         pose_sigma_pos_m: a.pose_sigma_pos,
         pose_sigma_rot_rad: a.pose_sigma_rot,
         dvl_sigma: a.dvl_sigma,
-        motion: match a.motion {
+        motion: match motion {
             MotionArg::Prior => MotionKind::Prior,
             MotionArg::CalmThenRotate => MotionKind::CalmThenRotate,
             MotionArg::WeakRotation => MotionKind::WeakRotation,
             MotionArg::Sinusoid => MotionKind::Sinusoid,
+            MotionArg::BoardView => MotionKind::BoardView,
         },
         ..SimConfig::default()
     };
@@ -146,6 +189,26 @@ pub fn run(a: SimulateArgs) -> Result<()> {
     if let Some(k) = a.velocity_scale {
         cfg.truth.velocity_scale = k;
     }
+    // Read the image inputs before writing anything.
+    let image_inputs = if a.images {
+        let board = match &a.target {
+            Some(p) => Board::load(p)?,
+            None => default_board(),
+        };
+        let chain = match &a.camchain {
+            Some(p) => Camchain::load(p)?,
+            None => default_stereo_camchain(),
+        };
+        if !(a.board_distance.is_finite() && a.board_distance > 0.0) {
+            anyhow::bail!(
+                "--board-distance must be positive, got {}",
+                a.board_distance
+            );
+        }
+        Some((board, chain))
+    } else {
+        None
+    };
     let ds: SimDataset = simulate(&cfg)?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let out = |name: &str| a.out.join(name);
@@ -186,7 +249,7 @@ pub fn run(a: SimulateArgs) -> Result<()> {
             "dvlcal simulate --seed {} --duration {} --motion {}",
             a.seed,
             a.duration,
-            a.motion
+            motion
                 .to_possible_value()
                 .map(|v| v.get_name().to_owned())
                 .unwrap_or_default()
@@ -202,5 +265,90 @@ pub fn run(a: SimulateArgs) -> Result<()> {
         a.duration,
         a.seed
     );
+    if let Some((board, chain)) = image_inputs {
+        write_images(&a, &ds, &board, &chain)?;
+    }
     Ok(())
+}
+
+fn write_text(path: &Path, text: &str) -> Result<()> {
+    std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))
+}
+
+/// The image part of the dataset: the board faces the starting camera (`T_world_board`), each
+/// camera pose time gets one stereo frame rendered from the true pose.
+fn write_images(a: &SimulateArgs, ds: &SimDataset, board: &Board, chain: &Camchain) -> Result<()> {
+    let first = ds
+        .truth_poses
+        .first()
+        .context("the simulation produced no camera pose")?;
+    let t_world_board = board_facing(&first.pose, board, a.board_distance);
+    let t_board_world = t_world_board.inverse();
+    let board_poses: Vec<PoseMeasurement> = ds
+        .poses
+        .iter()
+        .zip(&ds.truth_poses)
+        .map(|(p, s)| PoseMeasurement {
+            t: p.t,
+            pose: t_board_world * s.pose,
+            cov: None,
+        })
+        .collect();
+    let frames: Vec<FrameSpec> = board_poses
+        .iter()
+        .map(|p| FrameSpec {
+            t_ns: ds.epoch.sec * 1_000_000_000 + (p.t * 1e9).round() as i64,
+            t_board_cam0: p.pose,
+        })
+        .collect();
+    let out = |name: &str| a.out.join(name);
+    write_tum(&out("poses_board_truth.txt"), ds.epoch, &board_poses)?;
+    write_text(
+        &out("board_in_world.txt"),
+        &board_in_world_text(&t_world_board),
+    )?;
+    write_text(&out("camchain.yaml"), &chain.to_kalibr_yaml())?;
+    write_text(&out("target.yaml"), &board.to_yaml())?;
+    let mut settings = ImageSimSettings {
+        seed: a.seed,
+        threads: a.threads,
+        ..ImageSimSettings::default()
+    };
+    settings.render.supersample = a.supersample;
+    let total = frames.len();
+    let step = (total / 10).max(1);
+    let progress = |done: usize, total: usize| {
+        if done % step == 0 || done == total {
+            eprintln!("rendered {done}/{total} stereo frames");
+        }
+    };
+    let stats = write_image_dataset(&a.out, board, chain, &frames, &settings, &progress)?;
+    let visible = stats
+        .board_fully_visible
+        .iter()
+        .enumerate()
+        .map(|(i, n)| format!("cam{i} {n}"))
+        .collect::<Vec<_>>()
+        .join(", ");
+    println!(
+        "wrote {} images of {} ({} frames x {} cameras) in {:.1} s ({:.0} ms per frame); whole board in view: {}",
+        stats.images,
+        board.description,
+        stats.frames,
+        chain.cams.len(),
+        stats.seconds,
+        1e3 * stats.seconds / stats.frames.max(1) as f64,
+        visible
+    );
+    Ok(())
+}
+
+fn board_in_world_text(t: &Se3) -> String {
+    let q = t.quaternion_xyzw();
+    format!(
+        "# T_world_board: the board's pose in the frame of poses.txt (tx ty tz qx qy qz qw)\n\
+         # poses_board_truth.txt = T_world_board^-1 * poses_truth.txt\n\
+         {:.9} {:.9} {:.9} {:.9} {:.9} {:.9} {:.9}\n",
+        t.trans.x, t.trans.y, t.trans.z, q[0], q[1], q[2], q[3]
+    )
 }

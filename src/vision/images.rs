@@ -1,0 +1,282 @@
+//! Folders of calibration images, paired across the cameras of a chain by time stamp.
+//!
+//! Two layouts are read:
+//! - kalibr_bagcreater's: `DIR/cam0/<t_ns>.png` (or `.jpg`, `.jpeg`, `.pgm`), `DIR/cam1/...`;
+//! - EuRoC's: `DIR/mav0/camN/data.csv` (`#timestamp [ns],filename`) with the images in
+//!   `DIR/mav0/camN/data/`; `DIR` may also be the `mav0` folder itself.
+//!
+//! Time stamps are integer nanoseconds on the camera clock. A frame is one cam0 image with, for
+//! every other camera, the image closest in time within the tolerance (each image used at most
+//! once). cam0 images without a partner are kept as frames with a missing image (their pose comes
+//! from cam0 alone); images of the other cameras without a cam0 partner are dropped. Both are
+//! counted.
+//!
+//! Missing folders: no cam0 images is an error; a chain of several cameras whose cam1 (or later)
+//! folder is missing or empty falls back to the cameras that have images, with a warning in
+//! [`ScanStats::warnings`] (the poses then come from cam0 alone).
+
+use std::path::{Path, PathBuf};
+
+use crate::{Error, Result};
+
+/// One time instant: one image path per camera (`None` where that camera has no image).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct StereoFrame {
+    /// cam0's time stamp, integer nanoseconds.
+    pub t_ns: i64,
+    pub paths: Vec<Option<PathBuf>>,
+}
+
+/// Which layout a folder was read as.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Layout {
+    /// `DIR/camN/<t_ns>.png`.
+    Kalibr,
+    /// `mav0/camN/data.csv` + `data/`.
+    Euroc,
+}
+
+/// What [`scan_images`] found.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ScanStats {
+    pub layout: Layout,
+    /// The folder of each camera's images (`None`: missing).
+    pub folders: Vec<Option<PathBuf>>,
+    /// Images listed per camera.
+    pub images: Vec<usize>,
+    /// Frames with an image from every camera.
+    pub complete: usize,
+    /// cam0 images without a partner in some other camera (kept, mono).
+    pub unpaired_cam0: usize,
+    /// Images of the other cameras without a cam0 partner (dropped).
+    pub unpaired_other: usize,
+    /// Files whose name is not `<integer ns>.<image extension>` (ignored), and EuRoC CSV lines
+    /// that could not be read.
+    pub ignored: usize,
+    /// Images whose time stamp repeats one already seen in the same camera (dropped).
+    pub duplicates: usize,
+    /// Things the user should know (a missing camera folder, ...).
+    pub warnings: Vec<String>,
+}
+
+const EXTENSIONS: [&str; 5] = ["png", "jpg", "jpeg", "pgm", "pnm"];
+
+/// Lists and pairs the images of `cams` cameras under `dir` (see the module documentation).
+/// `tolerance_ns`: largest time difference between paired images.
+pub fn scan_images(
+    dir: &Path,
+    cams: usize,
+    tolerance_ns: i64,
+) -> Result<(Vec<StereoFrame>, ScanStats)> {
+    if cams == 0 {
+        return Err(Error::Input("scan_images: no cameras".into()));
+    }
+    if !dir.is_dir() {
+        return Err(Error::Input(format!("{}: not a folder", dir.display())));
+    }
+    let euroc_root = if dir.join("mav0").join("cam0").join("data.csv").is_file() {
+        Some(dir.join("mav0"))
+    } else if dir.join("cam0").join("data.csv").is_file() {
+        Some(dir.to_path_buf())
+    } else {
+        None
+    };
+    let layout = if euroc_root.is_some() {
+        Layout::Euroc
+    } else {
+        Layout::Kalibr
+    };
+    let mut stats = ScanStats {
+        layout,
+        folders: Vec::new(),
+        images: Vec::new(),
+        complete: 0,
+        unpaired_cam0: 0,
+        unpaired_other: 0,
+        ignored: 0,
+        duplicates: 0,
+        warnings: Vec::new(),
+    };
+    let mut lists: Vec<Vec<(i64, PathBuf)>> = Vec::new();
+    for c in 0..cams {
+        let name = format!("cam{c}");
+        let (folder, mut list) = match &euroc_root {
+            Some(root) => {
+                let folder = root.join(&name);
+                let csv = folder.join("data.csv");
+                if csv.is_file() {
+                    let l = read_euroc_csv(&csv, &folder.join("data"), &mut stats.ignored)?;
+                    (Some(folder), l)
+                } else {
+                    (None, Vec::new())
+                }
+            }
+            None => {
+                let folder = dir.join(&name);
+                if folder.is_dir() {
+                    let l = list_folder(&folder, &mut stats.ignored)?;
+                    (Some(folder), l)
+                } else {
+                    (None, Vec::new())
+                }
+            }
+        };
+        list.sort();
+        let before = list.len();
+        list.dedup_by_key(|e| e.0);
+        stats.duplicates += before - list.len();
+        stats.images.push(list.len());
+        stats.folders.push(folder);
+        lists.push(list);
+    }
+    if lists[0].is_empty() {
+        let what = match (&stats.folders[0], layout) {
+            (None, Layout::Kalibr) => format!(
+                "{}: no cam0 folder (expected DIR/cam0/<t_ns>.png or DIR/mav0/cam0/data.csv)",
+                dir.display()
+            ),
+            (Some(f), _) => format!("{}: no cam0 images", f.display()),
+            (None, Layout::Euroc) => format!("{}: no cam0 images", dir.display()),
+        };
+        return Err(Error::Input(what));
+    }
+    let mut used_cams = vec![true; cams];
+    for c in 1..cams {
+        if lists[c].is_empty() {
+            used_cams[c] = false;
+            stats.warnings.push(match &stats.folders[c] {
+                None => format!("{}: no cam{c} folder; poses from cam0 alone", dir.display()),
+                Some(f) => format!("{}: no images; poses from cam0 alone", f.display()),
+            });
+        }
+    }
+
+    let mut frames: Vec<StereoFrame> = lists[0]
+        .iter()
+        .map(|(t, p)| {
+            let mut paths = vec![None; cams];
+            paths[0] = Some(p.clone());
+            StereoFrame { t_ns: *t, paths }
+        })
+        .collect();
+    for c in (1..cams).filter(|&c| used_cams[c]) {
+        let partner = pair(&lists[0], &lists[c], tolerance_ns);
+        let mut taken = 0;
+        for (f, m) in frames.iter_mut().zip(&partner) {
+            if let Some(j) = m {
+                f.paths[c] = Some(lists[c][*j].1.clone());
+                taken += 1;
+            }
+        }
+        stats.unpaired_other += lists[c].len() - taken;
+    }
+    for f in &frames {
+        let all = (0..cams).all(|c| !used_cams[c] || f.paths[c].is_some());
+        if all {
+            stats.complete += 1;
+        } else {
+            stats.unpaired_cam0 += 1;
+        }
+    }
+    if stats.unpaired_cam0 > 0 || stats.unpaired_other > 0 {
+        stats.warnings.push(format!(
+            "{} cam0 images without a partner within {} ms (posed from cam0 alone), {} images of \
+             other cameras without a cam0 partner (dropped)",
+            stats.unpaired_cam0,
+            tolerance_ns as f64 * 1e-6,
+            stats.unpaired_other
+        ));
+    }
+    Ok((frames, stats))
+}
+
+/// For each time of `a` (sorted), the index of its partner in `b` (sorted): pairs are formed
+/// closest first, each element used at most once, within `tol`.
+fn pair(a: &[(i64, PathBuf)], b: &[(i64, PathBuf)], tol: i64) -> Vec<Option<usize>> {
+    // Candidate pairs within tolerance, found with a sliding window, then taken in order of
+    // increasing time difference (ties by position, so the result does not depend on anything else).
+    let mut cand: Vec<(i64, usize, usize)> = Vec::new();
+    let mut lo = 0;
+    for (i, (ta, _)) in a.iter().enumerate() {
+        while lo < b.len() && b[lo].0 < ta.saturating_sub(tol) {
+            lo += 1;
+        }
+        let mut j = lo;
+        while j < b.len() && b[j].0 <= ta.saturating_add(tol) {
+            cand.push(((b[j].0 - ta).abs(), i, j));
+            j += 1;
+        }
+    }
+    cand.sort();
+    let mut out = vec![None; a.len()];
+    let mut used = vec![false; b.len()];
+    for (_, i, j) in cand {
+        if out[i].is_none() && !used[j] {
+            out[i] = Some(j);
+            used[j] = true;
+        }
+    }
+    out
+}
+
+fn is_image(name: &str) -> bool {
+    name.rsplit_once('.')
+        .is_some_and(|(_, e)| EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()))
+}
+
+/// `<integer ns>` from a file name `<ns>.<ext>`.
+fn stamp_of(name: &str) -> Option<i64> {
+    let (stem, _) = name.rsplit_once('.')?;
+    if stem.is_empty() || !stem.bytes().all(|b| b.is_ascii_digit()) {
+        return None;
+    }
+    stem.parse().ok()
+}
+
+fn list_folder(folder: &Path, ignored: &mut usize) -> Result<Vec<(i64, PathBuf)>> {
+    let rd = std::fs::read_dir(folder).map_err(|e| Error::io(folder, e))?;
+    let mut out = Vec::new();
+    for entry in rd {
+        let entry = entry.map_err(|e| Error::io(folder, e))?;
+        let path = entry.path();
+        if path.is_dir() {
+            continue;
+        }
+        let name = entry.file_name().to_string_lossy().into_owned();
+        match (is_image(&name), stamp_of(&name)) {
+            (true, Some(t)) => out.push((t, path)),
+            _ => *ignored += 1,
+        }
+    }
+    Ok(out)
+}
+
+/// EuRoC's `data.csv`: `#timestamp [ns],filename` header, then `t_ns,name` lines.
+fn read_euroc_csv(csv: &Path, data: &Path, ignored: &mut usize) -> Result<Vec<(i64, PathBuf)>> {
+    let text = std::fs::read_to_string(csv).map_err(|e| Error::io(csv, e))?;
+    let mut out = Vec::new();
+    for line in text.lines() {
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let mut f = line.split(',').map(str::trim);
+        let (Some(t), Some(name)) = (f.next(), f.next()) else {
+            *ignored += 1;
+            continue;
+        };
+        match t.parse::<i64>() {
+            Ok(t) if !name.is_empty() => out.push((t, data.join(name))),
+            _ => *ignored += 1,
+        }
+    }
+    Ok(out)
+}
+
+/// Seconds of a nanosecond stamp, exactly, as the crate's raw time.
+pub fn raw_time(t_ns: i64) -> crate::time::RawTime {
+    crate::time::RawTime {
+        sec: t_ns.div_euclid(1_000_000_000),
+        frac: t_ns.rem_euclid(1_000_000_000) as f64 * 1e-9,
+    }
+}

@@ -1,0 +1,276 @@
+//! Images to poses: decode, detect tags and solve the stereo PnP of every frame, in parallel.
+//!
+//! Frames are spread over rayon's worker threads (the pool the caller runs in, so
+//! `ThreadPool::install` chooses the thread count); each worker thread owns one [`Detector`].
+//! Every frame is processed independently, so the results, returned in frame order, are the
+//! same whatever the number of threads. Images that cannot be read, or whose size differs from
+//! the camera chain's, are counted and named in [`DetectStats::problems`]; they never stop the run.
+
+use std::sync::Mutex;
+
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use rayon::prelude::*;
+
+use crate::Result;
+use crate::vision::board::Board;
+use crate::vision::camera::Camchain;
+use crate::vision::detect::{Detector, DetectorSettings, TagDetection, load_gray};
+use crate::vision::images::StereoFrame;
+use crate::vision::pnp::{FramePose, PnpOptions, PoseOutcome, solve_stereo};
+
+/// What became of a frame.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FrameStatus {
+    Posed,
+    /// None of the frame's images could be used.
+    NoImage,
+    /// Fewer corners on the board than `PnpOptions::min_corners`.
+    TooFewCorners,
+    /// No PnP solution (degenerate geometry, a corner behind a camera).
+    NoSolution,
+}
+
+/// One frame's result.
+#[derive(Clone, Debug)]
+pub struct FrameResult {
+    pub frame: StereoFrame,
+    pub status: FrameStatus,
+    pub pose: Option<FramePose>,
+    /// Tags detected in each camera's image (before matching them to the board).
+    pub tags_detected: Vec<usize>,
+}
+
+/// Counts over a run.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct DetectStats {
+    pub frames: usize,
+    pub poses: usize,
+    /// Images decoded and detected on.
+    pub images: usize,
+    /// Images that could not be opened or decoded.
+    pub unreadable: usize,
+    /// Images whose size differs from their camera's resolution in the camchain.
+    pub wrong_size: usize,
+    /// Frames without a pose, by reason.
+    pub no_image: usize,
+    pub too_few_corners: usize,
+    pub no_solution: usize,
+    /// Tag detections over all images, and how they were used.
+    pub tags_detected: usize,
+    pub tags_unknown: usize,
+    pub tags_rejected: usize,
+    pub tags_used: usize,
+    /// Reprojection RMS (px) over all corners of all posed frames.
+    pub rms_px: f64,
+    /// One line per unusable image, naming it.
+    pub problems: Vec<String>,
+}
+
+impl DetectStats {
+    /// Mean tag detections per frame.
+    pub fn tags_per_frame(&self) -> f64 {
+        if self.frames == 0 {
+            0.0
+        } else {
+            self.tags_detected as f64 / self.frames as f64
+        }
+    }
+}
+
+/// Poses of all frames; see [`detect_frames`]. A detector that cannot be made (invalid settings)
+/// leaves every frame without a pose and is reported in `problems`.
+pub fn detect_poses(
+    frames: &[StereoFrame],
+    board: &Board,
+    chain: &Camchain,
+    det: &DetectorSettings,
+    opts: &PnpOptions,
+    progress: bool,
+) -> (Vec<(StereoFrame, Option<FramePose>)>, DetectStats) {
+    match detect_frames(frames, board, chain, det, opts, progress) {
+        Ok((results, stats)) => (
+            results.into_iter().map(|r| (r.frame, r.pose)).collect(),
+            stats,
+        ),
+        Err(e) => {
+            let stats = DetectStats {
+                frames: frames.len(),
+                problems: vec![e.to_string()],
+                ..DetectStats::default()
+            };
+            (frames.iter().map(|f| (f.clone(), None)).collect(), stats)
+        }
+    }
+}
+
+/// Decodes, detects and solves every frame in parallel; results in frame order. Errors only when
+/// the detector cannot be made or a frame has more images than the chain has cameras.
+pub fn detect_frames(
+    frames: &[StereoFrame],
+    board: &Board,
+    chain: &Camchain,
+    det: &DetectorSettings,
+    opts: &PnpOptions,
+    progress: bool,
+) -> Result<(Vec<FrameResult>, DetectStats)> {
+    // Fail early on settings the detector refuses.
+    let first = Detector::new(det)?;
+    if let Some(f) = frames.iter().find(|f| f.paths.len() > chain.cams.len()) {
+        return Err(crate::Error::Input(format!(
+            "frame at {} ns has {} images, the camera chain {} cameras",
+            f.t_ns,
+            f.paths.len(),
+            chain.cams.len()
+        )));
+    }
+    let workers = rayon::current_num_threads().max(1);
+    let detectors: Vec<Mutex<Option<Detector>>> = (0..workers).map(|_| Mutex::new(None)).collect();
+    if let Ok(mut slot) = detectors[0].lock() {
+        *slot = Some(first);
+    }
+    let bar = progress_bar(frames.len() as u64, progress);
+
+    let out: Vec<(FrameResult, FrameCounts)> = frames
+        .par_iter()
+        .map(|f| {
+            let idx = rayon::current_thread_index().unwrap_or(0) % workers;
+            // A poisoned lock only means another frame panicked; the detector is still whole.
+            let mut guard = detectors[idx].lock().unwrap_or_else(|p| p.into_inner());
+            let r = process_frame(f, board, chain, det, opts, &mut guard);
+            drop(guard);
+            bar.inc(1);
+            r
+        })
+        .collect();
+    bar.finish_and_clear();
+
+    let mut stats = DetectStats {
+        frames: frames.len(),
+        ..DetectStats::default()
+    };
+    let mut results = Vec::with_capacity(out.len());
+    let mut sq = 0.0;
+    let mut corners = 0usize;
+    for (r, c) in out {
+        stats.images += c.images;
+        stats.unreadable += c.unreadable;
+        stats.wrong_size += c.wrong_size;
+        stats.problems.extend(c.problems);
+        stats.tags_detected += r.tags_detected.iter().sum::<usize>();
+        match r.status {
+            FrameStatus::Posed => stats.poses += 1,
+            FrameStatus::NoImage => stats.no_image += 1,
+            FrameStatus::TooFewCorners => stats.too_few_corners += 1,
+            FrameStatus::NoSolution => stats.no_solution += 1,
+        }
+        if let Some(p) = &r.pose {
+            stats.tags_unknown += p.tags_unknown;
+            stats.tags_rejected += p.tags_rejected;
+            stats.tags_used += p.tags_used;
+            sq += p.rms_px * p.rms_px * p.corners_used as f64;
+            corners += p.corners_used;
+        }
+        results.push(r);
+    }
+    if corners > 0 {
+        stats.rms_px = (sq / corners as f64).sqrt();
+    }
+    Ok((results, stats))
+}
+
+struct FrameCounts {
+    images: usize,
+    unreadable: usize,
+    wrong_size: usize,
+    problems: Vec<String>,
+}
+
+fn process_frame(
+    f: &StereoFrame,
+    board: &Board,
+    chain: &Camchain,
+    det: &DetectorSettings,
+    opts: &PnpOptions,
+    slot: &mut Option<Detector>,
+) -> (FrameResult, FrameCounts) {
+    let mut c = FrameCounts {
+        images: 0,
+        unreadable: 0,
+        wrong_size: 0,
+        problems: Vec::new(),
+    };
+    let mut dets: Vec<Vec<TagDetection>> = vec![Vec::new(); f.paths.len()];
+    let mut detected = vec![0; f.paths.len()];
+    let mut any = false;
+    for (cam, path) in f.paths.iter().enumerate() {
+        let Some(path) = path else { continue };
+        let img = match load_gray(path) {
+            Ok(i) => i,
+            Err(e) => {
+                c.unreadable += 1;
+                c.problems.push(e.to_string());
+                continue;
+            }
+        };
+        let want = &chain.cams[cam];
+        if img.width() != want.width || img.height() != want.height {
+            c.wrong_size += 1;
+            c.problems.push(format!(
+                "{}: {}x{} image, cam{cam} is {}x{} in the camchain",
+                path.display(),
+                img.width(),
+                img.height(),
+                want.width,
+                want.height
+            ));
+            continue;
+        }
+        let detector = match slot {
+            Some(d) => d,
+            None => match Detector::new(det) {
+                Ok(d) => slot.insert(d),
+                Err(e) => {
+                    c.problems.push(e.to_string());
+                    continue;
+                }
+            },
+        };
+        c.images += 1;
+        any = true;
+        dets[cam] = detector.detect(&img);
+        detected[cam] = dets[cam].len();
+    }
+    let (status, pose) = if !any {
+        (FrameStatus::NoImage, None)
+    } else {
+        match solve_stereo(board, chain, &dets, opts) {
+            Ok(PoseOutcome::Pose(p)) => (FrameStatus::Posed, Some(p)),
+            Ok(PoseOutcome::TooFewCorners { .. }) => (FrameStatus::TooFewCorners, None),
+            Ok(PoseOutcome::Failed(_)) | Err(_) => (FrameStatus::NoSolution, None),
+        }
+    };
+    (
+        FrameResult {
+            frame: f.clone(),
+            status,
+            pose,
+            tags_detected: detected,
+        },
+        c,
+    )
+}
+
+/// A progress bar on stderr when asked for and stderr is a terminal; hidden otherwise.
+fn progress_bar(len: u64, show: bool) -> ProgressBar {
+    use std::io::IsTerminal;
+    if !show || !std::io::stderr().is_terminal() {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::with_draw_target(Some(len), ProgressDrawTarget::stderr());
+    if let Ok(style) = ProgressStyle::with_template(
+        "{elapsed_precise} [{bar:40}] {pos}/{len} frames ({per_sec}, {eta} left)",
+    ) {
+        bar.set_style(style.progress_chars("=> "));
+    }
+    bar
+}

@@ -1,0 +1,445 @@
+//! Pose of cam0 in the board frame from the tag corners every camera of a chain sees at once.
+//!
+//! Per frame:
+//! 1. An initial pose from the camera with the most corners: OpenCV's `solvePnP` (SQPnP, then
+//!    IPPE and the iterative solver as fall-backs) on corners undistorted through our own
+//!    [`Camera`] model, so every distortion model we read is handled the same way.
+//! 2. Levenberg-Marquardt over the reprojection errors of all cameras, each corner reaching
+//!    camera n through the stereo extrinsics `T_cn_c0`.
+//! 3. Outlier tags: after each solve, the tag observation (one tag in one camera) with the largest
+//!    reprojection RMS is dropped when that RMS exceeds
+//!    `max(reject_min_px, reject_factor * median of all observations' RMS)`, and the pose is
+//!    solved again, until no observation exceeds the threshold.
+//! 4. The covariance of the pose, `sigma_px^2 (J^T J)^-1`, with `sigma_px` estimated from the
+//!    residuals (`sqrt(SSR / (m - 6))`, `m` residuals) unless fixed in the options.
+//!
+//! The pose is `T_board_cam0` (= `T_world_cam0`, the board frame being the world) and its
+//! covariance belongs to the right perturbation `T = T_hat * exp(n)`, `n = [rho; phi]`
+//! (translation first, metres and radians, cam0 frame), the convention of
+//! [`crate::types::PoseMeasurement::cov`] (docs/conventions.md).
+
+use nalgebra::{Matrix2x3, Matrix6, Vector2, Vector3, Vector6};
+use opencv::core::{Mat, Point2d, Point3d, Vector};
+use opencv::prelude::*;
+
+use crate::trajectory::lie::{Se3, hat, so3};
+use crate::vision::board::Board;
+use crate::vision::camera::Camchain;
+use crate::vision::detect::TagDetection;
+use crate::{Error, Result};
+
+/// Settings of [`stereo_pose`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct PnpOptions {
+    /// Frames with fewer usable corners (all cameras together, after outlier rejection) get no
+    /// pose. At least 4.
+    pub min_corners: usize,
+    /// A tag observation is an outlier when its reprojection RMS exceeds this many times the
+    /// median RMS of the frame's observations ...
+    pub reject_factor: f64,
+    /// ... and this many pixels.
+    pub reject_min_px: f64,
+    /// Levenberg-Marquardt iterations per solve.
+    pub max_iterations: usize,
+    /// Pixel noise standard deviation for the covariance; `None`: estimated from the residuals.
+    pub sigma_px: Option<f64>,
+    /// Lower bound of the estimated pixel noise (keeps the covariance of noise-free or nearly
+    /// noise-free corners from collapsing to zero).
+    pub min_sigma_px: f64,
+}
+
+impl Default for PnpOptions {
+    fn default() -> Self {
+        PnpOptions {
+            min_corners: 8,
+            reject_factor: 3.0,
+            reject_min_px: 1.0,
+            max_iterations: 50,
+            sigma_px: None,
+            min_sigma_px: 0.02,
+        }
+    }
+}
+
+/// The pose of one frame.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FramePose {
+    /// `T_world_cam0` with the board frame as world.
+    pub t_board_cam0: Se3,
+    /// Covariance of the right perturbation `[rho; phi]` of `t_board_cam0` (m, rad; cam0 frame).
+    pub cov: Matrix6<f64>,
+    /// Reprojection RMS over all used corners: `sqrt(sum |r_i|^2 / corners)`, the RMS pixel
+    /// distance between detected and reprojected corners.
+    pub rms_px: f64,
+    /// Tag observations used (a tag seen by both cameras counts twice).
+    pub tags_used: usize,
+    /// Tag observations dropped as outliers (and ids seen twice by one camera).
+    pub tags_rejected: usize,
+    /// Corners used (4 per used observation).
+    pub corners_used: usize,
+    /// Pixel noise used for the covariance (estimated or fixed).
+    pub sigma_px: f64,
+    /// Detections whose id is not on the board (ignored).
+    pub tags_unknown: usize,
+}
+
+/// Why a frame got no pose, or its pose.
+#[derive(Clone, Debug, PartialEq)]
+#[allow(clippy::large_enum_variant)] // one per frame, moved once
+pub enum PoseOutcome {
+    Pose(FramePose),
+    /// Fewer than `min_corners` corners on the board (before or after outlier rejection).
+    TooFewCorners {
+        corners: usize,
+    },
+    /// No initial solution, or a degenerate configuration (singular normal equations).
+    Failed(String),
+}
+
+/// One tag seen by one camera.
+#[derive(Clone, Debug)]
+struct Obs {
+    cam: usize,
+    board: [Vector3<f64>; 4],
+    px: [Vector2<f64>; 4],
+}
+
+/// Pose of cam0 from the detections of each camera (`dets[n]` for camera n; a shorter list means
+/// the remaining cameras saw nothing). `None` when the frame has too few corners or no solution;
+/// [`solve_stereo`] tells which.
+pub fn stereo_pose(
+    board: &Board,
+    chain: &Camchain,
+    dets: &[Vec<TagDetection>],
+    opts: &PnpOptions,
+) -> Result<Option<FramePose>> {
+    Ok(match solve_stereo(board, chain, dets, opts)? {
+        PoseOutcome::Pose(p) => Some(p),
+        _ => None,
+    })
+}
+
+/// [`stereo_pose`] with the reason of a missing pose.
+pub fn solve_stereo(
+    board: &Board,
+    chain: &Camchain,
+    dets: &[Vec<TagDetection>],
+    opts: &PnpOptions,
+) -> Result<PoseOutcome> {
+    if dets.len() > chain.cams.len() || chain.t_cn_c0.len() != chain.cams.len() {
+        return Err(Error::Input(format!(
+            "detections for {} cameras, but the camera chain has {} cameras and {} extrinsics",
+            dets.len(),
+            chain.cams.len(),
+            chain.t_cn_c0.len()
+        )));
+    }
+    if opts.min_corners < 4 {
+        return Err(Error::Input("PnP needs min_corners >= 4".into()));
+    }
+    let mut obs = Vec::new();
+    let mut unknown = 0;
+    let mut rejected = 0;
+    for (cam, list) in dets.iter().enumerate() {
+        for d in list {
+            let Some(tag) = board.tag(d.id) else {
+                unknown += 1;
+                continue;
+            };
+            let twice = list.iter().filter(|e| e.id == d.id).count() > 1;
+            if twice
+                || d.corners
+                    .iter()
+                    .any(|c| !(c.x.is_finite() && c.y.is_finite()))
+            {
+                rejected += 1;
+                continue;
+            }
+            obs.push(Obs {
+                cam,
+                board: tag.corners,
+                px: d.corners,
+            });
+        }
+    }
+    let corners = 4 * obs.len();
+    if corners < opts.min_corners {
+        return Ok(PoseOutcome::TooFewCorners { corners });
+    }
+
+    // Initial pose: cameras by decreasing corner count, the first that solves.
+    let mut order: Vec<usize> = (0..dets.len()).collect();
+    let count = |c: usize| obs.iter().filter(|o| o.cam == c).count();
+    order.sort_by_key(|&c| std::cmp::Reverse(count(c)));
+    let mut init = None;
+    for &c in &order {
+        if count(c) == 0 {
+            break;
+        }
+        if let Some(t_cn_b) = initial_pose(chain, c, &obs) {
+            init = Some(chain.t_cn_c0[c].inverse() * t_cn_b);
+            break;
+        }
+    }
+    let Some(t_c0_b) = init else {
+        return Ok(PoseOutcome::Failed("no initial PnP solution".into()));
+    };
+    let mut t_b_c0 = t_c0_b.inverse();
+
+    let mut active = vec![true; obs.len()];
+    loop {
+        let Some(t) = refine(chain, &obs, &active, &t_b_c0, opts.max_iterations) else {
+            return Ok(PoseOutcome::Failed(
+                "refinement failed (a corner behind a camera)".into(),
+            ));
+        };
+        t_b_c0 = t;
+        let rms: Vec<Option<f64>> = obs
+            .iter()
+            .zip(&active)
+            .map(|(o, &a)| if a { obs_rms(chain, o, &t_b_c0) } else { None })
+            .collect();
+        let mut vals: Vec<f64> = rms.iter().flatten().copied().collect();
+        if vals.len() < active.iter().filter(|&&a| a).count() {
+            return Ok(PoseOutcome::Failed(
+                "a corner projects behind a camera".into(),
+            ));
+        }
+        vals.sort_by(f64::total_cmp);
+        let median = vals[vals.len() / 2];
+        let threshold = opts.reject_min_px.max(opts.reject_factor * median);
+        let worst = rms
+            .iter()
+            .enumerate()
+            .filter_map(|(i, r)| r.map(|r| (i, r)))
+            .max_by(|a, b| a.1.total_cmp(&b.1));
+        match worst {
+            Some((i, r)) if r > threshold => {
+                active[i] = false;
+                rejected += 1;
+                let left = 4 * active.iter().filter(|&&a| a).count();
+                if left < opts.min_corners {
+                    return Ok(PoseOutcome::TooFewCorners { corners: left });
+                }
+            }
+            _ => break,
+        }
+    }
+
+    // Covariance at the solution.
+    let mut h = Matrix6::zeros();
+    let mut ssr = 0.0;
+    let mut m = 0usize;
+    for (o, _) in obs.iter().zip(&active).filter(|(_, a)| **a) {
+        for k in 0..4 {
+            let Some((r, j)) = residual(chain, o, k, &t_b_c0) else {
+                return Ok(PoseOutcome::Failed(
+                    "a corner projects behind a camera".into(),
+                ));
+            };
+            h += j.transpose() * j;
+            ssr += r.norm_squared();
+            m += 2;
+        }
+    }
+    let sigma = match opts.sigma_px {
+        Some(s) => s,
+        None => (ssr / (m.saturating_sub(6).max(1)) as f64)
+            .sqrt()
+            .max(opts.min_sigma_px),
+    };
+    let Some(hinv) = h.try_inverse() else {
+        return Ok(PoseOutcome::Failed(
+            "degenerate corner configuration".into(),
+        ));
+    };
+    let cov = (hinv + hinv.transpose()) * (0.5 * sigma * sigma);
+    if !cov.iter().all(|v| v.is_finite()) || cov.diagonal().iter().any(|&v| v <= 0.0) {
+        return Ok(PoseOutcome::Failed(
+            "degenerate corner configuration".into(),
+        ));
+    }
+    let used = active.iter().filter(|&&a| a).count();
+    Ok(PoseOutcome::Pose(FramePose {
+        t_board_cam0: t_b_c0,
+        cov,
+        rms_px: (ssr / (m / 2) as f64).sqrt(),
+        tags_used: used,
+        tags_rejected: rejected,
+        corners_used: 4 * used,
+        sigma_px: sigma,
+        tags_unknown: unknown,
+    }))
+}
+
+/// Residual (projected minus detected pixel) of corner `k` of `o` and its Jacobian with respect
+/// to the right perturbation of `T_board_cam0`.
+fn residual(
+    chain: &Camchain,
+    o: &Obs,
+    k: usize,
+    t_b_c0: &Se3,
+) -> Option<(Vector2<f64>, nalgebra::Matrix2x6<f64>)> {
+    // p_c0 = T_b_c0^-1 p_b; with T_b_c0 exp(d): p_c0' = exp(-d) p_c0, d p_c0 / d[rho; phi] = [-I, p_c0^].
+    let r_b_c0 = &t_b_c0.rot;
+    let p_c0 = r_b_c0.transpose() * (o.board[k] - t_b_c0.trans);
+    let t_cn = &chain.t_cn_c0[o.cam];
+    let p_cn = t_cn.transform_point(&p_c0);
+    let (px, jp) = chain.cams[o.cam].project_jacobian(&p_cn)?;
+    let jr: Matrix2x3<f64> = jp * t_cn.rot;
+    let mut j = nalgebra::Matrix2x6::zeros();
+    j.fixed_view_mut::<2, 3>(0, 0).copy_from(&(-jr));
+    j.fixed_view_mut::<2, 3>(0, 3).copy_from(&(jr * hat(&p_c0)));
+    let r = px - o.px[k];
+    if !(r.x.is_finite() && r.y.is_finite()) {
+        return None;
+    }
+    Some((r, j))
+}
+
+/// RMS pixel distance of one observation's four corners.
+fn obs_rms(chain: &Camchain, o: &Obs, t_b_c0: &Se3) -> Option<f64> {
+    let mut s = 0.0;
+    for k in 0..4 {
+        s += residual(chain, o, k, t_b_c0)?.0.norm_squared();
+    }
+    Some((s / 4.0).sqrt())
+}
+
+/// Sum of squared residuals, normal matrix and gradient of the active observations.
+fn normal_equations(
+    chain: &Camchain,
+    obs: &[Obs],
+    active: &[bool],
+    t: &Se3,
+) -> Option<(f64, Matrix6<f64>, Vector6<f64>)> {
+    let mut h = Matrix6::zeros();
+    let mut g = Vector6::zeros();
+    let mut c = 0.0;
+    for (o, _) in obs.iter().zip(active).filter(|(_, a)| **a) {
+        for k in 0..4 {
+            let (r, j) = residual(chain, o, k, t)?;
+            h += j.transpose() * j;
+            g += j.transpose() * r;
+            c += r.norm_squared();
+        }
+    }
+    Some((c, h, g))
+}
+
+fn cost(chain: &Camchain, obs: &[Obs], active: &[bool], t: &Se3) -> Option<f64> {
+    let mut c = 0.0;
+    for (o, _) in obs.iter().zip(active).filter(|(_, a)| **a) {
+        for k in 0..4 {
+            c += residual(chain, o, k, t)?.0.norm_squared();
+        }
+    }
+    Some(c)
+}
+
+/// Levenberg-Marquardt on the right perturbation of `T_board_cam0`.
+fn refine(
+    chain: &Camchain,
+    obs: &[Obs],
+    active: &[bool],
+    start: &Se3,
+    max_iterations: usize,
+) -> Option<Se3> {
+    let mut t = *start;
+    let (mut c, mut h, mut g) = normal_equations(chain, obs, active, &t)?;
+    let mut lambda = 1e-4;
+    for _ in 0..max_iterations {
+        let mut improved = false;
+        while lambda < 1e12 {
+            let mut a = h;
+            for i in 0..6 {
+                a[(i, i)] += lambda * h[(i, i)].max(1e-9);
+            }
+            let Some(chol) = a.cholesky() else {
+                lambda *= 10.0;
+                continue;
+            };
+            let d = -chol.solve(&g);
+            let cand = t.retract(&d);
+            match normal_equations(chain, obs, active, &cand) {
+                Some((cc, hh, gg)) if cc <= c => {
+                    let small = d.norm() < 1e-12 || c - cc <= 1e-14 * c.max(1e-300);
+                    t = cand;
+                    c = cc;
+                    h = hh;
+                    g = gg;
+                    lambda = (lambda * 0.1).max(1e-12);
+                    improved = true;
+                    if small {
+                        return Some(t);
+                    }
+                    break;
+                }
+                _ => lambda *= 10.0,
+            }
+        }
+        if !improved {
+            break;
+        }
+    }
+    // The start may have a corner behind a camera: then there is no solution from it.
+    cost(chain, obs, active, &t).map(|_| t)
+}
+
+/// `T_cn_board` from camera `cam`'s corners alone, through OpenCV's solvePnP on undistorted
+/// normalised coordinates.
+fn initial_pose(chain: &Camchain, cam: usize, obs: &[Obs]) -> Option<Se3> {
+    let camera = &chain.cams[cam];
+    let mut object = Vector::<Point3d>::new();
+    let mut image = Vector::<Point2d>::new();
+    for o in obs.iter().filter(|o| o.cam == cam) {
+        for k in 0..4 {
+            let Some(ray) = camera.unproject(&o.px[k]) else {
+                continue;
+            };
+            object.push(Point3d::new(o.board[k].x, o.board[k].y, o.board[k].z));
+            image.push(Point2d::new(ray.x, ray.y));
+        }
+    }
+    if object.len() < 4 {
+        return None;
+    }
+    let k = Mat::from_slice_2d(&[[1.0f64, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]).ok()?;
+    let dist = Mat::default();
+    use opencv::calib3d::{SOLVEPNP_IPPE, SOLVEPNP_ITERATIVE, SOLVEPNP_SQPNP, solve_pnp};
+    for flags in [SOLVEPNP_SQPNP, SOLVEPNP_IPPE, SOLVEPNP_ITERATIVE] {
+        let mut rvec = Mat::default();
+        let mut tvec = Mat::default();
+        match solve_pnp(
+            &object, &image, &k, &dist, &mut rvec, &mut tvec, false, flags,
+        ) {
+            Ok(true) => {}
+            _ => continue,
+        }
+        let (Some(r), Some(tr)) = (mat3(&rvec), mat3(&tvec)) else {
+            continue;
+        };
+        let t = Se3::new(so3::exp(&r), tr);
+        // All corners in front of the camera.
+        if obs
+            .iter()
+            .filter(|o| o.cam == cam)
+            .all(|o| o.board.iter().all(|p| t.transform_point(p).z > 0.0))
+        {
+            return Some(t);
+        }
+    }
+    None
+}
+
+/// A 3-vector from a 3x1 or 1x3 CV_64F matrix.
+fn mat3(m: &Mat) -> Option<Vector3<f64>> {
+    if m.total() != 3 {
+        return None;
+    }
+    let mut v = Vector3::zeros();
+    for i in 0..3 {
+        v[i] = *m.at::<f64>(i as i32).ok()?;
+    }
+    v.iter().all(|x| x.is_finite()).then_some(v)
+}

@@ -1,0 +1,215 @@
+//! The renderer against the detector: rendered tags decode to their ids, and the corners the
+//! detector reports land where the board's corners project (which also fixes the corner order of
+//! `BoardTag::corners` to libapriltag's p[0..4]).
+
+use dvlcal::sim::rng::Rng;
+use dvlcal::trajectory::lie::Se3;
+use dvlcal::vision::board::{Board, TagFamily};
+use dvlcal::vision::camera::{Camera, Distortion};
+use dvlcal::vision::detect::{Detector, DetectorSettings};
+use dvlcal::vision::render::{RenderSettings, render, tag_cells};
+use nalgebra::{Matrix3, Vector3, Vector6};
+
+fn camera(distortion: Distortion) -> Camera {
+    Camera {
+        fu: 460.0,
+        fv: 458.0,
+        pu: 371.3,
+        pv: 244.6,
+        distortion,
+        width: 752,
+        height: 480,
+    }
+}
+
+fn radtan() -> Distortion {
+    Distortion::RadTan {
+        k1: -0.28,
+        k2: 0.07,
+        p1: 2e-4,
+        p2: -1.5e-5,
+    }
+}
+
+/// The board upright in front of the camera at `dist` m, centred, turned by `tilt` (rotation
+/// vector, board frame).
+fn facing(board: &Board, dist: f64, tilt: Vector3<f64>) -> Se3 {
+    let (mut lo, mut hi) = (Vector3::repeat(f64::MAX), Vector3::repeat(f64::MIN));
+    for t in &board.tags {
+        for c in &t.corners {
+            lo = lo.inf(c);
+            hi = hi.sup(c);
+        }
+    }
+    let centre = (lo + hi) / 2.0;
+    let upright = Se3::new(
+        Matrix3::from_diagonal(&Vector3::new(1.0, -1.0, -1.0)),
+        Vector3::new(0.0, 0.0, dist),
+    );
+    let turn = Se3::exp(&Vector6::new(0.0, 0.0, 0.0, tilt.x, tilt.y, tilt.z));
+    upright * turn * Se3::new(Matrix3::identity(), -centre)
+}
+
+/// Mean and max distance between detected corners and projected board corners, and the number of
+/// tags matched.
+fn corner_errors(board: &Board, cam: &Camera, t: &Se3, s: &RenderSettings) -> (f64, f64, usize) {
+    let img = render(board, cam, t, s, &mut Rng::new(5));
+    let mut det = Detector::new(&DetectorSettings {
+        family: board.family,
+        decimate: 1.0,
+        ..DetectorSettings::default()
+    })
+    .unwrap();
+    let dets = det.detect(&img);
+    let (mut sum, mut max, mut n) = (0.0, 0.0f64, 0usize);
+    let mut signed = nalgebra::Vector2::zeros();
+    for d in &dets {
+        let tag = board
+            .tag(d.id)
+            .unwrap_or_else(|| panic!("unknown id {}", d.id));
+        for k in 0..4 {
+            let p = cam.project(&t.transform_point(&tag.corners[k])).unwrap();
+            let e = (p - d.corners[k]).norm();
+            signed += d.corners[k] - p;
+            sum += e;
+            max = max.max(e);
+        }
+        n += 1;
+    }
+    eprintln!(
+        "mean signed (detected - projected): {:?}",
+        signed / (4 * n.max(1)) as f64
+    );
+    (sum / (4 * n.max(1)) as f64, max, n)
+}
+
+#[test]
+fn rendered_corners_match_detections_exactly() {
+    let board = Board::grid(TagFamily::Tag36h11, 6, 6, 0.035, 0.3, 0);
+    let s = RenderSettings::ideal();
+    for (dist, cam) in [(0.45, camera(Distortion::None)), (0.5, camera(radtan()))] {
+        let t = facing(&board, dist, Vector3::new(0.25, -0.3, 0.1));
+        let (mean, max, n) = corner_errors(&board, &cam, &t, &s);
+        eprintln!(
+            "{:?}: {n} tags, corner error mean {mean:.4} px, max {max:.4} px",
+            cam.distortion
+        );
+        assert_eq!(n, 36);
+        // libapriltag's own corner fit limits this (the rendered edges are exact to < 0.01 px,
+        // see below).
+        assert!(mean < 0.1, "mean corner error {mean} px");
+        assert!(max < 0.35, "max corner error {max} px");
+    }
+}
+
+#[test]
+fn realistic_render_is_still_read() {
+    let board = Board::grid(TagFamily::Tag36h11, 6, 6, 0.035, 0.3, 0);
+    let cam = camera(radtan());
+    let t = facing(&board, 0.6, Vector3::new(-0.3, 0.35, -0.2));
+    let (mean, _max, n) = corner_errors(&board, &cam, &t, &RenderSettings::default());
+    eprintln!("default settings: {n} tags, corner error mean {mean:.4} px");
+    assert_eq!(n, 36);
+    assert!(mean < 0.3);
+}
+
+#[test]
+fn other_families_and_listed_tags() {
+    // tagStandard41h12's pattern reaches 0.4 tag sizes beyond its border: wide gaps.
+    for (fam, spacing) in [
+        (TagFamily::TagStandard41h12, 1.2),
+        (TagFamily::Tag25h9, 0.4),
+    ] {
+        let board = Board::grid(fam, 3, 3, 0.05, spacing, 0);
+        let cam = camera(Distortion::None);
+        let t = facing(&board, 0.5, Vector3::new(0.1, 0.2, 0.0));
+        let (mean, _, n) = corner_errors(&board, &cam, &t, &RenderSettings::ideal());
+        eprintln!("{}: {n} tags, mean {mean:.4} px", fam.name());
+        assert_eq!(n, 9, "{}", fam.name());
+        assert!(mean < 0.15, "{}: {mean}", fam.name());
+    }
+    let wall = Board::load(
+        &std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("calib_boards/pool_wall_example.yaml"),
+    )
+    .unwrap();
+    let cam = camera(radtan());
+    // From 2.2 m in front of the wall, a little above, looking slightly down.
+    let t = facing(&wall, 2.2, Vector3::new(0.35, 0.0, 0.0));
+    let (mean, _, n) = corner_errors(&wall, &cam, &t, &RenderSettings::ideal());
+    eprintln!("pool wall: {n} tags, mean {mean:.4} px");
+    assert!(n >= 5, "{n}");
+    assert!(mean < 0.15);
+}
+
+#[test]
+fn deterministic_and_fast() {
+    let board = Board::grid(TagFamily::Tag36h11, 6, 6, 0.035, 0.3, 0);
+    let cam = camera(radtan());
+    let t = facing(&board, 0.5, Vector3::new(0.1, 0.1, 0.0));
+    let s = RenderSettings::default();
+    let t0 = std::time::Instant::now();
+    let a = render(&board, &cam, &t, &s, &mut Rng::new(9));
+    let dt = t0.elapsed().as_secs_f64();
+    eprintln!("752x480 render, supersample {}: {dt:.3} s", s.supersample);
+    let b = render(&board, &cam, &t, &s, &mut Rng::new(9));
+    assert_eq!(a, b);
+    assert_ne!(a, render(&board, &cam, &t, &s, &mut Rng::new(10)));
+    assert!(dt < 2.0);
+    // Background, paper and print levels.
+    let far = Se3::new(Matrix3::identity(), Vector3::new(0.0, 0.0, -1.0)); // behind the camera
+    let img = render(
+        &board,
+        &cam,
+        &far,
+        &RenderSettings::ideal(),
+        &mut Rng::new(1),
+    );
+    assert!(img.pixels().all(|p| p.0[0] == 128));
+    assert!(tag_cells(TagFamily::Tag36h11, 0).is_some());
+}
+
+/// The renderer's own geometry, without the detector: along an image row, the white length left of
+/// a tag's left edge (sum of the pixels' white fractions) puts the edge where the board projects.
+#[test]
+fn rendered_edges_sit_where_the_board_projects() {
+    let board = Board::grid(TagFamily::Tag36h11, 6, 6, 0.035, 0.3, 0);
+    for (dist, cam) in [(0.45, camera(Distortion::None)), (0.47, camera(radtan()))] {
+        let t = facing(&board, dist, Vector3::new(0.0, 0.0, 0.0));
+        let img = render(&board, &cam, &t, &RenderSettings::ideal(), &mut Rng::new(1));
+        let (mut sum, mut max, mut n) = (0.0, 0.0f64, 0);
+        for tag in &board.tags {
+            // Midpoint of the left edge (corners 0 -> 3) and its projection.
+            let mid = (tag.corners[0] + tag.corners[3]) / 2.0;
+            let p = cam.project(&t.transform_point(&mid)).unwrap();
+            let y = p.y.round();
+            // The exact edge crossing of this row: project points along the edge.
+            let (mut lo, mut hi) = (tag.corners[0], tag.corners[3]);
+            for _ in 0..60 {
+                let m = (lo + hi) / 2.0;
+                if cam.project(&t.transform_point(&m)).unwrap().y > y {
+                    lo = m
+                } else {
+                    hi = m
+                }
+            }
+            let x_edge = cam.project(&t.transform_point(&lo)).unwrap().x;
+            let xa = x_edge.floor() as i64 - 3;
+            let xb = x_edge.floor() as i64 + 2;
+            let white: f64 = (xa..=xb)
+                .map(|x| (img.get_pixel(x as u32, y as u32).0[0] as f64 - 20.0) / 215.0)
+                .sum();
+            let est = xa as f64 - 0.5 + white;
+            let e = (est - x_edge).abs();
+            sum += e;
+            max = max.max(e);
+            n += 1;
+        }
+        eprintln!(
+            "{:?}: edge error mean {:.4} px, max {max:.4} px over {n} tags",
+            cam.distortion,
+            sum / n as f64
+        );
+        assert!(sum / (n as f64) < 0.01 && max < 0.03);
+    }
+}
