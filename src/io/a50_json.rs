@@ -2,7 +2,6 @@
 //! CRLF. This module writes json_v3 velocity reports exactly as the DVL does and reads the
 //! velocities back from json_v3 (and later) logs.
 
-use std::collections::HashMap;
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -252,162 +251,11 @@ pub fn write_a50_jsonl(path: &Path, reports: &[A50VelocityReport]) -> Result<()>
     super::write_atomic(path, out.as_bytes())
 }
 
-/// The number literals of a JSON text by path (`vx`, `covariance.0.1`, `transducers.2.rssi`).
-///
-/// serde_json (without its `float_roundtrip` feature) may round a 17-digit literal to a
-/// neighbouring f64; reading the literal again with `str::parse` gives the correctly rounded
-/// value, so reports read back bit for bit. The text must already be valid JSON.
-fn number_literals(text: &str) -> HashMap<String, &str> {
-    struct Scan<'a> {
-        s: &'a str,
-        i: usize,
-        out: HashMap<String, &'a str>,
-    }
-    impl<'a> Scan<'a> {
-        fn peek(&self) -> Option<u8> {
-            self.s.as_bytes().get(self.i).copied()
-        }
-        fn ws(&mut self) {
-            while matches!(self.peek(), Some(b' ' | b'\t' | b'\r' | b'\n')) {
-                self.i += 1;
-            }
-        }
-        fn eat(&mut self, c: u8) -> Option<()> {
-            self.ws();
-            (self.peek()? == c).then(|| self.i += 1)
-        }
-        /// The raw contents of a string literal.
-        fn string(&mut self) -> Option<&'a str> {
-            self.eat(b'"')?;
-            let start = self.i;
-            loop {
-                match self.peek()? {
-                    b'\\' => self.i += 2,
-                    b'"' => break,
-                    _ => self.i += 1,
-                }
-            }
-            let raw = self.s.get(start..self.i)?;
-            self.i += 1;
-            Some(raw)
-        }
-        fn join(path: &str, key: &str) -> String {
-            if path.is_empty() {
-                key.to_string()
-            } else {
-                format!("{path}.{key}")
-            }
-        }
-        fn value(&mut self, path: &str) -> Option<()> {
-            self.ws();
-            match self.peek()? {
-                b'{' => {
-                    self.i += 1;
-                    self.ws();
-                    if self.peek()? == b'}' {
-                        self.i += 1;
-                        return Some(());
-                    }
-                    loop {
-                        self.ws();
-                        let key = self.string()?;
-                        self.eat(b':')?;
-                        self.value(&Self::join(path, key))?;
-                        self.ws();
-                        match self.peek()? {
-                            b',' => self.i += 1,
-                            b'}' => break,
-                            _ => return None,
-                        }
-                    }
-                    self.i += 1;
-                }
-                b'[' => {
-                    self.i += 1;
-                    self.ws();
-                    if self.peek()? == b']' {
-                        self.i += 1;
-                        return Some(());
-                    }
-                    let mut k = 0usize;
-                    loop {
-                        self.value(&Self::join(path, &k.to_string()))?;
-                        k += 1;
-                        self.ws();
-                        match self.peek()? {
-                            b',' => self.i += 1,
-                            b']' => break,
-                            _ => return None,
-                        }
-                    }
-                    self.i += 1;
-                }
-                b'"' => {
-                    self.string()?;
-                }
-                _ => {
-                    let start = self.i;
-                    while !matches!(
-                        self.peek(),
-                        None | Some(b',' | b'}' | b']' | b' ' | b'\t' | b'\r' | b'\n')
-                    ) {
-                        self.i += 1;
-                    }
-                    let tok = self.s.get(start..self.i)?;
-                    if tok.starts_with(|c: char| c == '-' || c.is_ascii_digit()) {
-                        self.out.insert(path.to_string(), tok);
-                    }
-                }
-            }
-            Some(())
-        }
-    }
-    let mut scan = Scan {
-        s: text,
-        i: 0,
-        out: HashMap::new(),
-    };
-    let _ = scan.value("");
-    scan.out
-}
-
-/// The correctly rounded value of the literal at `path`, or `fallback` when there is none.
-fn exact(lits: &HashMap<String, &str>, path: &str, fallback: f64) -> f64 {
-    lits.get(path)
-        .and_then(|t| t.parse::<f64>().ok())
-        .unwrap_or(fallback)
-}
-
-/// Parses one velocity report line, with every number read back exactly as written.
+/// Parses one velocity report line. serde_json's `float_roundtrip` feature (enabled in
+/// Cargo.toml) reads every number literal to the correctly rounded f64, so reports read back bit
+/// for bit.
 pub fn parse_velocity_report(line: &str) -> serde_json::Result<A50VelocityReport> {
-    let mut r: A50VelocityReport = serde_json::from_str(line)?;
-    let lits = number_literals(line);
-    for (name, x) in [
-        ("time", &mut r.time),
-        ("vx", &mut r.vx),
-        ("vy", &mut r.vy),
-        ("vz", &mut r.vz),
-        ("fom", &mut r.fom),
-        ("altitude", &mut r.altitude),
-    ] {
-        *x = exact(&lits, name, *x);
-    }
-    for (i, row) in r.covariance.iter_mut().enumerate() {
-        for (j, x) in row.iter_mut().enumerate() {
-            *x = exact(&lits, &format!("covariance.{i}.{j}"), *x);
-        }
-    }
-    for (i, b) in r.transducers.iter_mut().enumerate() {
-        for (name, x) in [
-            ("velocity", &mut b.velocity),
-            ("distance", &mut b.distance),
-            ("rssi", &mut b.rssi),
-            ("nsd", &mut b.nsd),
-        ] {
-            *x = exact(&lits, &format!("transducers.{i}.{name}"), *x);
-        }
-    }
-    Ok(r)
+    serde_json::from_str(line)
 }
 
 /// Velocities read from an A50 JSON log.
