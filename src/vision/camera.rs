@@ -102,29 +102,20 @@ impl Distortion {
     /// Undistorts a distorted normalised point by Gauss-Newton iteration; `None` when the
     /// iteration does not converge (outside the region where the model is invertible).
     pub fn undistort(&self, pd: &Vector2<f64>) -> Option<Vector2<f64>> {
-        if let Distortion::None = self {
-            return Some(*pd);
-        }
-        if let Distortion::Equidistant { .. } = self {
+        let start = match self {
+            Distortion::None => return Some(*pd),
             // Start at the point with the same distorted angle, ignoring the polynomial.
-            let rd = pd.norm();
-            if rd > 1e-12 && rd < std::f64::consts::FRAC_PI_2 {
-                let mut p = pd * (rd.tan() / rd);
-                for _ in 0..30 {
-                    let (f, j) = self.distort(&p);
-                    let step = j.try_inverse()? * (f - pd);
-                    p -= step;
-                    if !p.iter().all(|v| v.is_finite()) {
-                        return None;
-                    }
-                    if step.norm_squared() < 1e-26 {
-                        break;
-                    }
+            Distortion::Equidistant { .. } => {
+                let rd = pd.norm();
+                if rd > 1e-12 && rd < std::f64::consts::FRAC_PI_2 {
+                    pd * (rd.tan() / rd)
+                } else {
+                    *pd
                 }
-                return ((self.distort(&p).0 - pd).norm() < 1e-9).then_some(p);
             }
-        }
-        let mut p = *pd;
+            Distortion::RadTan { .. } => *pd,
+        };
+        let mut p = start;
         for _ in 0..30 {
             let (f, j) = self.distort(&p);
             let step = j.try_inverse()? * (f - pd);
