@@ -6,10 +6,11 @@ use std::path::Path;
 use std::time::Instant;
 
 use dvlcal::io::a50_json::{parse_velocity_report, velocity_report_line};
-use dvlcal::io::dvl::serial::with_checksum;
+use dvlcal::io::dvl::serial::wrz_sentence;
 use dvlcal::io::dvl::{DvlReadOptions, read_dvl_log};
 
-const DATA: &str = "/work/shared/data/a50-ros-driver";
+/// The real logs, in the shared folder beside the repository.
+const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/a50-ros-driver");
 
 fn main() {
     let mb: usize = std::env::args()
@@ -42,26 +43,7 @@ fn main() {
         r.time_of_transmission += shift;
         json.push_str(&velocity_report_line(&r));
         json.push_str("\r\n");
-        let cov: Vec<String> = r
-            .covariance
-            .iter()
-            .flatten()
-            .map(|x| x.to_string())
-            .collect();
-        serial.push_str(&with_checksum(&format!(
-            "wrz,{},{},{},{},{},{},{},{},{},{},{}",
-            r.vx,
-            r.vy,
-            r.vz,
-            if r.velocity_valid { "y" } else { "n" },
-            r.altitude,
-            r.fom,
-            cov.join(";"),
-            r.time_of_validity,
-            r.time_of_transmission,
-            r.time,
-            r.status
-        )));
+        serial.push_str(&wrz_sentence(&r));
         k += 1;
         n += 1;
     }

@@ -20,7 +20,10 @@ use dvlcal::trajectory::lie::Se3;
 use dvlcal::types::{CalibrationParams, PoseMeasurement};
 use nalgebra::{Vector3, Vector6};
 
-const REAL_LOG: &str = "/work/shared/data/a50-ros-driver/dvl.jsonl";
+const REAL_LOG: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../shared/data/a50-ros-driver/dvl.jsonl"
+);
 
 /// A fresh directory under the system temporary directory.
 fn temp_dir(tag: &str) -> PathBuf {
@@ -385,7 +388,10 @@ fn a50_real_logs_reproduced_byte_for_byte() {
         ("dvl_fast_rectangle", 396, 363),
         ("dvl_slow_rectangle", 457, 407),
     ] {
-        let path = PathBuf::from(format!("/work/shared/data/a50-ros-driver/{name}.jsonl"));
+        let path = PathBuf::from(format!(
+            "{}/../shared/data/a50-ros-driver/{name}.jsonl",
+            env!("CARGO_MANIFEST_DIR")
+        ));
         let log = read_a50_velocities(&path, None).unwrap();
         assert_eq!(log.samples.len(), total, "{name}");
         assert_eq!(

@@ -7,7 +7,8 @@ use std::path::{Path, PathBuf};
 use dvlcal::io::a50_json::{A50VelocityReport, parse_velocity_report};
 use dvlcal::io::dvl::serial::with_checksum;
 
-pub const DATA: &str = "/work/shared/data/a50-ros-driver";
+/// The real logs, in the shared folder beside the repository.
+pub const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/a50-ros-driver");
 
 /// The four real logs with their README counts: (name, velocity reports, valid, span s).
 pub const REAL: [(&str, usize, usize, f64); 4] = [
@@ -42,26 +43,7 @@ fn yn(b: bool) -> &'static str {
 
 /// A report as a `wrz` sentence with its CRC-8 and CRLF, numbers in shortest round-trip form.
 pub fn wrz_sentence(r: &A50VelocityReport) -> String {
-    let cov: Vec<String> = r
-        .covariance
-        .iter()
-        .flatten()
-        .map(|x| format!("{x}"))
-        .collect();
-    with_checksum(&format!(
-        "wrz,{},{},{},{},{},{},{},{},{},{},{}",
-        r.vx,
-        r.vy,
-        r.vz,
-        yn(r.velocity_valid),
-        r.altitude,
-        r.fom,
-        cov.join(";"),
-        r.time_of_validity,
-        r.time_of_transmission,
-        r.time,
-        r.status
-    ))
+    dvlcal::io::dvl::serial::wrz_sentence(r)
 }
 
 /// A report as a deprecated `wrx` sentence (no absolute time, no covariance).
