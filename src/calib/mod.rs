@@ -294,7 +294,7 @@ pub fn calibrate(
     }
 
     let mask = free.mask();
-    let jp = JointProblem::new(poses, &obs, &idx)?;
+    let jp = JointProblem::new(poses, &traj, &obs, &idx)?;
     let mut traj = traj;
     let mut params = start;
     let mut iterations = Vec::new();
@@ -488,6 +488,6 @@ pub fn cramer_rao(
     let fitted = Trajectory::fit(poses, &opts.fit)?;
     let traj = fitted.with_knots(truth_knots.to_vec(), None);
     let idx = usable(&traj, &obs, truth.time_offset, 0.0);
-    let jp = JointProblem::new(poses, &obs, &idx)?;
+    let jp = JointProblem::new(poses, &traj, &obs, &idx)?;
     Ok(joint_covariance(&jp, &traj, truth, &FreeParams::ALL.mask())?.0)
 }

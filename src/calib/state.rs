@@ -5,7 +5,7 @@
 //! depends on both through the GP interpolation, so its factor adds to the two diagonal blocks
 //! and the off-diagonal block between them: the normal equations stay block tridiagonal.
 
-use nalgebra::{Matrix3, SMatrix};
+use nalgebra::{Matrix3, Matrix6, SMatrix, Vector6};
 
 use super::model::{NPARAM, Params, d_predict_d_params, d_predict_d_twist, predict};
 use super::offset::DvlObs;
@@ -13,21 +13,32 @@ use super::refine::{ParamMat, pin_fixed};
 use crate::error::{Error, Result};
 use crate::trajectory::blocktri::{BlockTridiagonal, V18};
 use crate::trajectory::fit::{NormalEquations, Problem, gauss_newton, measurement_information};
-use crate::trajectory::{Knot, Trajectory};
+use crate::trajectory::lie::Se3;
+use crate::trajectory::{Knot, KnotView, Trajectory};
 use crate::types::PoseMeasurement;
 
-/// What the joint problem needs besides the trajectory.
+/// What the joint problem needs besides the knot states, set up once per calibration: the pose
+/// terms (with the weights and Qc of the trajectory's fit) and the DVL terms.
 pub struct JointProblem<'a> {
-    pub poses: &'a [PoseMeasurement],
     pub obs: &'a [DvlObs],
     /// DVL samples used.
     pub idx: &'a [usize],
     /// DVL information matrices, one per observation.
     pub dvl_info: Vec<Matrix3<f64>>,
+    times: Vec<f64>,
+    meas: Vec<Se3>,
+    pose_info: Vec<Matrix6<f64>>,
+    qc_inv: Vector6<f64>,
 }
 
 impl<'a> JointProblem<'a> {
-    pub fn new(poses: &'a [PoseMeasurement], obs: &'a [DvlObs], idx: &'a [usize]) -> Result<Self> {
+    /// The joint problem of `traj` (fitted to `poses`) and the DVL samples `idx` of `obs`.
+    pub fn new(
+        poses: &[PoseMeasurement],
+        traj: &Trajectory,
+        obs: &'a [DvlObs],
+        idx: &'a [usize],
+    ) -> Result<Self> {
         let dvl_info = obs
             .iter()
             .map(|o| {
@@ -37,11 +48,31 @@ impl<'a> JointProblem<'a> {
             })
             .collect::<Result<_>>()?;
         Ok(JointProblem {
-            poses,
             obs,
             idx,
             dvl_info,
+            times: traj.times().to_vec(),
+            meas: poses.iter().map(|m| m.pose).collect(),
+            pose_info: measurement_information(poses, traj.report().pose_sigma)?,
+            qc_inv: traj.qc().map(|q| 1.0 / q),
         })
+    }
+
+    /// The pose and GP-prior terms (the trajectory fit's own problem).
+    fn pose_problem(&self) -> Problem<'_> {
+        Problem {
+            times: &self.times,
+            meas: &self.meas,
+            info: &self.pose_info,
+            qc_inv: self.qc_inv,
+        }
+    }
+
+    fn view<'k>(&'k self, knots: &'k [Knot]) -> KnotView<'k> {
+        KnotView {
+            times: &self.times,
+            knots,
+        }
     }
 }
 
@@ -53,15 +84,15 @@ struct DvlTerms {
     theta: ParamMat,
 }
 
-/// Adds the DVL factors, linearised at the knots of `traj`, to `sys`.
+/// Adds the DVL factors, linearised at the knots `view`, to `sys`.
 fn add_dvl_factors(
     jp: &JointProblem,
-    traj: &Trajectory,
+    view: KnotView,
     p: &Params,
     sys: &mut BlockTridiagonal,
     with_params: bool,
 ) -> Result<DvlTerms> {
-    let n = traj.knots().len();
+    let n = view.knots.len();
     let mut cross = if with_params {
         vec![SMatrix::<f64, 18, NPARAM>::zeros(); n]
     } else {
@@ -73,7 +104,7 @@ fn add_dvl_factors(
     for &i in jp.idx {
         let o = &jp.obs[i];
         let w = &jp.dvl_info[i];
-        let tj = traj.twist_jacobian(o.t + p.time_offset)?;
+        let tj = view.twist_jacobian(o.t + p.time_offset)?;
         let r = o.v - predict(p, &tj.state.twist);
         let jx = dh * tj.jacobian;
         let j1: SMatrix<f64, 3, 18> = jx.fixed_view::<3, 18>(0, 0).into_owned();
@@ -97,34 +128,16 @@ fn add_dvl_factors(
     Ok(DvlTerms { cost, cross, theta })
 }
 
-/// Pose-only Gauss-Newton problem of a trajectory (the same weights and Qc as its fit).
-fn pose_problem<'p>(
-    traj: &Trajectory,
-    times: &'p [f64],
-    meas: &'p [crate::trajectory::lie::Se3],
-    info: &'p [nalgebra::Matrix6<f64>],
-) -> Problem<'p> {
-    Problem {
-        times,
-        meas,
-        info,
-        qc_inv: traj.qc().map(|q| 1.0 / q),
-    }
-}
-
 /// The trajectory cost with the DVL factors at a fixed calibration.
 struct WithDvl<'a> {
-    pose: Problem<'a>,
     jp: &'a JointProblem<'a>,
-    template: &'a Trajectory,
     params: &'a Params,
 }
 
 impl NormalEquations for WithDvl<'_> {
     fn normal_equations(&self, knots: &[Knot], sys: &mut BlockTridiagonal) -> Result<f64> {
-        let cost = self.pose.assemble_into(knots, sys);
-        let t = self.template.with_knots(knots.to_vec(), None);
-        Ok(cost + add_dvl_factors(self.jp, &t, self.params, sys, false)?.cost)
+        let cost = self.jp.pose_problem().assemble_into(knots, sys);
+        Ok(cost + add_dvl_factors(self.jp, self.jp.view(knots), self.params, sys, false)?.cost)
     }
 }
 
@@ -137,15 +150,7 @@ pub fn state_update(
     p: &Params,
     max_iterations: usize,
 ) -> Result<(Trajectory, f64)> {
-    let times = traj.times().to_vec();
-    let meas: Vec<_> = jp.poses.iter().map(|m| m.pose).collect();
-    let info = measurement_information(jp.poses, traj.report().pose_sigma)?;
-    let problem = WithDvl {
-        pose: pose_problem(traj, &times, &meas, &info),
-        jp,
-        template: traj,
-        params: p,
-    };
+    let problem = WithDvl { jp, params: p };
     let solved = gauss_newton(&problem, traj.knots().to_vec(), max_iterations)?;
     Ok((traj.with_knots(solved.knots, None), solved.cost))
 }
@@ -159,12 +164,8 @@ pub fn joint_covariance(
     p: &Params,
     free: &[bool; NPARAM],
 ) -> Result<(ParamMat, f64)> {
-    let times = traj.times().to_vec();
-    let meas: Vec<_> = jp.poses.iter().map(|m| m.pose).collect();
-    let info = measurement_information(jp.poses, traj.report().pose_sigma)?;
-    let problem = pose_problem(traj, &times, &meas, &info);
-    let (mut sys, pose_cost) = problem.assemble(traj.knots());
-    let terms = add_dvl_factors(jp, traj, p, &mut sys, true)?;
+    let (mut sys, pose_cost) = jp.pose_problem().assemble(traj.knots());
+    let terms = add_dvl_factors(jp, traj.view(), p, &mut sys, true)?;
     let factor = sys.factor()?;
     let mut schur = terms.theta;
     for c in 0..NPARAM {

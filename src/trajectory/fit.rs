@@ -471,6 +471,69 @@ impl Trajectory {
         &self.report
     }
 
+    /// The knots as a borrowed view (interpolation without the covariance).
+    pub fn view(&self) -> KnotView<'_> {
+        KnotView {
+            times: &self.times,
+            knots: &self.knots,
+        }
+    }
+
+    /// First and last knot times.
+    pub fn span(&self) -> (f64, f64) {
+        self.view().span()
+    }
+
+    /// Index `k` of the interval `[t_k, t_{k+1}]` holding `t`, or `None` outside the span.
+    pub fn interval(&self, t: f64) -> Option<usize> {
+        self.view().interval(t)
+    }
+
+    /// Pose, twist and twist rate at `t`, without covariance or Jacobians (the cheap query).
+    pub fn state(&self, t: f64) -> Result<TrajectoryState> {
+        self.view().state(t)
+    }
+
+    /// The interpolated state at `t` with the twist's Jacobian with respect to the two knots.
+    pub fn twist_jacobian(&self, t: f64) -> Result<TwistJacobian> {
+        self.view().twist_jacobian(t)
+    }
+
+    /// Pose, twist, twist rate and (if computed) the twist covariance at `t`.
+    pub fn query(&self, t: f64) -> Result<TrajectoryState> {
+        let tj = self.twist_jacobian(t)?;
+        let twist_cov = self.cov.as_ref().map(|cov| {
+            let k = tj.knot;
+            // J Sigma J^T over the two knots' blocks, without forming the 36x36 joint.
+            let j1 = tj.jacobian.fixed_view::<6, 18>(0, 0);
+            let j2 = tj.jacobian.fixed_view::<6, 18>(0, 18);
+            let cross = j1 * cov.upper[k] * j2.transpose();
+            let c = j1 * cov.diag[k] * j1.transpose()
+                + cross
+                + cross.transpose()
+                + j2 * cov.diag[k + 1] * j2.transpose()
+                + tj.d_local * kron_diag_mul(&tj.cond, &self.qc, &tj.d_local.transpose());
+            (c + c.transpose()) * 0.5
+        });
+        Ok(TrajectoryState {
+            t,
+            pose: tj.state.pose,
+            twist: tj.state.twist,
+            rate: tj.state.rate,
+            twist_cov,
+        })
+    }
+}
+
+/// Knot times and states borrowed from a trajectory or from a Gauss-Newton iterate: GP
+/// interpolation and its Jacobians without copying the knots. Needs at least two knots.
+#[derive(Clone, Copy, Debug)]
+pub struct KnotView<'a> {
+    pub times: &'a [f64],
+    pub knots: &'a [Knot],
+}
+
+impl KnotView<'_> {
     /// First and last knot times.
     pub fn span(&self) -> (f64, f64) {
         (self.times[0], self.times[self.times.len() - 1])
@@ -565,31 +628,6 @@ impl Trajectory {
             jacobian,
             d_local,
             cond,
-        })
-    }
-
-    /// Pose, twist, twist rate and (if computed) the twist covariance at `t`.
-    pub fn query(&self, t: f64) -> Result<TrajectoryState> {
-        let tj = self.twist_jacobian(t)?;
-        let twist_cov = self.cov.as_ref().map(|cov| {
-            let k = tj.knot;
-            // J Sigma J^T over the two knots' blocks, without forming the 36x36 joint.
-            let j1 = tj.jacobian.fixed_view::<6, 18>(0, 0);
-            let j2 = tj.jacobian.fixed_view::<6, 18>(0, 18);
-            let cross = j1 * cov.upper[k] * j2.transpose();
-            let c = j1 * cov.diag[k] * j1.transpose()
-                + cross
-                + cross.transpose()
-                + j2 * cov.diag[k + 1] * j2.transpose()
-                + tj.d_local * kron_diag_mul(&tj.cond, &self.qc, &tj.d_local.transpose());
-            (c + c.transpose()) * 0.5
-        });
-        Ok(TrajectoryState {
-            t,
-            pose: tj.state.pose,
-            twist: tj.state.twist,
-            rate: tj.state.rate,
-            twist_cov,
         })
     }
 }

@@ -6,5 +6,5 @@ pub mod gp;
 pub mod hyper;
 pub mod lie;
 
-pub use fit::{FitOptions, FitReport, Trajectory, TrajectoryState};
+pub use fit::{FitOptions, FitReport, KnotView, Trajectory, TrajectoryState};
 pub use gp::Knot;
