@@ -175,6 +175,14 @@ pub struct CalibrationOutcome {
     pub excitation: Excitation,
     pub trajectory: FitReport,
     pub warnings: Vec<String>,
+    /// Where the refinement started: the initialisation's parameters, or the user's guess.
+    pub start: Params,
+    /// The final camera trajectory (refitted with the DVL factors).
+    pub fitted: Trajectory,
+    /// The valid DVL observations (camera epoch, DVL clock) and the indices among them that
+    /// the refinement used.
+    pub observations: Vec<DvlObs>,
+    pub used: Vec<usize>,
 }
 
 /// DVL observations with their noise, on the camera epoch.
@@ -366,6 +374,10 @@ pub fn calibrate(
         excitation,
         trajectory,
         warnings,
+        start,
+        fitted: traj,
+        observations: obs,
+        used: idx,
     })
 }
 
