@@ -14,12 +14,10 @@ pub enum Error {
         msg: String,
     },
     /// A file could not be read or written.
-    #[error("{}: {source}", path.display())]
-    Io {
-        path: PathBuf,
-        #[source]
-        source: std::io::Error,
-    },
+    /// (The I/O error is part of the message and not chained as a source, so that a report of
+    /// the whole chain names it once.)
+    #[error("{}: {err}", path.display())]
+    Io { path: PathBuf, err: std::io::Error },
     /// The input as a whole cannot be used (too short, wrong order, outside a span, ...).
     #[error("{0}")]
     Input(String),
@@ -45,7 +43,7 @@ impl Error {
     pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
         Error::Io {
             path: path.into(),
-            source,
+            err: source,
         }
     }
 }

@@ -6,7 +6,9 @@
 
 pub mod a50_json;
 pub mod calib_yaml;
+pub mod dataset;
 pub mod dvl;
+pub mod exports;
 pub mod times;
 pub mod tum;
 pub mod twist_csv;

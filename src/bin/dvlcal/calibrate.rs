@@ -3,9 +3,10 @@
 use anyhow::{Context, Result, bail};
 use clap::ValueEnum;
 use std::collections::BTreeMap;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use crate::dataset::{DatasetArgs, load, print_found, resolve};
 use crate::dvl_info::DvlInputArgs;
 
 use dvlcal::calib::model::Params;
@@ -15,8 +16,11 @@ use dvlcal::io::calib_yaml::{
     CalibrationFile, CalibrationInfo, CalibrationStd, Observability, ObservabilityFlags,
     read_calib_yaml, write_calib_yaml,
 };
-use dvlcal::io::dvl::{DvlLog, read_dvl_log};
-use dvlcal::io::tum::read_tum;
+use dvlcal::io::dvl::DvlLog;
+use dvlcal::io::exports::{FrameNames, kalibr_dvl_block, ros_static_transform};
+use dvlcal::io::write_atomic;
+use dvlcal::vision::camera::Camchain;
+use nalgebra::Matrix4;
 
 #[derive(Clone, Copy, ValueEnum)]
 pub enum MethodArg {
@@ -30,31 +34,22 @@ pub enum MethodArg {
 
 #[derive(clap::Args)]
 pub struct CalibrateArgs {
-    /// TUM file of T_world_cam (camera clock).
-    #[arg(long, required_unless_present = "images", conflicts_with = "images")]
-    pub poses: Option<PathBuf>,
-    /// Image folder instead of --poses: poses and their covariances come from `dvlcal detect`'s
-    /// pipeline (needs --camchain and --target).
-    #[arg(long, value_name = "DIR", requires_all = ["camchain", "target"])]
-    pub images: Option<PathBuf>,
-    /// Kalibr camchain YAML, with --images.
-    #[arg(long, value_name = "FILE", requires = "images")]
-    pub camchain: Option<PathBuf>,
-    /// Board YAML, with --images.
-    #[arg(long, value_name = "FILE", requires = "images")]
-    pub target: Option<PathBuf>,
+    /// Dataset folder: cam0/ (+ cam1/) images or a TUM pose file, a Kalibr camchain YAML, a
+    /// board YAML and a DVL log, recognised by their content. Options below override parts.
+    #[arg(value_name = "DATASET_DIR")]
+    pub dataset: Option<PathBuf>,
+    #[command(flatten)]
+    pub files: DatasetArgs,
     #[command(flatten)]
     pub vision: crate::detect::VisionTuning,
-    /// Water Linked A50 log: JSON lines (any json_v1..v3 version), serial capture or ROS1 bag.
-    #[arg(long)]
-    pub dvl: PathBuf,
     #[command(flatten)]
     pub dvl_input: DvlInputArgs,
     /// Stop at the first malformed DVL line instead of skipping and counting it.
     #[arg(long)]
     pub strict: bool,
-    /// Result YAML (written atomically).
-    #[arg(long)]
+    /// Result YAML (written atomically); beside it RESULT-tf.txt (ROS static transform) and
+    /// RESULT-camchain-dvl.yaml (Kalibr-style block).
+    #[arg(long, default_value = "calibration.yaml")]
     pub out: PathBuf,
     #[arg(long, value_enum, default_value = "uic")]
     pub method: MethodArg,
@@ -182,72 +177,125 @@ pub fn result_file(o: &CalibrationOutcome, log: &DvlLog) -> CalibrationFile {
     f
 }
 
-pub fn run(a: CalibrateArgs) -> Result<()> {
-    let (epoch, poses, poses_src) = match (&a.poses, &a.images, &a.camchain, &a.target) {
-        (Some(p), _, _, _) => {
-            let tum = read_tum(p, None)?;
-            (tum.epoch, tum.poses, p.clone())
-        }
-        (None, Some(dir), Some(chain), Some(target)) => {
-            let run = crate::detect::run_pipeline(dir, chain, target, &a.vision)?;
-            (run.epoch, run.poses, dir.clone())
-        }
-        _ => bail!("give --poses FILE, or --images DIR --camchain FILE --target FILE"),
-    };
-    let mut read = a.dvl_input.read_options(a.strict);
-    read.epoch = Some(epoch);
-    let log = read_dvl_log(&a.dvl, &read)?;
-    let st = &log.stats;
-    if st.rejected_lines > 0 {
-        eprintln!(
-            "{}: {} malformed lines skipped (dvlcal dvl-info lists them)",
-            a.dvl.display(),
-            st.rejected_lines
-        );
-    }
-    if a.offset_range.len() != 2
-        || a.offset_range[0].partial_cmp(&a.offset_range[1]) != Some(std::cmp::Ordering::Less)
+/// The calibration options of the command line; `guess` is the parsed `--init`.
+pub fn options(
+    method: MethodArg,
+    guess: Option<Params>,
+    estimate_offset: bool,
+    dvl_sigma: Option<f64>,
+    offset_range: &[f64],
+    biased: bool,
+) -> Result<CalibOptions> {
+    if offset_range.len() != 2
+        || offset_range[0].partial_cmp(&offset_range[1]) != Some(std::cmp::Ordering::Less)
     {
         bail!("--offset-range takes two increasing values: min,max");
     }
-    let guess = match &a.init {
-        Some(p) => Some(Params::from_calibration(&read_calib_yaml(p)?.to_params()?)),
-        None => None,
-    };
-    let method = match (a.method, guess) {
+    let method = match (method, guess) {
         (MethodArg::Uic, _) => Method::Uic,
         (MethodArg::Bcd, Some(g)) => Method::Bcd(g),
         (MethodArg::Fixed, Some(g)) => Method::Fixed {
             guess: g,
-            estimate_offset: a.estimate_offset,
+            estimate_offset,
         },
         (_, None) => bail!("--method bcd and fixed need --init FILE"),
     };
-    if let Some(s) = a.dvl_input.dvl_sigma
+    if let Some(s) = dvl_sigma
         && !(s.is_finite() && s > 0.0)
     {
         bail!("--dvl-sigma must be positive");
     }
     let mut opts = CalibOptions {
         method,
-        dvl_sigma: a.dvl_input.dvl_sigma,
-        bias_corrected: !a.biased,
+        dvl_sigma,
+        bias_corrected: !biased,
         ..CalibOptions::default()
     };
-    opts.offset.range = (a.offset_range[0], a.offset_range[1]);
+    opts.offset.range = (offset_range[0], offset_range[1]);
+    Ok(opts)
+}
+
+/// A thread pool of `threads` workers (default: all cores).
+pub fn pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
+    let n = threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    if n == 0 {
+        bail!("--threads must be at least 1");
+    }
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(n)
+        .build()
+        .context("starting the worker threads")
+}
+
+/// `RESULT-<suffix>` beside `RESULT` (its extension dropped).
+pub fn sibling(out: &Path, suffix: &str) -> PathBuf {
+    let stem = out
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "calibration".into());
+    out.with_file_name(format!("{stem}-{suffix}"))
+}
+
+pub fn run(a: CalibrateArgs) -> Result<()> {
+    let files = resolve(a.dataset.as_deref(), &a.files)?;
+    if a.dataset.is_some() {
+        print_found(&files);
+    }
+    let guess = match &a.init {
+        Some(p) => Some(Params::from_calibration(&read_calib_yaml(p)?.to_params()?)),
+        None => None,
+    };
+    let opts = options(
+        a.method,
+        guess,
+        a.estimate_offset,
+        a.dvl_input.dvl_sigma,
+        &a.offset_range,
+        a.biased,
+    )?;
+    if let Some(d) = a.out.parent()
+        && !d.as_os_str().is_empty()
+    {
+        std::fs::create_dir_all(d).with_context(|| format!("creating {}", d.display()))?;
+    }
+    let data = load(files, &a.vision, &a.dvl_input.read_options(a.strict))?;
+    let workers = pool(a.vision.threads)?;
     let start = Instant::now();
-    let o = calibrate(&poses, &log.samples, &opts).with_context(|| {
-        format!(
-            "calibrating {} against {}",
-            a.dvl.display(),
-            poses_src.display()
-        )
-    })?;
+    let o = workers
+        .install(|| calibrate(&data.poses, &data.log.samples, &opts))
+        .with_context(|| {
+            format!(
+                "calibrating {} against {}",
+                data.dvl_path.display(),
+                data.camera_source.display()
+            )
+        })?;
     let elapsed = start.elapsed().as_secs_f64();
-    let file = result_file(&o, &log);
+    let file = result_file(&o, &data.log);
     write_calib_yaml(&a.out, &file)?;
-    print_summary(&o, &log, &file, elapsed);
-    println!("wrote {}", a.out.display());
+    let calib = o.params.to_calibration();
+    let tf = sibling(&a.out, "tf.txt");
+    write_atomic(
+        &tf,
+        ros_static_transform(&calib, &FrameNames::default()).as_bytes(),
+    )?;
+    let t_cn_c0: Vec<Matrix4<f64>> = match &data.files.camchain {
+        Some(c) if data.vision.is_some() => Camchain::load(c)?
+            .t_cn_c0
+            .iter()
+            .map(|t| t.to_matrix())
+            .collect(),
+        _ => vec![Matrix4::identity()],
+    };
+    let block = sibling(&a.out, "camchain-dvl.yaml");
+    write_atomic(&block, kalibr_dvl_block(&calib, &t_cn_c0).as_bytes())?;
+    print_summary(&o, &data.log, &file, elapsed);
+    println!(
+        "wrote {}, {} and {}",
+        a.out.display(),
+        tf.display(),
+        block.display()
+    );
     Ok(())
 }
 

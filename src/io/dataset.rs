@@ -1,0 +1,283 @@
+//! Finds the parts of a calibration dataset in one folder.
+//!
+//! A dataset folder holds the images (`cam0/`, `cam1/` in Kalibr's bag-creator layout, or
+//! EuRoC's `mav0/camN/`), a Kalibr camchain YAML, a board (target) YAML and a DVL log in any
+//! format the ingest reads. Instead of images it may hold a TUM pose file. Only the folder's
+//! own files are looked at, not its subfolders (a `truth/` folder beside the data is never
+//! mistaken for data).
+//!
+//! Files are recognised by their content, not only their names: a YAML with a top-level `cam0`
+//! entry with intrinsics is a camchain, one with `target_type` (Kalibr) or `tags` / `rows` (dvlcal) is a board,
+//! one with `T_cam_dvl` is a calibration result and is ignored; a file whose first lines look
+//! like A50 output (or a ROS1 bag) is a DVL log; a text file whose lines hold eight numbers is a
+//! TUM pose file. When two files compete for one role the error names both.
+
+use std::path::{Path, PathBuf};
+
+use crate::error::{Error, Result};
+use crate::io::dvl::detect::{detect_format, is_mcap};
+
+/// What was found in (or given for) a dataset.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct DatasetFiles {
+    pub root: PathBuf,
+    /// The folder holding `cam0/` (or `mav0/`): the dataset folder itself.
+    pub images: Option<PathBuf>,
+    pub camchain: Option<PathBuf>,
+    pub target: Option<PathBuf>,
+    pub dvl: Option<PathBuf>,
+    pub poses: Option<PathBuf>,
+    /// Files looked at and not used, with the reason (for the summary).
+    pub ignored: Vec<(PathBuf, String)>,
+}
+
+/// Parts the user named explicitly; they win over what the folder holds, and a role given here
+/// is not searched for.
+#[derive(Clone, Debug, Default)]
+pub struct DatasetOverrides {
+    pub images: Option<PathBuf>,
+    pub camchain: Option<PathBuf>,
+    pub target: Option<PathBuf>,
+    pub dvl: Option<PathBuf>,
+    pub poses: Option<PathBuf>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Role {
+    Camchain,
+    Target,
+    Dvl,
+    Poses,
+}
+
+impl Role {
+    fn name(self) -> &'static str {
+        match self {
+            Role::Camchain => "camera chain (camchain YAML)",
+            Role::Target => "board (target YAML)",
+            Role::Dvl => "DVL log",
+            Role::Poses => "pose file (TUM)",
+        }
+    }
+}
+
+/// How many bytes of a file are read to recognise it.
+const SNIFF_BYTES: usize = 64 * 1024;
+
+fn sniff(path: &Path) -> Result<Vec<u8>> {
+    use std::io::Read;
+    let mut f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let mut buf = Vec::with_capacity(SNIFF_BYTES);
+    f.by_ref()
+        .take(SNIFF_BYTES as u64)
+        .read_to_end(&mut buf)
+        .map_err(|e| Error::io(path, e))?;
+    Ok(buf)
+}
+
+fn is_yaml(path: &Path) -> bool {
+    matches!(
+        path.extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase)
+            .as_deref(),
+        Some("yaml" | "yml")
+    )
+}
+
+/// The role of one YAML file from its top-level keys, or why it has none.
+fn yaml_role(path: &Path) -> Result<std::result::Result<Role, String>> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let value: serde_yaml::Value = match serde_yaml::from_str(&text) {
+        Ok(v) => v,
+        Err(e) => return Ok(Err(format!("not readable as YAML ({e})"))),
+    };
+    let Some(map) = value.as_mapping() else {
+        return Ok(Err("YAML but not a mapping".into()));
+    };
+    let has = |k: &str| map.contains_key(serde_yaml::Value::String(k.into()));
+    let cam0_intrinsics = map
+        .get(serde_yaml::Value::String("cam0".into()))
+        .and_then(|c| c.as_mapping())
+        .is_some_and(|c| c.contains_key(serde_yaml::Value::String("intrinsics".into())));
+    Ok(if cam0_intrinsics {
+        Ok(Role::Camchain)
+    } else if has("dvl0") {
+        Err("a DVL extrinsics block (dvlcal output)".into())
+    } else if has("target_type") || has("tags") || (has("rows") && has("cols")) {
+        Ok(Role::Target)
+    } else if has("T_cam_dvl") {
+        Err("a calibration result".into())
+    } else {
+        Err("YAML of no known kind".into())
+    })
+}
+
+/// Whether the text looks like a TUM pose file: its first data lines hold eight numbers.
+fn looks_like_tum(bytes: &[u8]) -> bool {
+    let text = String::from_utf8_lossy(bytes);
+    let mut seen = 0;
+    for line in text.lines().take(50) {
+        let t = line.trim();
+        if t.is_empty() || t.starts_with('#') {
+            continue;
+        }
+        let fields: Vec<&str> = t
+            .split(|c: char| c.is_whitespace() || c == ',')
+            .filter(|s| !s.is_empty())
+            .collect();
+        if fields.len() != 8 || fields.iter().any(|f| f.parse::<f64>().is_err()) {
+            return false;
+        }
+        seen += 1;
+        if seen >= 3 {
+            break;
+        }
+    }
+    seen > 0
+}
+
+/// The role of a non-YAML file from its first bytes.
+fn data_role(path: &Path) -> Result<std::result::Result<Role, String>> {
+    let bytes = sniff(path)?;
+    if is_mcap(&bytes) {
+        return Ok(Err(
+            "a ROS2 (MCAP) file, not read yet: export /dvl/json_data as JSON lines".into(),
+        ));
+    }
+    if detect_format(&bytes).is_some() {
+        return Ok(Ok(Role::Dvl));
+    }
+    if looks_like_tum(&bytes) {
+        return Ok(Ok(Role::Poses));
+    }
+    Ok(Err("not a known data file".into()))
+}
+
+/// Whether `dir` holds images in a layout the image reader knows.
+pub fn has_images(dir: &Path) -> bool {
+    dir.join("cam0").is_dir() || dir.join("mav0").join("cam0").is_dir()
+}
+
+/// Finds the dataset's parts in `dir`; `given` parts are taken as they are.
+///
+/// Errors: `dir` is not a folder; two files compete for one role (both named); images and a
+/// pose file are both present and neither was chosen; no camera data or no DVL log is found;
+/// images without a camchain or a board.
+pub fn discover(dir: &Path, given: &DatasetOverrides) -> Result<DatasetFiles> {
+    if !dir.is_dir() {
+        return Err(Error::Input(format!(
+            "{}: not a folder (give the dataset folder, or --poses/--images and --dvl)",
+            dir.display()
+        )));
+    }
+    let mut entries: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map_err(|e| Error::io(dir, e))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.is_file())
+        .collect();
+    entries.sort();
+
+    let mut found = DatasetFiles {
+        root: dir.to_path_buf(),
+        ..Default::default()
+    };
+    let mut candidates: Vec<(Role, PathBuf)> = Vec::new();
+    for p in entries {
+        let hidden = p
+            .file_name()
+            .and_then(|n| n.to_str())
+            .is_some_and(|n| n.starts_with('.'));
+        if hidden {
+            continue;
+        }
+        let role = if is_yaml(&p) {
+            yaml_role(&p)?
+        } else {
+            data_role(&p)?
+        };
+        match role {
+            Ok(r) => candidates.push((r, p)),
+            Err(why) => found.ignored.push((p, why)),
+        }
+    }
+    let pick = |role: Role, given: &Option<PathBuf>| -> Result<Option<PathBuf>> {
+        if let Some(g) = given {
+            return Ok(Some(g.clone()));
+        }
+        let all: Vec<&PathBuf> = candidates
+            .iter()
+            .filter(|(r, _)| *r == role)
+            .map(|(_, p)| p)
+            .collect();
+        match all.as_slice() {
+            [] => Ok(None),
+            [one] => Ok(Some((*one).clone())),
+            many => Err(Error::Input(format!(
+                "{}: several files could be the {}: {}; name one with its option",
+                dir.display(),
+                role.name(),
+                many.iter()
+                    .map(|p| p.display().to_string())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ))),
+        }
+    };
+    found.camchain = pick(Role::Camchain, &given.camchain)?;
+    found.target = pick(Role::Target, &given.target)?;
+    found.dvl = pick(Role::Dvl, &given.dvl)?;
+
+    let images_here = has_images(dir).then(|| dir.to_path_buf());
+    match (&given.images, &given.poses) {
+        (Some(i), _) => found.images = Some(i.clone()),
+        (None, Some(p)) => found.poses = Some(p.clone()),
+        (None, None) => {
+            let poses = pick(Role::Poses, &None)?;
+            match (images_here, poses) {
+                (Some(i), Some(p)) => {
+                    return Err(Error::Input(format!(
+                        "{}: both images ({}) and a pose file ({}) could give the camera \
+                         trajectory; choose with --images or --poses",
+                        dir.display(),
+                        i.display(),
+                        p.display()
+                    )));
+                }
+                (i, p) => {
+                    found.images = i;
+                    found.poses = p;
+                }
+            }
+        }
+    }
+    if found.images.is_none() && found.poses.is_none() {
+        return Err(Error::Input(format!(
+            "{}: no camera data: neither cam0/ (or mav0/cam0/) images nor a TUM pose file",
+            dir.display()
+        )));
+    }
+    if found.images.is_some() {
+        for (what, part) in [
+            (
+                "camera chain (Kalibr camchain YAML with a cam0 entry)",
+                &found.camchain,
+            ),
+            ("board (target YAML)", &found.target),
+        ] {
+            if part.is_none() {
+                return Err(Error::Input(format!(
+                    "{}: images but no {what}",
+                    dir.display()
+                )));
+            }
+        }
+    }
+    if found.dvl.is_none() {
+        return Err(Error::Input(format!(
+            "{}: no DVL log (A50 JSON lines, serial capture or ROS1 bag) found",
+            dir.display()
+        )));
+    }
+    Ok(found)
+}
