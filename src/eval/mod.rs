@@ -1,5 +1,7 @@
 //! Accuracy of estimates against known truth.
 
+pub mod odometry;
+
 use nalgebra::{Vector3, Vector6};
 
 use crate::error::{Error, Result};

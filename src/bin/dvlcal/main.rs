@@ -2,9 +2,11 @@
 
 mod board;
 mod calibrate;
+mod dataset;
 mod detect;
 mod dvl_info;
 mod eval;
+mod evaluate;
 mod fit;
 mod record_dvl;
 mod simulate;
@@ -35,6 +37,9 @@ enum Command {
     Detect(detect::DetectArgs),
     /// Estimate the DVL's rotation, lever arm, clock offset and velocity scale.
     Calibrate(calibrate::CalibrateArgs),
+    /// Check calibrations by DVL dead reckoning against the camera (ATE, RPE), and
+    /// cross-validate over several datasets.
+    Evaluate(evaluate::EvaluateArgs),
     /// Compare a twist CSV with a truth twist CSV (RMS errors and normalised errors).
     EvalTwist(eval::EvalTwistArgs),
     /// Summarise a DVL log (any format): counts, time span, rate, velocity statistics, problems.
@@ -53,6 +58,7 @@ fn main() {
         Command::Simulate(a) => simulate::run(a),
         Command::FitTrajectory(a) => fit::run(a),
         Command::EvalTwist(a) => eval::run(a),
+        Command::Evaluate(a) => evaluate::run(a),
         Command::DvlInfo(a) => dvl_info::run(a),
         Command::RecordDvl(a) => record_dvl::run(a),
         Command::Board(a) => board::run(a),
