@@ -124,7 +124,7 @@ fn simulate_fit_and_eval_round_trip() {
         "--estimate",
         s(&out),
         "--truth",
-        s(&sim.join("truth_twist.csv")),
+        s(&sim.join("truth").join("twist.csv")),
     ]);
     assert_ok(&ev);
     let text = String::from_utf8_lossy(&ev.stdout).to_string();

@@ -156,15 +156,19 @@ fn simulate_images_writes_a_usable_dataset() {
         String::from_utf8_lossy(&res.stderr)
     );
     for f in [
-        "poses.txt",
-        "poses_truth.txt",
-        "truth.yaml",
         "dvl.jsonl",
-        "poses_board_truth.txt",
-        "board_in_world.txt",
+        "camchain.yaml",
+        "target.yaml",
+        "truth/poses.txt",
+        "truth/poses_noisy.txt",
+        "truth/calibration.yaml",
+        "truth/poses_board.txt",
+        "truth/board_in_world.txt",
     ] {
         assert!(out.join(f).is_file(), "{f} missing");
     }
+    // With images the camera data are the images: no pose file competes with them.
+    assert!(!out.join("poses.txt").exists());
     let t0 = png_times(&out.join("cam0"));
     let t1 = png_times(&out.join("cam1"));
     let expected: Vec<i64> = (0..7)
@@ -205,7 +209,7 @@ fn simulate_images_writes_a_usable_dataset() {
         &PnpOptions::default(),
         false,
     );
-    let truth = read_tum(&out.join("poses_board_truth.txt"));
+    let truth = read_tum(&out.join("truth").join("poses_board.txt"));
     for ((frame, pose), (t_ns, want)) in posed.iter().zip(&truth) {
         assert_eq!(frame.t_ns, *t_ns);
         let got = pose.as_ref().expect("frame without a pose").t_board_cam0;
@@ -218,7 +222,7 @@ fn simulate_images_writes_a_usable_dataset() {
     }
 
     // The truth pose of the first frame: the board 1.8 m straight ahead, upright.
-    let line = std::fs::read_to_string(out.join("poses_board_truth.txt")).unwrap();
+    let line = std::fs::read_to_string(out.join("truth").join("poses_board.txt")).unwrap();
     let v: Vec<f64> = line
         .lines()
         .find(|l| !l.starts_with('#'))

@@ -130,6 +130,8 @@ pub struct ImageSimSettings {
     pub seed: u64,
     /// Worker threads rendering frames (0: one per available core).
     pub threads: usize,
+    /// Write JPEG files of this quality (1..=100) instead of PNG, for compact datasets.
+    pub jpeg_quality: Option<u8>,
 }
 
 impl Default for ImageSimSettings {
@@ -139,6 +141,7 @@ impl Default for ImageSimSettings {
             exposure_jitter: 0.1,
             seed: 1,
             threads: 0,
+            jpeg_quality: None,
         }
     }
 }
@@ -203,7 +206,38 @@ pub fn board_fully_visible(board: &Board, cam: &Camera, t_cam_board: &Se3) -> bo
     })
 }
 
-/// Renders every frame of `frames` into `dir/camN/<t_ns>.png` (the folders are created), in
+/// Writes `dir/<t_ns>.png`, or `.jpg` with a quality.
+fn save_image(
+    img: &image::GrayImage,
+    dir: &Path,
+    t_ns: i64,
+    jpeg_quality: Option<u8>,
+) -> (std::path::PathBuf, std::result::Result<(), String>) {
+    match jpeg_quality {
+        None => {
+            let path = dir.join(format!("{t_ns}.png"));
+            let r = img
+                .save_with_format(&path, image::ImageFormat::Png)
+                .map_err(|e| e.to_string());
+            (path, r)
+        }
+        Some(q) => {
+            let path = dir.join(format!("{t_ns}.jpg"));
+            let r = std::fs::File::create(&path)
+                .map_err(|e| e.to_string())
+                .and_then(|f| {
+                    let mut w = std::io::BufWriter::new(f);
+                    image::codecs::jpeg::JpegEncoder::new_with_quality(&mut w, q.clamp(1, 100))
+                        .encode_image(img)
+                        .map_err(|e| e.to_string())?;
+                    std::io::Write::flush(&mut w).map_err(|e| e.to_string())
+                });
+            (path, r)
+        }
+    }
+}
+
+/// Renders every frame of `frames` into `dir/camN/<t_ns>.png` (or `.jpg`) (the folders are created), in
 /// parallel over frames; the files do not depend on the number of threads. `progress(done,
 /// total)` is called from the worker threads after each frame.
 pub fn write_image_dataset(
@@ -249,8 +283,8 @@ pub fn write_image_dataset(
                         .map(|(cam, t)| board_fully_visible(board, cam, &t))
                         .collect();
                     for (img, d) in images.iter().zip(&cam_dirs) {
-                        let path = d.join(format!("{}.png", f.t_ns));
-                        if let Err(e) = img.save_with_format(&path, image::ImageFormat::Png) {
+                        let (path, saved) = save_image(img, d, f.t_ns, s.jpeg_quality);
+                        if let Err(e) = saved {
                             failed.store(true, Ordering::Relaxed);
                             let err = Error::Input(format!("{}: {e}", path.display()));
                             if let Ok(mut slot) = first_error.lock() {

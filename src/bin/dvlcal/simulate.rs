@@ -1,10 +1,16 @@
-//! `dvlcal simulate`: a synthetic dataset with known truth.
+//! `dvlcal simulate`: a synthetic dataset with known truth, laid out as a dataset folder that
+//! `dvlcal calibrate DIR` reads.
 //!
-//! With `--images`, also the stereo images of a board along the motion (see
+//! The data: `dvl.jsonl` (A50 JSON lines) and `poses.txt` (noisy camera poses, TUM). With
+//! `--images`, the stereo images of a board along the motion instead of the poses (see
 //! `dvlcal::vision::synth` for the frames): `cam0/<ns>.png`, `cam1/<ns>.png` (absolute Unix
-//! nanoseconds of the camera pose times), `camchain.yaml`, `target.yaml`,
-//! `poses_board_truth.txt` (`T_board_cam0` at the image times, TUM) and `board_in_world.txt`
-//! (`T_world_board`).
+//! nanoseconds of the camera pose times), `camchain.yaml`, `target.yaml`.
+//!
+//! The truth, in `truth/` (which dataset discovery never reads): `calibration.yaml`, `poses.txt`
+//! (true `T_world_cam`), `twist.csv` (true camera twists at the pose times), `dvl_twist.csv` (at
+//! the DVL samples' camera times); with images `poses_board.txt` (`T_board_cam0`),
+//! `board_in_world.txt` (`T_world_board`) and `poses_noisy.txt` (the poses a pose-only run would
+//! have had).
 
 use anyhow::{Context, Result};
 use clap::ValueEnum;
@@ -95,6 +101,9 @@ pub struct SimulateArgs {
     /// Samples per pixel along each axis of the rendered images.
     #[arg(long, requires = "images", default_value_t = 4)]
     pub supersample: u32,
+    /// Write the images as JPEG of this quality (1-100) instead of PNG (smaller datasets).
+    #[arg(long, requires = "images", value_name = "Q", value_parser = clap::value_parser!(u8).range(1..=100))]
+    pub jpeg_quality: Option<u8>,
     /// Worker threads for the images (0: one per core).
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
@@ -211,8 +220,17 @@ pub fn run(a: SimulateArgs) -> Result<()> {
     };
     let ds: SimDataset = simulate(&cfg)?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    let truth_dir = a.out.join("truth");
+    std::fs::create_dir_all(&truth_dir)
+        .with_context(|| format!("creating {}", truth_dir.display()))?;
     let out = |name: &str| a.out.join(name);
-    write_tum(&out("poses.txt"), ds.epoch, &ds.poses)?;
+    let truth_out = |name: &str| truth_dir.join(name);
+    let noisy = if image_inputs.is_some() {
+        truth_out("poses_noisy.txt")
+    } else {
+        out("poses.txt")
+    };
+    write_tum(&noisy, ds.epoch, &ds.poses)?;
     let truth_poses: Vec<PoseMeasurement> = ds
         .poses
         .iter()
@@ -223,15 +241,15 @@ pub fn run(a: SimulateArgs) -> Result<()> {
             cov: None,
         })
         .collect();
-    write_tum(&out("poses_truth.txt"), ds.epoch, &truth_poses)?;
+    write_tum(&truth_out("poses.txt"), ds.epoch, &truth_poses)?;
     write_twist_csv(
-        &out("truth_twist.csv"),
+        &truth_out("twist.csv"),
         ds.epoch,
         &truth_rows(&ds.truth_poses, ds.poses.iter().map(|p| p.t)),
     )?;
     let offset = ds.truth.time_offset_s;
     write_twist_csv(
-        &out("dvl_truth_twist.csv"),
+        &truth_out("dvl_twist.csv"),
         ds.epoch,
         &truth_rows(&ds.dvl_truth, ds.dvl.iter().map(|s| s.t + offset)),
     )?;
@@ -256,7 +274,7 @@ pub fn run(a: SimulateArgs) -> Result<()> {
         )],
         ..CalibrationInfo::default()
     });
-    write_calib_yaml(&out("truth.yaml"), &truth)?;
+    write_calib_yaml(&truth_out("calibration.yaml"), &truth)?;
     println!(
         "wrote {}: {} poses, {} DVL reports over {:.1} s (seed {})",
         a.out.display(),
@@ -302,9 +320,10 @@ fn write_images(a: &SimulateArgs, ds: &SimDataset, board: &Board, chain: &Camcha
         })
         .collect();
     let out = |name: &str| a.out.join(name);
-    write_tum(&out("poses_board_truth.txt"), ds.epoch, &board_poses)?;
+    let truth_out = |name: &str| a.out.join("truth").join(name);
+    write_tum(&truth_out("poses_board.txt"), ds.epoch, &board_poses)?;
     write_text(
-        &out("board_in_world.txt"),
+        &truth_out("board_in_world.txt"),
         &board_in_world_text(&t_world_board),
     )?;
     write_text(&out("camchain.yaml"), &chain.to_kalibr_yaml())?;
@@ -312,6 +331,7 @@ fn write_images(a: &SimulateArgs, ds: &SimDataset, board: &Board, chain: &Camcha
     let mut settings = ImageSimSettings {
         seed: a.seed,
         threads: a.threads,
+        jpeg_quality: a.jpeg_quality,
         ..ImageSimSettings::default()
     };
     settings.render.supersample = a.supersample;
@@ -346,8 +366,9 @@ fn write_images(a: &SimulateArgs, ds: &SimDataset, board: &Board, chain: &Camcha
 fn board_in_world_text(t: &Se3) -> String {
     let q = t.quaternion_xyzw();
     format!(
-        "# T_world_board: the board's pose in the frame of poses.txt (tx ty tz qx qy qz qw)\n\
-         # poses_board_truth.txt = T_world_board^-1 * poses_truth.txt\n\
+        "# T_world_board: the board's pose in the world frame of truth/poses.txt (tx ty tz qx qy \
+         qz qw)\n\
+         # truth/poses_board.txt = T_world_board^-1 * truth/poses.txt\n\
          {:.9} {:.9} {:.9} {:.9} {:.9} {:.9} {:.9}\n",
         t.trans.x, t.trans.y, t.trans.z, q[0], q[1], q[2], q[3]
     )
