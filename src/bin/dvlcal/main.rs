@@ -2,6 +2,7 @@
 
 mod board;
 mod calibrate;
+mod compare;
 mod dataset;
 mod detect;
 mod dvl_info;
@@ -40,6 +41,9 @@ enum Command {
     /// Check calibrations by DVL dead reckoning against the camera (ATE, RPE), and
     /// cross-validate over several datasets.
     Evaluate(evaluate::EvaluateArgs),
+    /// Compare a calibration with a reference (e.g. a simulation's truth), in units and in
+    /// standard deviations.
+    CompareCalib(compare::CompareArgs),
     /// Compare a twist CSV with a truth twist CSV (RMS errors and normalised errors).
     EvalTwist(eval::EvalTwistArgs),
     /// Summarise a DVL log (any format): counts, time span, rate, velocity statistics, problems.
@@ -59,6 +63,7 @@ fn main() {
         Command::FitTrajectory(a) => fit::run(a),
         Command::EvalTwist(a) => eval::run(a),
         Command::Evaluate(a) => evaluate::run(a),
+        Command::CompareCalib(a) => compare::run(a),
         Command::DvlInfo(a) => dvl_info::run(a),
         Command::RecordDvl(a) => record_dvl::run(a),
         Command::Board(a) => board::run(a),
