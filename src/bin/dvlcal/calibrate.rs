@@ -70,6 +70,9 @@ pub struct CalibrateArgs {
     /// Use the closed form without bias elimination (for comparison only).
     #[arg(long)]
     pub biased: bool,
+    /// Self-contained HTML report with plots (written atomically; opens offline).
+    #[arg(long, value_name = "REPORT.html")]
+    pub report: Option<PathBuf>,
 }
 
 fn flag(v: &Verdict) -> Observability {
@@ -183,6 +186,7 @@ pub fn result_file(o: &CalibrationOutcome, log: &DvlLog) -> CalibrationFile {
 }
 
 pub fn run(a: CalibrateArgs) -> Result<()> {
+    let mut frames = None;
     let (epoch, poses, poses_src) = match (&a.poses, &a.images, &a.camchain, &a.target) {
         (Some(p), _, _, _) => {
             let tum = read_tum(p, None)?;
@@ -190,6 +194,7 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
         }
         (None, Some(dir), Some(chain), Some(target)) => {
             let run = crate::detect::run_pipeline(dir, chain, target, &a.vision)?;
+            frames = Some(dvlcal::report::frame_stats(&run.results, &run.epoch));
             (run.epoch, run.poses, dir.clone())
         }
         _ => bail!("give --poses FILE, or --images DIR --camchain FILE --target FILE"),
@@ -248,6 +253,18 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
     write_calib_yaml(&a.out, &file)?;
     print_summary(&o, &log, &file, elapsed);
     println!("wrote {}", a.out.display());
+    if let Some(path) = &a.report {
+        let run = crate::html_report::RunInfo {
+            poses_src: &poses_src,
+            poses: &poses,
+            log: &log,
+            frames: frames.as_deref(),
+            result: &a.out,
+            elapsed_s: elapsed,
+        };
+        crate::html_report::write(path, &o, &run)?;
+        println!("wrote {}", path.display());
+    }
     Ok(())
 }
 

@@ -6,6 +6,7 @@ mod detect;
 mod dvl_info;
 mod eval;
 mod fit;
+mod html_report;
 mod record_dvl;
 mod simulate;
 mod tags;
