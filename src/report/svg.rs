@@ -215,13 +215,13 @@ impl Plot {
         self.series.iter().any(|s| !s.name.is_empty()) || self.span_label.is_some()
     }
 
-    /// The plotting area: left, top, width, height in pixels.
-    fn area(&self) -> (f64, f64, f64, f64) {
+    /// The plotting area for a left margin: left, top, width, height in pixels.
+    fn area(&self, left: f64) -> (f64, f64, f64, f64) {
         let top = TOP_TITLE + if self.has_legend() { LEGEND_ROW } else { 0.0 } + 6.0;
         (
-            LEFT,
+            left,
             top,
-            (self.width - LEFT - RIGHT).max(10.0),
+            (self.width - left - RIGHT).max(10.0),
             (self.height - top - BOTTOM).max(10.0),
         )
     }
@@ -266,34 +266,65 @@ impl Plot {
         Some((xr, yr))
     }
 
+    /// The scale with a left margin wide enough for the widest y tick label beside the axis
+    /// title.
+    fn fitted_scale(&self, xr: Range, yr: Range) -> Scale {
+        let scale = self.scale(xr, yr, LEFT);
+        let (_, labels) = self.y_ticks(&scale);
+        let widest = labels.iter().map(|l| l.chars().count()).max().unwrap_or(0) as f64;
+        let need = 30.0 + 6.4 * widest;
+        if need > LEFT {
+            self.scale(xr, yr, need.min(0.4 * self.width))
+        } else {
+            scale
+        }
+    }
+
+    /// Ticks of the y axis (exponents on a log axis) and their labels.
+    fn y_ticks(&self, sc: &Scale) -> (Vec<f64>, Vec<String>) {
+        let ticks = if self.log_y {
+            log_ticks(sc.y0, sc.y1)
+        } else {
+            nice_ticks(sc.y0, sc.y1, (sc.h / 36.0).clamp(3.0, 10.0) as usize)
+        };
+        let step = tick_step(&ticks);
+        let labels = ticks
+            .iter()
+            .map(|&y| {
+                if self.log_y {
+                    format_log_tick(y)
+                } else {
+                    format_tick(y, step)
+                }
+            })
+            .collect();
+        (ticks, labels)
+    }
+
     /// Renders the plot as an `<svg>` element.
     pub fn render(&self) -> String {
-        let (l, t, w, h) = self.area();
         let id = escape(&self.id);
         let mut s = String::new();
-        let empty = self.data_ranges().is_none();
+        let ranges = self.data_ranges();
         let _ = write!(
             s,
             "<svg id=\"{id}\" class=\"plot\" xmlns=\"http://www.w3.org/2000/svg\" \
              viewBox=\"0 0 {W} {H}\" width=\"{W}\" height=\"{H}\" role=\"img\" \
              aria-labelledby=\"{id}-title\"{empty_attr}>\
-             <title id=\"{id}-title\">{title}</title>",
+             <title id=\"{id}-title\">{title}</title>\
+             <rect width=\"{W}\" height=\"{H}\" fill=\"#fff\"/>",
             W = self.width,
             H = self.height,
             title = escape(&self.title),
-            empty_attr = if empty { " data-empty=\"true\"" } else { "" }
+            empty_attr = if ranges.is_none() {
+                " data-empty=\"true\""
+            } else {
+                ""
+            }
         );
-        let _ = write!(
-            s,
-            "<rect width=\"{}\" height=\"{}\" fill=\"#fff\"/>\
-             <text x=\"{:.1}\" y=\"17\" class=\"t\">{}</text>",
-            self.width,
-            self.height,
-            l,
-            escape(&self.title)
-        );
-        self.legend(&mut s, l);
-        let Some((xr, yr)) = self.data_ranges() else {
+        let Some((xr, yr)) = ranges else {
+            let (l, t, w, h) = self.area(LEFT);
+            self.title_and_legend(&mut s, l);
             let _ = write!(
                 s,
                 "<rect x=\"{l:.1}\" y=\"{t:.1}\" width=\"{w:.1}\" height=\"{h:.1}\" fill=\"#f6f6f6\" \
@@ -305,7 +336,10 @@ impl Plot {
             );
             return s;
         };
-        let scale = self.scale(xr, yr);
+        let scale = self.fitted_scale(xr, yr);
+        let (yticks, ylabels) = self.y_ticks(&scale);
+        let (l, t, w, h) = (scale.left, scale.top, scale.w, scale.h);
+        self.title_and_legend(&mut s, l);
         // Frame, grid and ticks.
         let _ = write!(
             s,
@@ -323,11 +357,6 @@ impl Plot {
                 Vec::new()
             };
         }
-        let yticks = if self.log_y {
-            log_ticks(scale.y0, scale.y1)
-        } else {
-            nice_ticks(scale.y0, scale.y1, (h / 36.0).clamp(3.0, 10.0) as usize)
-        };
         let xstep = tick_step(&xticks);
         for &x in &xticks {
             let px = scale.px(x);
@@ -340,15 +369,9 @@ impl Plot {
                 escape(&format_tick(x, xstep))
             );
         }
-        let ystep = tick_step(&yticks);
-        for &y in &yticks {
+        for (&y, label) in yticks.iter().zip(&ylabels) {
             // Log ticks are exponents; their labels are the values.
             let py = scale.py_t(y);
-            let label = if self.log_y {
-                format_log_tick(y)
-            } else {
-                format_tick(y, ystep)
-            };
             let _ = write!(
                 s,
                 "<line x1=\"{l:.1}\" y1=\"{py:.1}\" x2=\"{:.1}\" y2=\"{py:.1}\" class=\"g\"/>\
@@ -356,7 +379,7 @@ impl Plot {
                 l + w,
                 l - 4.0,
                 py + 4.0,
-                escape(&label)
+                escape(label)
             );
         }
         let _ = write!(
@@ -415,7 +438,12 @@ impl Plot {
         s
     }
 
-    fn legend(&self, s: &mut String, left: f64) {
+    fn title_and_legend(&self, s: &mut String, left: f64) {
+        let _ = write!(
+            s,
+            "<text x=\"{left:.1}\" y=\"17\" class=\"t\">{}</text>",
+            escape(&self.title)
+        );
         if !self.has_legend() {
             return;
         }
@@ -592,8 +620,8 @@ impl Plot {
     }
 
     /// The mapping from data to pixels.
-    fn scale(&self, xr: Range, yr: Range) -> Scale {
-        let (l, t, w, h) = self.area();
+    fn scale(&self, xr: Range, yr: Range, left: f64) -> Scale {
+        let (l, t, w, h) = self.area(left);
         let (mut x0, mut x1) = self.x_range.unwrap_or((xr.lo, xr.hi));
         let (mut y0, mut y1) = self.y_range.unwrap_or((yr.lo, yr.hi));
         if self.log_y {
@@ -714,7 +742,7 @@ impl Plot {
     /// The pixel mapping this plot would use (for tests and callers placing annotations).
     pub fn pixel_scale(&self) -> Option<Scale> {
         let (xr, yr) = self.data_ranges()?;
-        Some(self.scale(xr, yr))
+        Some(self.fitted_scale(xr, yr))
     }
 }
 
@@ -942,7 +970,7 @@ mod tests {
             .series(Series::line("", "#000", vec![(0.0, 0.0), (10.0, 5.0)]))
             .y_range(0.0, 5.0);
         let sc = p.pixel_scale().expect("data");
-        let (l, t, w, h) = p.area();
+        let (l, t, w, h) = p.area(sc.left);
         assert!((sc.px(0.0) - l).abs() < 1e-9);
         assert!((sc.px(10.0) - (l + w)).abs() < 1e-9);
         assert!((sc.py(0.0) - (t + h)).abs() < 1e-9, "y grows upward");
