@@ -3,7 +3,8 @@
 
 SHELL := /bin/bash
 CARGO ?= cargo
-DEBIAN_PACKAGES := pkg-config libopencv-dev clang libclang-dev libapriltag-dev apriltag
+# chromium: the report test renders the HTML report headless (scripts/check_report.sh).
+DEBIAN_PACKAGES := pkg-config libopencv-dev clang libclang-dev libapriltag-dev apriltag chromium
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 OUT ?= out
 
@@ -22,7 +23,7 @@ build: deps
 demo: build
 	mkdir -p $(OUT)
 	./target/release/dvlcal calibrate --poses sample_data/sim/poses.txt \
-		--dvl sample_data/sim/dvl.jsonl --out $(OUT)/calibration.yaml
+		--dvl sample_data/sim/dvl.jsonl --out $(OUT)/calibration.yaml --report $(OUT)/report.html
 	@echo "truth: sample_data/sim/truth.yaml"
 	./target/release/dvlcal fit-trajectory --poses sample_data/sim/poses.txt --out $(OUT)/twist.csv
 	./target/release/dvlcal eval-twist --estimate $(OUT)/twist.csv \
