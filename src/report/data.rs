@@ -137,7 +137,7 @@ impl Derived {
         let mut pose_residuals = Vec::with_capacity(input.poses.len());
         for m in input.poses {
             if let Ok(q) = traj.state(m.t) {
-                let r = (&q.pose.inverse() * &m.pose).log();
+                let r = (q.pose.inverse() * m.pose).log();
                 let rho = Vector3::new(r[0], r[1], r[2]);
                 let phi = Vector3::new(r[3], r[4], r[5]);
                 pose_residuals.push((m.t, rho.norm(), phi.norm()));

@@ -102,7 +102,8 @@ fn verdict_cell(v: &Verdict, free: bool) -> &'static str {
     }
 }
 
-/// One sentence on one parameter.
+/// One sentence on one parameter; `spread` describes its standard deviation (weak verdicts
+/// already quote it in their reason).
 fn verdict_sentence(name: &str, v: &Verdict, free: bool, spread: &str) -> String {
     if !free {
         format!("{name} was not estimated: it stays at the value given with --init.")
@@ -110,8 +111,8 @@ fn verdict_sentence(name: &str, v: &Verdict, free: bool, spread: &str) -> String
         format!("{name} is well determined: its standard deviation is {spread}.")
     } else {
         format!(
-            "{name} is weakly observable: {}. Its standard deviation is {spread}; do not rely on \
-             this value without a recording that excites it better.",
+            "{name} is weakly observable: {}. Do not rely on this value without a recording that \
+             excites it better.",
             v.reason.trim_end_matches('.')
         )
     }
@@ -436,8 +437,9 @@ fn velocity(s: &mut String, d: &Derived) {
                 &format!("v_{axis} (m/s)"),
             )
             .size(HALF, 250.0)
-            .series(Series::line("predicted", color, pred).size(1.3))
-            .series(Series::dots("measured", MEASURED, measured.clone()).size(3.0))
+            // The line on top: with dense logs the dots become a band it must stay visible in.
+            .series(Series::dots("measured", MEASURED, measured.clone()).size(3.5))
+            .series(Series::line("predicted", color, pred).size(1.2))
             .empty_note("no samples");
             if lo.is_finite() && hi.is_finite() {
                 plot = plot.y_range(lo - pad, hi + pad);
@@ -823,7 +825,7 @@ fn frames(s: &mut String, frames: Option<&[FrameStat]>) {
     let mut tags = Plot::new("frames-tags", "Tags per frame", "camera time (s)", "tags")
         .size(HALF, 250.0)
         .y_range(0.0, tags_top)
-        .series(Series::dots("detected", MEASURED, detected).size(3.0))
+        .series(Series::dots("detected", MEASURED, detected).size(5.0))
         .series(Series::dots("used by the pose", AFTER, used).size(2.5))
         .empty_note(note);
     let mut rmsp = Plot::new(
@@ -856,9 +858,13 @@ fn frames(s: &mut String, frames: Option<&[FrameStat]>) {
             s,
             "<p>{}</p>",
             escape(&format!(
-                "{posed} of {} frames got a pose (frames without one are shaded); mean reprojection \
-                 RMS {mean_rms:.3} px.",
-                fr.len()
+                "{posed} of {} frames got a pose{}; mean reprojection RMS {mean_rms:.3} px.",
+                fr.len(),
+                if posed < fr.len() {
+                    " (frames without one are shaded)"
+                } else {
+                    ""
+                }
             ))
         );
     }

@@ -633,7 +633,7 @@ impl Plot {
         if self.y_range.is_none() {
             let pad = 0.05 * (y1 - y0);
             // Bars and non-negative data keep their zero on the axis.
-            if !(y0 == 0.0 && !self.log_y) {
+            if y0 != 0.0 || self.log_y {
                 y0 -= pad;
             }
             y1 += pad;
@@ -820,13 +820,13 @@ pub fn nice_ticks(lo: f64, hi: f64, target: usize) -> Vec<f64> {
     let mag = 10f64.powf(raw.log10().floor());
     let count = |step: f64| ((hi / step).floor() - (lo / step).ceil() + 1.0).max(0.0);
     // The round step whose tick count is closest to the target, preferring at least two ticks
-    // and, on a tie, the coarser step.
+    // and, on a tie, the finer step.
     let mut best = (f64::INFINITY, 10.0 * mag);
     for m in [0.5, 1.0, 2.0, 5.0, 10.0] {
         let step = m * mag;
         let n = count(step);
         let penalty = (n - target).abs() + if n < 2.0 { 100.0 } else { 0.0 };
-        if penalty <= best.0 {
+        if penalty < best.0 {
             best = (penalty, step);
         }
     }
@@ -880,7 +880,7 @@ fn tick_step(ticks: &[f64]) -> f64 {
 /// A tick label with as many decimals as the step needs.
 pub fn format_tick(v: f64, step: f64) -> String {
     let a = v.abs();
-    if a != 0.0 && (a >= 1e6 || a < 1e-4 || step < 1e-5) {
+    if a != 0.0 && (!(1e-4..1e6).contains(&a) || step < 1e-5) {
         return format!("{v:.1e}");
     }
     let decimals = if step > 0.0 {
