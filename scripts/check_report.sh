@@ -34,8 +34,8 @@ if [[ -z $browser ]]; then
         fi
     done
 fi
-if [[ -z $browser ]]; then
-    echo "no Chromium found (install Debian's chromium, or set CHROMIUM)" >&2
+if [[ -z $browser ]] || ! command -v "$browser" >/dev/null 2>&1; then
+    echo "no Chromium found${browser:+ at '$browser'} (install Debian's chromium, or set CHROMIUM)" >&2
     exit 2
 fi
 
@@ -66,8 +66,9 @@ problem() {
 }
 
 if ! timeout 120 "$browser" "${flags[@]}" --dump-dom "$url" >"$work/dom.html" 2>"$work/log.txt"; then
-    problem "the browser failed to render $report"
+    echo "FAIL: the browser failed to render $report:" >&2
     tail -n 20 "$work/log.txt" >&2 || true
+    exit 1
 fi
 # Console messages are what the page itself caused (malformed SVG attributes, scripts); the
 # rest of the log is the browser talking about its sandbox, D-Bus and GPU.
@@ -86,10 +87,11 @@ done
 for id in $PLOTS; do
     grep -q "<svg id=\"$id\"" "$dom" || problem "plot '$id' missing"
 done
-n_open=$(grep -o '<svg' "$dom" | wc -l)
-n_close=$(grep -o '</svg>' "$dom" | wc -l)
-n_sections=$(grep -o '<section' "$dom" | wc -l)
-n_sections_closed=$(grep -o '</section>' "$dom" | wc -l)
+count() { grep -o "$1" "$dom" | wc -l || true; }
+n_open=$(count '<svg')
+n_close=$(count '</svg>')
+n_sections=$(count '<section')
+n_sections_closed=$(count '</section>')
 [[ $n_open -eq $n_close ]] || problem "$n_open <svg> elements but $n_close closing tags"
 [[ $n_sections -eq $n_sections_closed ]] ||
     problem "$n_sections sections but $n_sections_closed closing tags"

@@ -63,7 +63,7 @@ fn frames(ds: &SimDataset) -> Vec<FrameStat> {
             posed: k % 10 != 3,
             tags_detected: 20 + k % 7,
             tags_used: if k % 10 != 3 { 18 + k % 5 } else { 0 },
-            rms_px: (k % 10 != 3).then(|| 0.2 + 0.01 * (k % 13) as f64),
+            rms_px: (k % 10 != 3).then_some(0.2 + 0.01 * (k % 13) as f64),
         })
         .collect()
 }
@@ -173,6 +173,12 @@ fn long_logs_give_a_small_report() {
         init.offset.calm = (0..n / 2).collect();
     }
     let html = render_html(&ReportInput::new(&o, &r.ds.poses)).expect("report");
+    eprintln!("report of {n} DVL samples: {} bytes", html.len());
+    // Kept for a look in a browser.
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("report");
+    if std::fs::create_dir_all(&dir).is_ok() {
+        let _ = std::fs::write(dir.join("long.html"), &html);
+    }
     assert!(html.len() < 3_000_000, "{} bytes", html.len());
     for id in PLOT_IDS {
         svg_of(&html, id);
