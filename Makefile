@@ -4,29 +4,36 @@
 SHELL := /bin/bash
 CARGO ?= cargo
 DEBIAN_PACKAGES := pkg-config libopencv-dev clang libclang-dev libapriltag-dev apriltag
+# The tests also render the HTML report in headless chromium (scripts/check_report.sh).
+TEST_PACKAGES := $(DEBIAN_PACKAGES) chromium
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 OUT ?= out
 
-.PHONY: deps build demo test bench clean
+.PHONY: deps test-deps build demo test bench clean
 
 deps:
 	@if ! dpkg -s $(DEBIAN_PACKAGES) >/dev/null 2>&1; then \
 		$(SUDO) apt-get update && $(SUDO) apt-get install -y --no-install-recommends $(DEBIAN_PACKAGES); \
 	fi
 
+test-deps:
+	@if ! dpkg -s $(TEST_PACKAGES) >/dev/null 2>&1; then \
+		$(SUDO) apt-get update && $(SUDO) apt-get install -y --no-install-recommends $(TEST_PACKAGES); \
+	fi
+
 build: deps
 	$(CARGO) build --release
 
-# Calibrates the simulated recording shipped in sample_data, then checks the trajectory fit
-# against the simulation's truth.
+# Calibrates the rendered stereo dataset shipped in sample_data (images -> AprilTag detection ->
+# stereo PnP -> GP trajectory -> UIC), writes the YAML, the exports and the HTML report, then
+# compares the result with the simulation's truth.
 demo: build
 	mkdir -p $(OUT)
-	./target/release/dvlcal calibrate --poses sample_data/sim/poses.txt \
-		--dvl sample_data/sim/dvl.jsonl --out $(OUT)/calibration.yaml
-	@echo "truth: sample_data/sim/truth.yaml"
-	./target/release/dvlcal fit-trajectory --poses sample_data/sim/poses.txt --out $(OUT)/twist.csv
-	./target/release/dvlcal eval-twist --estimate $(OUT)/twist.csv \
-		--truth sample_data/sim/truth_twist.csv
+	./target/release/dvlcal calibrate sample_data/stereo --out $(OUT)/calibration.yaml \
+		--report $(OUT)/calibration.html
+	./target/release/dvlcal compare-calib --estimate $(OUT)/calibration.yaml \
+		--truth sample_data/stereo/truth/calibration.yaml
+	@echo "open $(OUT)/calibration.html in a browser"
 
 # Property tests draw from a fixed seed so that a CI run can be reproduced exactly; set
 # PROPTEST_RNG_SEED=<another number> (or plain `cargo test`, which draws a random seed) to
@@ -34,7 +41,7 @@ demo: build
 PROPTEST_RNG_SEED ?= 20261121
 export PROPTEST_RNG_SEED
 
-test: deps
+test: test-deps
 	$(CARGO) test --release
 
 bench: deps

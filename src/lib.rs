@@ -6,6 +6,7 @@
 //! - [`calib`]: the UIC calibration (initialisation, refinement, uncertainty).
 //! - [`sim`]: synthetic datasets with known truth.
 //! - [`eval`]: accuracy of estimates against known truth.
+//! - [`report`]: the self-contained HTML report of a calibration.
 //!
 //! Conventions (frames, time offsets, twist order) are in `docs/conventions.md`.
 
@@ -13,6 +14,7 @@ pub mod calib;
 pub mod error;
 pub mod eval;
 pub mod io;
+pub mod report;
 pub mod sim;
 pub mod time;
 pub mod trajectory;

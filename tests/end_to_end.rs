@@ -66,7 +66,8 @@ fn rendered_dataset_calibrates_within_its_uncertainty_and_identically_on_any_thr
     let est_file = read_calib_yaml(&two).unwrap();
     let est = Params::from_calibration(&est_file.to_params().unwrap());
     let truth_file = Path::new(STEREO).join("truth").join("calibration.yaml");
-    let truth = Params::from_calibration(&read_calib_yaml(&truth_file).unwrap().to_params().unwrap());
+    let truth =
+        Params::from_calibration(&read_calib_yaml(&truth_file).unwrap().to_params().unwrap());
     let d = difference(&est, &truth);
     let s = est_file.std.expect("std in the result");
     let std = [

@@ -65,6 +65,9 @@ pub struct CalibrateArgs {
     /// Use the closed form without bias elimination (for comparison only).
     #[arg(long)]
     pub biased: bool,
+    /// Self-contained HTML report with plots (written atomically; opens offline).
+    #[arg(long, value_name = "REPORT.html")]
+    pub report: Option<PathBuf>,
 }
 
 fn flag(v: &Verdict) -> Observability {
@@ -296,6 +299,22 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
         tf.display(),
         block.display()
     );
+    if let Some(path) = &a.report {
+        let frames = data
+            .vision
+            .as_ref()
+            .map(|run| dvlcal::report::frame_stats(&run.results, &run.epoch));
+        let run = crate::html_report::RunInfo {
+            poses_src: &data.camera_source,
+            poses: &data.poses,
+            log: &data.log,
+            frames: frames.as_deref(),
+            result: &a.out,
+            elapsed_s: elapsed,
+        };
+        crate::html_report::write(path, &o, &run)?;
+        println!("wrote {}", path.display());
+    }
     Ok(())
 }
 

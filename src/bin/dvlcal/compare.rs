@@ -41,11 +41,7 @@ pub fn run(a: CompareArgs) -> Result<()> {
         }
     };
     let rot = nalgebra::Vector3::new(d[0], d[1], d[2]);
-    println!(
-        "{} against {}",
-        a.estimate.display(),
-        a.truth.display()
-    );
+    println!("{} against {}", a.estimate.display(), a.truth.display());
     println!(
         "rotation   {:.4} deg  (about DVL x, y, z: {:+.4} {:+.4} {:+.4} deg; in std: {} {} {})",
         rot.norm().to_degrees(),
@@ -66,11 +62,7 @@ pub fn run(a: CompareArgs) -> Result<()> {
         z(4),
         z(5)
     );
-    println!(
-        "clock      {:+.2} ms  (in std: {})",
-        1e3 * d[7],
-        z(7)
-    );
+    println!("clock      {:+.2} ms  (in std: {})", 1e3 * d[7], z(7));
     println!("scale      {:+.5}  (in std: {})", d[6], z(6));
     if let Some(s) = std {
         let worst = (0..8)

@@ -1,0 +1,116 @@
+#!/usr/bin/env bash
+# Renders a dvlcal HTML report in headless Chromium and fails when the browser reports any
+# console message (SVG attribute errors, script errors) or when a section or plot is missing.
+#
+# usage: scripts/check_report.sh REPORT.html [SCREENSHOT.png]
+#
+# The browser is $CHROMIUM, else `chromium` (Debian), else `chromium-browser`. Exit status 0 when
+# the report is fine, 1 when a check fails, 2 on usage errors or when no browser is found.
+set -euo pipefail
+trap 'echo "FAIL: $0 stopped at line $LINENO" >&2' ERR
+
+PLOTS="velocity-before-x velocity-after-x velocity-before-y velocity-after-y velocity-before-z
+velocity-after-z residuals-x residuals-y residuals-z angular-velocity lever-arm offset-coarse
+offset-fine cost frames-tags frames-rms pose-residual-pos pose-residual-rot trajectory"
+SECTIONS="summary results warnings velocity residuals motion clock-offset refinement frames
+trajectory-fit dvl-log result-file"
+
+if [[ $# -lt 1 || $# -gt 2 ]]; then
+    echo "usage: $0 REPORT.html [SCREENSHOT.png]" >&2
+    exit 2
+fi
+report=$1
+shot=${2:-}
+if [[ ! -f $report ]]; then
+    echo "$report: no such file" >&2
+    exit 2
+fi
+browser=${CHROMIUM:-}
+if [[ -z $browser ]]; then
+    for b in chromium chromium-browser; do
+        if command -v "$b" >/dev/null 2>&1; then
+            browser=$b
+            break
+        fi
+    done
+fi
+if [[ -z $browser ]] || ! command -v "$browser" >/dev/null 2>&1; then
+    echo "no Chromium found${browser:+ at '$browser'} (install Debian's chromium, or set CHROMIUM)" >&2
+    exit 2
+fi
+
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+# file:// URL of the report, percent-encoded (names may hold spaces, '#', '%', '<', '&' ...).
+urlencode() {
+    local s=$1 out="" c i
+    local LC_ALL=C
+    for ((i = 0; i < ${#s}; i++)); do
+        c=${s:i:1}
+        case $c in
+        [A-Za-z0-9/._~-]) out+=$c ;;
+        *) out+=$(printf '%%%02X' "'$c") ;;
+        esac
+    done
+    printf '%s' "$out"
+}
+url="file://$(urlencode "$(cd "$(dirname "$report")" && pwd)/$(basename "$report")")"
+# A private profile so that parallel runs do not share (and lock) one.
+flags=(--headless --disable-gpu --no-sandbox --no-first-run --hide-scrollbars
+    --user-data-dir="$work/profile" --enable-logging=stderr --v=0)
+
+fail=0
+problem() {
+    echo "FAIL: $*" >&2
+    fail=1
+}
+
+if ! timeout 120 "$browser" "${flags[@]}" --dump-dom "$url" >"$work/dom.html" 2>"$work/log.txt"; then
+    echo "FAIL: the browser failed to render $report:" >&2
+    tail -n 20 "$work/log.txt" >&2 || true
+    exit 1
+fi
+# Console messages are what the page itself caused (malformed SVG attributes, scripts); the
+# rest of the log is the browser talking about its sandbox, D-Bus and GPU.
+if grep -q ':CONSOLE' "$work/log.txt"; then
+    problem "console messages while rendering:"
+    grep ':CONSOLE' "$work/log.txt" | head -n 20 >&2
+fi
+
+dom="$work/dom.html"
+if ! grep -q '</html>' "$dom"; then
+    problem "no document came back from the browser"
+fi
+for id in $SECTIONS; do
+    grep -q "<section id=\"$id\"" "$dom" || problem "section '$id' missing"
+done
+for id in $PLOTS; do
+    grep -q "<svg id=\"$id\"" "$dom" || problem "plot '$id' missing"
+done
+count() { grep -o "$1" "$dom" | wc -l || true; }
+n_open=$(count '<svg')
+n_close=$(count '</svg>')
+n_sections=$(count '<section')
+n_sections_closed=$(count '</section>')
+[[ $n_open -eq $n_close ]] || problem "$n_open <svg> elements but $n_close closing tags"
+[[ $n_sections -eq $n_sections_closed ]] ||
+    problem "$n_sections sections but $n_sections_closed closing tags"
+# Self-contained: nothing fetched, nothing executed.
+if grep -Eiq '<script|<link|<iframe|<img|src=|href="(https?:|//)|url\((https?:|//)' "$report"; then
+    problem "the report refers to scripts or external resources"
+fi
+empty=$({ grep -o '<svg id="[^"]*"[^>]*data-empty="true"' "$dom" || true; } |
+    sed 's/<svg id="\([^"]*\)".*/\1/' | paste -sd' ' -)
+
+if [[ -n $shot ]]; then
+    if ! timeout 120 "$browser" "${flags[@]}" --window-size=1000,12000 --screenshot="$shot" \
+        "$url" >/dev/null 2>"$work/shot.txt" || [[ ! -s $shot ]]; then
+        problem "no screenshot written to $shot"
+    fi
+fi
+
+if [[ $fail -ne 0 ]]; then
+    exit 1
+fi
+echo "ok: $report renders without console messages; $n_open plots, $n_sections sections" \
+    "(without data: ${empty:-none})"

@@ -1,0 +1,137 @@
+//! The calibration report: one self-contained HTML page (inline CSS and SVG, no scripts, no
+//! external resources) that explains a calibration run.
+//!
+//! [`render_html`] is pure: it takes a [`ReportInput`] and returns the page; the caller writes it.
+//! The page holds the estimates with their standard deviations and the observability verdicts
+//! in words, every warning, and the plots listed in [`PLOT_IDS`] (each an `<svg>` with that id):
+//! measured against predicted DVL velocities per axis before and after the refinement, residual
+//! histograms, the angular velocity with the calm samples of the clock-offset search shaded, the
+//! lever-arm velocity against the speed, the clock-offset objective, the cost per iteration,
+//! per-frame detection statistics, pose residuals and a top view of the trajectory, followed by
+//! the DVL log's summary and the result file.
+
+mod data;
+mod page;
+pub mod svg;
+
+use crate::calib::CalibrationOutcome;
+use crate::error::Result;
+use crate::io::dvl::DvlLogStats;
+use crate::time::Epoch;
+use crate::types::PoseMeasurement;
+use crate::vision::pipeline::FrameResult;
+use crate::vision::pipeline::FrameStatus;
+
+/// The id of every plot of the report, in page order. Plots without data (no clock-offset search
+/// for `--method bcd`, no image statistics for `--poses` runs) are still present, marked
+/// `data-empty="true"` and saying why.
+pub const PLOT_IDS: &[&str] = &[
+    "velocity-before-x",
+    "velocity-after-x",
+    "velocity-before-y",
+    "velocity-after-y",
+    "velocity-before-z",
+    "velocity-after-z",
+    "residuals-x",
+    "residuals-y",
+    "residuals-z",
+    "angular-velocity",
+    "lever-arm",
+    "offset-coarse",
+    "offset-fine",
+    "cost",
+    "frames-tags",
+    "frames-rms",
+    "pose-residual-pos",
+    "pose-residual-rot",
+    "trajectory",
+];
+
+/// The id of every section of the report, in page order.
+pub const SECTION_IDS: &[&str] = &[
+    "summary",
+    "results",
+    "warnings",
+    "velocity",
+    "residuals",
+    "motion",
+    "clock-offset",
+    "refinement",
+    "frames",
+    "trajectory-fit",
+    "dvl-log",
+    "result-file",
+];
+
+/// One image frame of a `--images` run.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FrameStat {
+    /// Camera time, seconds relative to the dataset epoch.
+    pub t: f64,
+    /// Whether the frame got a pose.
+    pub posed: bool,
+    /// Tags detected over all of the frame's images.
+    pub tags_detected: usize,
+    /// Tag observations used by the pose (0 without a pose).
+    pub tags_used: usize,
+    /// Reprojection RMS of the pose, pixels.
+    pub rms_px: Option<f64>,
+}
+
+/// Per-frame statistics of the detection pipeline's results, on the epoch of the poses.
+pub fn frame_stats(results: &[FrameResult], epoch: &Epoch) -> Vec<FrameStat> {
+    results
+        .iter()
+        .map(|r| FrameStat {
+            t: epoch.rel(crate::vision::images::raw_time(r.frame.t_ns)),
+            posed: r.status == FrameStatus::Posed && r.pose.is_some(),
+            tags_detected: r.tags_detected.iter().sum(),
+            tags_used: r.pose.as_ref().map_or(0, |p| p.tags_used),
+            rms_px: r.pose.as_ref().map(|p| p.rms_px),
+        })
+        .collect()
+}
+
+/// Everything the report shows.
+#[derive(Clone, Debug)]
+pub struct ReportInput<'a> {
+    /// Page title.
+    pub title: &'a str,
+    /// What was calibrated, in words (e.g. the input file names).
+    pub dataset: &'a str,
+    pub outcome: &'a CalibrationOutcome,
+    /// The camera poses the calibration used.
+    pub poses: &'a [PoseMeasurement],
+    /// The DVL log's counts, when read from a file.
+    pub dvl_stats: Option<&'a DvlLogStats>,
+    /// Per-frame detection statistics, for runs from images.
+    pub frames: Option<&'a [FrameStat]>,
+    /// Name of the result file and its text.
+    pub result_name: Option<&'a str>,
+    pub result_yaml: Option<&'a str>,
+    /// Wall time of the calibration, seconds.
+    pub elapsed_s: Option<f64>,
+}
+
+impl<'a> ReportInput<'a> {
+    /// A report of `outcome` with nothing else known.
+    pub fn new(outcome: &'a CalibrationOutcome, poses: &'a [PoseMeasurement]) -> ReportInput<'a> {
+        ReportInput {
+            title: "DVL calibration report",
+            dataset: "",
+            outcome,
+            poses,
+            dvl_stats: None,
+            frames: None,
+            result_name: None,
+            result_yaml: None,
+            elapsed_s: None,
+        }
+    }
+}
+
+/// Renders the report as one HTML document.
+pub fn render_html(input: &ReportInput) -> Result<String> {
+    let d = data::Derived::compute(input)?;
+    Ok(page::render(input, &d))
+}
