@@ -276,3 +276,35 @@ fn calibrate_a_folder_then_cross_validate_three() {
     assert!(!r.status.success());
     assert!(String::from_utf8_lossy(&r.stderr).contains("two or more datasets"));
 }
+
+const REAL_LOGS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/a50-ros-driver");
+
+#[test]
+fn discovery_recognises_real_a50_logs_and_bags() {
+    // The folder of real driver logs: eight candidate DVL logs, no camera data.
+    let e = discover(Path::new(REAL_LOGS), &DatasetOverrides::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("DVL log") && e.contains("dvl_circle.bag") && e.contains("dvl.jsonl"),
+        "{e}"
+    );
+    // A bag beside a pose file is found as the DVL log; a README is ignored with a reason.
+    let tmp = TmpDir::new("bag");
+    let d = tmp.0.join("run");
+    simulate_dir(&d, 9, 5.0);
+    std::fs::remove_file(d.join("dvl.jsonl")).unwrap();
+    std::fs::copy(
+        Path::new(REAL_LOGS).join("dvl_circle.bag"),
+        d.join("dvl.bag"),
+    )
+    .unwrap();
+    std::fs::copy(Path::new(REAL_LOGS).join("README.md"), d.join("README.md")).unwrap();
+    let f = discover(&d, &DatasetOverrides::default()).unwrap();
+    assert_eq!(f.dvl.as_deref(), Some(d.join("dvl.bag").as_path()));
+    assert!(
+        f.ignored.iter().any(|(p, _)| p.ends_with("README.md")),
+        "{:?}",
+        f.ignored
+    );
+}

@@ -16,6 +16,7 @@ use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result};
 use crate::io::dvl::detect::{detect_format, is_mcap};
+use crate::io::dvl::{DvlFormat, json, serial, text_lines};
 
 /// What was found in (or given for) a dataset.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -145,8 +146,20 @@ fn data_role(path: &Path) -> Result<std::result::Result<Role, String>> {
             "a ROS2 (MCAP) file, not read yet: export /dvl/json_data as JSON lines".into(),
         ));
     }
-    if detect_format(&bytes).is_some() {
-        return Ok(Ok(Role::Dvl));
+    match detect_format(&bytes) {
+        Some(DvlFormat::RosBag) => return Ok(Ok(Role::Dvl)),
+        Some(f) => {
+            // The format vote only looks at the shape of lines (a README mentioning `wrz` or
+            // `{` would pass it); a DVL log must also hold at least one line that parses.
+            let parse = |l: &[u8]| match f {
+                DvlFormat::Serial => serial::parse_line(l).is_ok(),
+                _ => json::parse_line(l).is_ok(),
+            };
+            if text_lines(&bytes).take(200).any(|(_, l)| parse(l)) {
+                return Ok(Ok(Role::Dvl));
+            }
+        }
+        None => {}
     }
     if looks_like_tum(&bytes) {
         return Ok(Ok(Role::Poses));
