@@ -96,10 +96,10 @@ fn corner_stats(
             .map(|k| cam.project(&t.transform_point(&tag.corners[k])).unwrap())
             .collect();
         let centre = want.iter().sum::<nalgebra::Vector2<f64>>() / 4.0;
-        for k in 0..4 {
-            let e = d.corners[k] - want[k];
+        for (got, want) in d.corners.iter().zip(&want) {
+            let e = got - want;
             st.signed += e;
-            st.outward += e.dot(&(want[k] - centre).normalize());
+            st.outward += e.dot(&(want - centre).normalize());
             st.mean += e.norm();
             sq += e.norm_squared();
             st.max = st.max.max(e.norm());

@@ -203,7 +203,7 @@ pub fn refine_corners(
                 };
                 let d_img = p1 - p0;
                 let dn = d_img.norm();
-                if !(dn > 0.0) {
+                if dn.is_nan() || dn <= 0.0 {
                     continue;
                 }
                 let mut nrm = Vector2::new(-d_img.y, d_img.x) / dn;

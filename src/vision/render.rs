@@ -1,6 +1,7 @@
 //! Synthetic camera images of a board, for datasets with known truth.
 //!
-//! Every pixel is supersampled: each sample's ray (through the lens distortion) is intersected
+//! Pixels near an edge of the scene are supersampled (the others lie inside one uniform region
+//! and take their centre's value, which every sample would give): each sample's ray (through the lens distortion) is intersected
 //! with the board's planes and the tag cell it hits decides black or white. White paper surrounds
 //! the tags (the whole board rectangle for grid boards, a square sheet around each tag for listed
 //! tags); everything else is a mid-grey background. Exposure gain, vignetting, Gaussian blur and
@@ -554,16 +555,16 @@ fn clip_to_view(
     view: &[f64; 4],
 ) -> Option<(Vector3<f64>, Vector3<f64>)> {
     // Each constraint is linear in the point: f(p) >= 0.
-    let fs: [&dyn Fn(&Vector3<f64>) -> f64; 5] = [
-        &|p| p.z - 1e-6,
-        &|p| p.x - view[0] * p.z,
-        &|p| view[1] * p.z - p.x,
-        &|p| p.y - view[2] * p.z,
-        &|p| view[3] * p.z - p.y,
-    ];
+    let f = |k: usize, p: &Vector3<f64>| match k {
+        0 => p.z - 1e-6,
+        1 => p.x - view[0] * p.z,
+        2 => view[1] * p.z - p.x,
+        3 => p.y - view[2] * p.z,
+        _ => view[3] * p.z - p.y,
+    };
     let (mut t0, mut t1) = (0.0f64, 1.0f64);
-    for f in fs {
-        let (fa, fb) = (f(a), f(b));
+    for k in 0..5 {
+        let (fa, fb) = (f(k, a), f(k, b));
         if fa < 0.0 && fb < 0.0 {
             return None;
         }
