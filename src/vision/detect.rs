@@ -15,11 +15,13 @@
 //!   top-left. Debian's `apriltag -v` CLI names its columns the same way (xlb, xrb, xrt, xlt);
 //!   `tests/vision_detect.rs` checks it on a rendered tag. On a Kalibr board (x right, y up, tags
 //!   upright) these are the tag's corners (0,0), (s,0), (s,s), (0,s) from its bottom-left corner.
-//! - **Accuracy.** On sharp, anti-aliased, axis-aligned synthetic tags with known corners, the mean
-//!   corner error after the conversion is about (-0.08, -0.09) px with the default settings
-//!   (|bias| 0.12 px, mean |error| 0.18 px; 0.10 px bias at decimation 1, 0.05 px after a 1.5 px
-//!   blur). It is the same translation at every corner, left by libapriltag 3.3's edge refinement,
-//!   not a scale error; `tests/vision_detect.rs` measures it.
+//! - **Accuracy.** libapriltag 3.3's own corners (after its `refine_edges`) carry a systematic error:
+//!   on exactly area-sampled, axis-aligned tags a common shift of about (-0.08, -0.09) px
+//!   (|bias| 0.12 px, RMS 0.19 px); on blurred perspective renders the detected squares come out
+//!   slightly small, which biases the depth of a PnP pose. With `refine_corners` (the default) each
+//!   side is re-located with an interpolating, unbiased edge estimate and the corners are
+//!   intersections of line fits ([`crate::vision::refine`]): |bias| under 0.001 px and RMS 0.002 px
+//!   on the same tags. `tests/vision_detect.rs` and `tests/vision_render.rs` measure both.
 
 use std::os::raw::c_int;
 use std::path::Path;
@@ -28,6 +30,8 @@ use apriltag_sys as sys;
 use nalgebra::Vector2;
 
 use crate::vision::board::TagFamily;
+use crate::vision::camera::Camera;
+use crate::vision::refine::refine_corners;
 use crate::{Error, Result};
 
 /// Settings of the AprilTag detector. `Default` gives the library's defaults and at most one
@@ -46,6 +50,11 @@ pub struct DetectorSettings {
     pub sharpening: f64,
     /// Snap the quad edges to strong gradients of the full-resolution image (`refine_edges`).
     pub refine_edges: bool,
+    /// After libapriltag, re-locate each side of the black square on the full-resolution image
+    /// and intersect straight-line fits of the sides ([`crate::vision::refine`]). Removes the
+    /// corner bias libapriltag 3.3 leaves; a tag whose sides cannot be located keeps
+    /// libapriltag's corners.
+    pub refine_corners: bool,
     /// Worker threads of the detector (`nthreads`, >= 1).
     pub threads: usize,
     /// Largest number of corrected bits of an accepted code (0..=3; more needs huge tables).
@@ -60,6 +69,7 @@ impl Default for DetectorSettings {
             sigma: 0.0,
             sharpening: 0.25,
             refine_edges: true,
+            refine_corners: true,
             threads: 1,
             max_hamming: 1,
         }
@@ -152,6 +162,8 @@ pub struct Detector {
     tf: *mut sys::apriltag_family_t,
     destroy_family: FamilyDestroy,
     settings: DetectorSettings,
+    /// Pattern cells across the square the corners belong to (the family's `width_at_border`).
+    cells_across: f64,
 }
 
 // SAFETY: the detector and family are owned exclusively by this value and libapriltag keeps no
@@ -183,12 +195,15 @@ impl Detector {
                 "libapriltag could not create a detector".to_string(),
             ));
         }
+        // SAFETY: tf is a valid family (checked non-null above).
+        let cells_across = unsafe { (*tf).width_at_border }.max(1) as f64;
         // Owned from here on: Drop frees both on any early return.
         let det = Detector {
             td,
             tf,
             destroy_family,
             settings: s.clone(),
+            cells_across,
         };
         // SAFETY: td and tf are valid; the family outlives the detector (Drop destroys the detector
         // first). The settings fields are plain values.
@@ -216,8 +231,31 @@ impl Detector {
     }
 
     /// Detects the tags in a grey image. Detections are sorted by id, then by their first corner,
-    /// so the result does not depend on the number of threads.
+    /// so the result does not depend on the number of threads. With `refine_corners`, the sides
+    /// are fitted as straight lines in the image.
     pub fn detect(&mut self, gray: &image::GrayImage) -> Vec<TagDetection> {
+        self.detect_with_camera(gray, None)
+    }
+
+    /// [`Detector::detect`] for an image of a known camera: with `refine_corners`, the sides are
+    /// fitted as straight lines after undistortion (a side of a tag bends in a distorted image).
+    pub fn detect_with_camera(
+        &mut self,
+        gray: &image::GrayImage,
+        cam: Option<&Camera>,
+    ) -> Vec<TagDetection> {
+        let mut out = self.detect_raw(gray);
+        if self.settings.refine_corners {
+            for d in &mut out {
+                if let Some(c) = refine_corners(gray, &d.corners, self.cells_across, cam) {
+                    d.corners = c;
+                }
+            }
+        }
+        out
+    }
+
+    fn detect_raw(&mut self, gray: &image::GrayImage) -> Vec<TagDetection> {
         let (w, h) = gray.dimensions();
         // libapriltag 3.3 crashes when the decimated image is under 3 pixels high (or, at
         // decimation 1.5, wide); no tag fits in such an image anyway. The bound below was checked

@@ -6,5 +6,6 @@ pub mod detect;
 pub mod images;
 pub mod pipeline;
 pub mod pnp;
+pub mod refine;
 pub mod render;
 pub mod synth;

@@ -237,7 +237,7 @@ fn process_frame(
         };
         c.images += 1;
         any = true;
-        dets[cam] = detector.detect(&img);
+        dets[cam] = detector.detect_with_camera(&img, Some(want));
         detected[cam] = dets[cam].len();
     }
     let (status, pose) = if !any {

@@ -1,6 +1,7 @@
 //! Synthetic camera images of a board, for datasets with known truth.
 //!
-//! Every pixel is supersampled: each sample's ray (through the lens distortion) is intersected
+//! Pixels near an edge of the scene are supersampled (the others lie inside one uniform region
+//! and take their centre's value, which every sample would give): each sample's ray (through the lens distortion) is intersected
 //! with the board's planes and the tag cell it hits decides black or white. White paper surrounds
 //! the tags (the whole board rectangle for grid boards, a square sheet around each tag for listed
 //! tags); everything else is a mid-grey background. Exposure gain, vignetting, Gaussian blur and
@@ -9,6 +10,8 @@
 //!
 //! Tag bit patterns are libapriltag's own family data (codes and bit positions), so a rendered tag
 //! is exactly the tag libapriltag decodes.
+
+use std::sync::{Arc, Mutex};
 
 use apriltag_sys as sys;
 use image::GrayImage;
@@ -381,6 +384,10 @@ pub fn grid_paper(
 }
 
 /// Renders what `cam` sees of `board` when the board is at `t_cam_board`; background mid-grey.
+///
+/// Only the pixels that an edge of the scene may cross are supersampled (see [`edge_mask`]); any
+/// other pixel lies inside one uniform region and gets its centre's value, which is what all its
+/// samples would give. The result is bit-identical to [`render_exhaustive`].
 pub fn render(
     board: &Board,
     cam: &Camera,
@@ -388,9 +395,37 @@ pub fn render(
     s: &RenderSettings,
     rng: &mut Rng,
 ) -> GrayImage {
+    render_impl(board, cam, t_cam_board, s, rng, true)
+}
+
+/// [`render`] with every pixel supersampled: the reference the edge mask is checked against.
+pub fn render_exhaustive(
+    board: &Board,
+    cam: &Camera,
+    t_cam_board: &Se3,
+    s: &RenderSettings,
+    rng: &mut Rng,
+) -> GrayImage {
+    render_impl(board, cam, t_cam_board, s, rng, false)
+}
+
+fn render_impl(
+    board: &Board,
+    cam: &Camera,
+    t_cam_board: &Se3,
+    s: &RenderSettings,
+    rng: &mut Rng,
+    adaptive: bool,
+) -> GrayImage {
     let (w, h) = (cam.width as usize, cam.height as usize);
     let planes = prepare(board, t_cam_board);
     let ss = s.supersample.clamp(1, 16) as usize;
+    let mask = if adaptive && ss > 1 {
+        edge_mask(cam, &planes)
+    } else {
+        vec![true; w * h]
+    };
+    let rays = pixel_rays(cam);
     let mut radiance = vec![0f32; w * h];
     let threads = std::thread::available_parallelism()
         .map(|n| n.get())
@@ -400,10 +435,14 @@ pub fn render(
     std::thread::scope(|scope| {
         for (chunk_i, chunk) in radiance.chunks_mut(rows_per * w).enumerate() {
             let planes = &planes;
+            let mask = &mask;
+            let rays = &rays;
             scope.spawn(move || {
                 let y0 = chunk_i * rows_per;
                 for (ry, row) in chunk.chunks_mut(w).enumerate() {
-                    render_row(cam, planes, ss, y0 + ry, row);
+                    let y = y0 + ry;
+                    let span = y * w..(y + 1) * w;
+                    render_row(cam, planes, ss, row, &mask[span.clone()], &rays[span]);
                 }
             });
         }
@@ -411,37 +450,242 @@ pub fn render(
     finish(radiance, w, h, cam, s, rng)
 }
 
-/// One row of scene radiance. Each pixel centre is unprojected exactly; its samples use the
+/// Pixels an edge of the scene may cross: every tag pattern's outline and the cell borders
+/// inside it between cells of different colours, every paper edge, traced through the camera model in
+/// steps of at most a quarter pixel, with the 3x3 pixels around each step marked. A pixel whose
+/// footprint an edge enters contains an edge point within a quarter pixel of a step, so the step
+/// lies in that pixel or a neighbour; the 3x3 margin also covers the samples' linearised rays.
+fn edge_mask(cam: &Camera, planes: &[Plane]) -> Vec<bool> {
+    let (w, h) = (cam.width as usize, cam.height as usize);
+    let mut mask = vec![false; w * h];
+    let Some(view) = view_box(cam) else {
+        // No pixel has a ray: every pixel is background anyway.
+        return mask;
+    };
+    for p in planes {
+        let to_cam = |q: Vector2<f64>| p.rot * Vector3::new(q.x, q.y, 0.0) + p.trans;
+        let mut segs: Vec<(Vector2<f64>, Vector2<f64>)> = vec![];
+        for t in &p.tags {
+            let at = |a: f64, b: f64| {
+                t.origin + t.ax * ((a - t.offset) * t.cell) + t.ay * ((b - t.offset) * t.cell)
+            };
+            // The pattern's outline, then each unit of the inner grid lines that separates
+            // cells of different colours (row 0 of `cells` is the top, b = tw).
+            let n = t.tw as f64;
+            let c = [at(0.0, 0.0), at(n, 0.0), at(n, n), at(0.0, n)];
+            for k in 0..4 {
+                segs.push((c[k], c[(k + 1) % 4]));
+            }
+            let black = |col: usize, b: usize| t.cells[t.tw - 1 - b][col];
+            for i in 1..t.tw {
+                for j in 0..t.tw {
+                    let (fi, fj) = (i as f64, j as f64);
+                    if black(i - 1, j) != black(i, j) {
+                        segs.push((at(fi, fj), at(fi, fj + 1.0)));
+                    }
+                    if black(j, i - 1) != black(j, i) {
+                        segs.push((at(fj, fi), at(fj + 1.0, fi)));
+                    }
+                }
+            }
+        }
+        for sh in &p.sheets {
+            let c = [
+                sh.origin,
+                sh.origin + sh.ax * sh.size.x,
+                sh.origin + sh.ax * sh.size.x + sh.ay * sh.size.y,
+                sh.origin + sh.ay * sh.size.y,
+            ];
+            for k in 0..4 {
+                segs.push((c[k], c[(k + 1) % 4]));
+            }
+        }
+        for (a, b) in segs {
+            if let Some((a, b)) = clip_to_view(&to_cam(a), &to_cam(b), &view) {
+                trace_segment(cam, &a, &b, &mut mask, 0);
+            }
+        }
+    }
+    mask
+}
+
+/// The box of normalised image coordinates `[x_lo, x_hi, y_lo, y_hi]` that holds the rays of all
+/// pixels (and their samples), with a margin of a few pixels; `None` when no pixel has a ray.
+fn view_box(cam: &Camera) -> Option<[f64; 4]> {
+    let (w, h) = (cam.width as i64, cam.height as i64);
+    let mut b = [f64::MAX, f64::MIN, f64::MAX, f64::MIN];
+    let mut any = false;
+    let mut add = |x: i64, y: i64| {
+        let pd = Vector2::new((x as f64 - cam.pu) / cam.fu, (y as f64 - cam.pv) / cam.fv);
+        if let Some(n) = cam.distortion.undistort(&pd) {
+            any = true;
+            b = [b[0].min(n.x), b[1].max(n.x), b[2].min(n.y), b[3].max(n.y)];
+        }
+    };
+    // Every pixel of the border and a coarse grid inside (the distortion need not be monotonic).
+    for x in 0..w {
+        add(x, 0);
+        add(x, h - 1);
+    }
+    for y in 0..h {
+        add(0, y);
+        add(w - 1, y);
+    }
+    for y in (0..h).step_by(8) {
+        for x in (0..w).step_by(8) {
+            add(x, y);
+        }
+    }
+    if !any {
+        return None;
+    }
+    // Margin: 10 % of the box and four pixels.
+    let (mx, my) = (
+        0.1 * (b[1] - b[0]) + 4.0 / cam.fu,
+        0.1 * (b[3] - b[2]) + 4.0 / cam.fv,
+    );
+    Some([b[0] - mx, b[1] + mx, b[2] - my, b[3] + my])
+}
+
+/// The part of the camera-frame segment `a`-`b` whose points have normalised coordinates inside
+/// `view` (and lie in front of the camera), by clipping against the five planes of that frustum.
+fn clip_to_view(
+    a: &Vector3<f64>,
+    b: &Vector3<f64>,
+    view: &[f64; 4],
+) -> Option<(Vector3<f64>, Vector3<f64>)> {
+    // Each constraint is linear in the point: f(p) >= 0.
+    let f = |k: usize, p: &Vector3<f64>| match k {
+        0 => p.z - 1e-6,
+        1 => p.x - view[0] * p.z,
+        2 => view[1] * p.z - p.x,
+        3 => p.y - view[2] * p.z,
+        _ => view[3] * p.z - p.y,
+    };
+    let (mut t0, mut t1) = (0.0f64, 1.0f64);
+    for k in 0..5 {
+        let (fa, fb) = (f(k, a), f(k, b));
+        if fa < 0.0 && fb < 0.0 {
+            return None;
+        }
+        if fa < 0.0 {
+            t0 = t0.max(fa / (fa - fb));
+        } else if fb < 0.0 {
+            t1 = t1.min(fa / (fa - fb));
+        }
+    }
+    if t0 > t1 {
+        return None;
+    }
+    Some((a + (b - a) * t0, a + (b - a) * t1))
+}
+
+/// Marks the pixels along the image of the camera-frame segment `a`-`b` (in front of the camera
+/// and inside the view), split in halves until the pieces' images are shorter than a quarter
+/// pixel.
+fn trace_segment(cam: &Camera, a: &Vector3<f64>, b: &Vector3<f64>, mask: &mut [bool], depth: u32) {
+    let (Some(pa), Some(pb)) = (cam.project(a), cam.project(b)) else {
+        return;
+    };
+    let (w, h) = (cam.width as f64, cam.height as f64);
+    let mut mark = |p: &Vector2<f64>| {
+        let (cx, cy) = (p.x.round(), p.y.round());
+        if !(cx >= -2.0 && cy >= -2.0 && cx <= w + 1.0 && cy <= h + 1.0) {
+            return;
+        }
+        for dy in -1..=1 {
+            for dx in -1..=1 {
+                let (x, y) = (cx as i64 + dx, cy as i64 + dy);
+                if x >= 0 && y >= 0 && (x as f64) < w && (y as f64) < h {
+                    mask[y as usize * cam.width as usize + x as usize] = true;
+                }
+            }
+        }
+    };
+    // The depth bound only guards against a degenerate camera model; inside the view box a piece
+    // halves its image length at every level.
+    if (pb - pa).norm() <= 0.25 || depth >= 24 {
+        mark(&pa);
+        mark(&pb);
+        return;
+    }
+    let m = (a + b) * 0.5;
+    trace_segment(cam, a, &m, mask, depth + 1);
+    trace_segment(cam, &m, b, mask, depth + 1);
+}
+
+/// Undistorted normalised coordinates of every pixel centre (`None` where the distortion cannot
+/// be inverted), row-major.
+type RayTable = Vec<Option<Vector2<f64>>>;
+
+/// The ray table of `cam`, computed once per camera model: a dataset renders hundreds of frames
+/// with the same two cameras, and undistorting every pixel centre is a large part of a frame's
+/// cost. The few most recent cameras are kept.
+fn pixel_rays(cam: &Camera) -> Arc<RayTable> {
+    static CACHE: Mutex<Vec<(Camera, Arc<RayTable>)>> = Mutex::new(Vec::new());
+    if let Ok(c) = CACHE.lock()
+        && let Some((_, t)) = c.iter().find(|(k, _)| k == cam)
+    {
+        return t.clone();
+    }
+    let (w, h) = (cam.width as usize, cam.height as usize);
+    let table: RayTable = (0..w * h)
+        .map(|i| {
+            let (x, y) = ((i % w) as f64, (i / w) as f64);
+            let pd = Vector2::new((x - cam.pu) / cam.fu, (y - cam.pv) / cam.fv);
+            cam.distortion.undistort(&pd)
+        })
+        .collect();
+    let table = Arc::new(table);
+    if let Ok(mut c) = CACHE.lock() {
+        if c.len() >= 4 {
+            c.remove(0);
+        }
+        c.push((cam.clone(), table.clone()));
+    }
+    table
+}
+
+/// One row of scene radiance. Each pixel centre is unprojected exactly (through the ray table); its samples use the
 /// local inverse of the distortion (their rays differ from exact ones by a second-order term,
-/// far below a pixel for any real lens).
-fn render_row(cam: &Camera, planes: &[Plane], ss: usize, y: usize, row: &mut [f32]) {
+/// far below a pixel for any real lens). Pixels off the edge mask get their centre's value.
+fn render_row(
+    cam: &Camera,
+    planes: &[Plane],
+    ss: usize,
+    row: &mut [f32],
+    mask: &[bool],
+    rays: &[Option<Vector2<f64>>],
+) {
     let inv_f = Vector2::new(1.0 / cam.fu, 1.0 / cam.fv);
     let offs = sample_offsets(ss);
     let n_samples = offs.len() as f32;
+    let hit = |r: &Vector3<f64>| {
+        let mut best: Option<(f64, f32)> = None;
+        for p in planes {
+            if let Some((depth, v)) = p.sample(r) {
+                if best.is_none_or(|(d, _)| depth < d) {
+                    best = Some((depth, v));
+                }
+            }
+        }
+        best.map(|b| b.1).unwrap_or(BACKGROUND)
+    };
     for (x, out) in row.iter_mut().enumerate() {
-        let px = Vector2::new(x as f64, y as f64);
-        let pd = Vector2::new((px.x - cam.pu) * inv_f.x, (px.y - cam.pv) * inv_f.y);
-        let Some(n) = cam.distortion.undistort(&pd) else {
+        let Some(n) = rays[x] else {
             *out = BACKGROUND;
             continue;
         };
+        if !mask[x] {
+            *out = hit(&Vector3::new(n.x, n.y, 1.0));
+            continue;
+        }
         let (_, j) = cam.distortion.distort(&n);
         let jinv = j.try_inverse().unwrap_or_else(Matrix2::identity);
         let mut acc = 0f32;
         for &(dx, dy) in &offs {
-            {
-                let dn = jinv * Vector2::new(dx * inv_f.x, dy * inv_f.y);
-                let r = Vector3::new(n.x + dn.x, n.y + dn.y, 1.0);
-                let mut best: Option<(f64, f32)> = None;
-                for p in planes {
-                    if let Some((depth, v)) = p.sample(&r) {
-                        if best.is_none_or(|(d, _)| depth < d) {
-                            best = Some((depth, v));
-                        }
-                    }
-                }
-                acc += best.map(|b| b.1).unwrap_or(BACKGROUND);
-            }
+            let dn = jinv * Vector2::new(dx * inv_f.x, dy * inv_f.y);
+            acc += hit(&Vector3::new(n.x + dn.x, n.y + dn.y, 1.0));
         }
         *out = acc / n_samples;
     }

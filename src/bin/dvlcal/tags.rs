@@ -30,9 +30,12 @@ pub struct TagsArgs {
     /// Sharpening of the decoded bits.
     #[arg(long, value_name = "S", default_value_t = 0.25)]
     pub sharpening: f64,
-    /// Do not snap quad edges to the image gradients.
+    /// Do not snap quad edges to the image gradients (libapriltag's own refinement).
     #[arg(long)]
     pub no_refine_edges: bool,
+    /// Report libapriltag's corners as they are, without the line-fit refinement of each side.
+    #[arg(long)]
+    pub no_refine_corners: bool,
     /// Detector threads.
     #[arg(long, value_name = "N", default_value_t = 1)]
     pub threads: usize,
@@ -59,6 +62,7 @@ pub fn run(a: TagsArgs) -> Result<()> {
         sigma: a.sigma,
         sharpening: a.sharpening,
         refine_edges: !a.no_refine_edges,
+        refine_corners: !a.no_refine_corners,
         threads: a.threads,
         max_hamming: a.max_hamming,
     };
