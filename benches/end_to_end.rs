@@ -1,0 +1,212 @@
+//! Accuracy of the whole image pipeline over many seeds: a simulated recording (board-view
+//! motion) rendered as 752x480 stereo images, AprilTag detection, stereo PnP with covariances,
+//! then UIC, compared with the truth.
+//!
+//! `cargo bench --bench end_to_end [-- SEEDS DURATION_S]` (default 12 seeds of 30 s). Prints a
+//! table: per parameter the RMSE over the seeds, the mean reported standard deviation, and the RMS
+//! of error / std (1 for honest uncertainties), each with a 95 % percentile-bootstrap interval;
+//! and the mean NEES of the 8 parameters (expectation 8).
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use nalgebra::SMatrix;
+
+use dvlcal::calib::model::{NPARAM, Params, difference};
+use dvlcal::calib::{CalibOptions, calibrate};
+use dvlcal::sim::dataset::{MotionKind, SimConfig, simulate};
+use dvlcal::sim::rng::Rng;
+use dvlcal::types::PoseMeasurement;
+use dvlcal::vision::detect::DetectorSettings;
+use dvlcal::vision::images::scan_images;
+use dvlcal::vision::pipeline::detect_frames;
+use dvlcal::vision::pnp::PnpOptions;
+use dvlcal::vision::synth::{
+    DEFAULT_BOARD_DISTANCE_M, FrameSpec, ImageSimSettings, board_facing, default_board,
+    default_stereo_camchain, write_image_dataset,
+};
+
+const NAMES: [&str; NPARAM] = [
+    "rot x (deg)",
+    "rot y (deg)",
+    "rot z (deg)",
+    "lever x (mm)",
+    "lever y (mm)",
+    "lever z (mm)",
+    "scale (1e-3)",
+    "offset (ms)",
+];
+const UNITS: [f64; NPARAM] = [
+    57.29577951308232,
+    57.29577951308232,
+    57.29577951308232,
+    1e3,
+    1e3,
+    1e3,
+    1e3,
+    1e3,
+];
+
+struct Run {
+    err: SMatrix<f64, NPARAM, 1>,
+    std: SMatrix<f64, NPARAM, 1>,
+    nees: f64,
+    frames: usize,
+    posed: usize,
+    render_s: f64,
+    detect_s: f64,
+    calib_s: f64,
+}
+
+fn one(seed: u64, duration: f64, dir: &std::path::Path) -> Run {
+    let cfg = SimConfig {
+        seed,
+        duration_s: duration,
+        motion: MotionKind::BoardView,
+        ..SimConfig::default()
+    };
+    let ds = simulate(&cfg).expect("simulation");
+    let board = default_board();
+    let chain = default_stereo_camchain();
+    let t_world_board = board_facing(&ds.truth_poses[0].pose, &board, DEFAULT_BOARD_DISTANCE_M);
+    let t_board_world = t_world_board.inverse();
+    let frames: Vec<FrameSpec> = ds
+        .poses
+        .iter()
+        .zip(&ds.truth_poses)
+        .map(|(p, s)| FrameSpec {
+            t_ns: ds.epoch.sec * 1_000_000_000 + (p.t * 1e9).round() as i64,
+            t_board_cam0: t_board_world * s.pose,
+        })
+        .collect();
+    let _ = std::fs::remove_dir_all(dir);
+    let settings = ImageSimSettings {
+        seed,
+        ..ImageSimSettings::default()
+    };
+    let start = Instant::now();
+    write_image_dataset(dir, &board, &chain, &frames, &settings, &|_, _| {}).expect("render");
+    let render_s = start.elapsed().as_secs_f64();
+
+    let start = Instant::now();
+    let (stereo, _) = scan_images(dir, 2, 2_000_000).expect("scan");
+    let det = DetectorSettings {
+        family: board.family,
+        decimate: 2.0,
+        threads: 1,
+        ..DetectorSettings::default()
+    };
+    let (results, _) =
+        detect_frames(&stereo, &board, &chain, &det, &PnpOptions::default(), false).expect("detect");
+    let detect_s = start.elapsed().as_secs_f64();
+    // Camera times on the simulation's epoch, so that the DVL samples line up.
+    let poses: Vec<PoseMeasurement> = results
+        .iter()
+        .filter_map(|r| {
+            r.pose.as_ref().map(|p| PoseMeasurement {
+                t: (r.frame.t_ns - ds.epoch.sec * 1_000_000_000) as f64 * 1e-9,
+                pose: p.t_board_cam0,
+                cov: Some(p.cov),
+            })
+        })
+        .collect();
+    let start = Instant::now();
+    let o = calibrate(&poses, &ds.dvl, &CalibOptions::default()).expect("calibrate");
+    let calib_s = start.elapsed().as_secs_f64();
+    let truth = Params::from_calibration(&ds.truth);
+    let err = difference(&o.params, &truth);
+    let std = SMatrix::<f64, NPARAM, 1>::from_fn(|k, _| o.covariance[(k, k)].max(0.0).sqrt());
+    let nees = o
+        .covariance
+        .try_inverse()
+        .map(|inv| (err.transpose() * inv * err)[(0, 0)])
+        .unwrap_or(f64::NAN);
+    Run {
+        err,
+        std,
+        nees,
+        frames: results.len(),
+        posed: poses.len(),
+        render_s,
+        detect_s,
+        calib_s,
+    }
+}
+
+/// 95 % percentile-bootstrap interval of `stat` over `xs`.
+fn bootstrap(xs: &[f64], stat: &dyn Fn(&[f64]) -> f64) -> (f64, f64) {
+    let mut rng = Rng::new(12345);
+    let n = xs.len();
+    let mut s: Vec<f64> = (0..2000)
+        .map(|_| {
+            let sample: Vec<f64> = (0..n)
+                .map(|_| xs[((rng.uniform() * n as f64) as usize).min(n - 1)])
+                .collect();
+            stat(&sample)
+        })
+        .collect();
+    s.sort_by(f64::total_cmp);
+    (s[49], s[1949])
+}
+
+fn rms(xs: &[f64]) -> f64 {
+    (xs.iter().map(|x| x * x).sum::<f64>() / xs.len() as f64).sqrt()
+}
+
+fn mean(xs: &[f64]) -> f64 {
+    xs.iter().sum::<f64>() / xs.len() as f64
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args()
+        .skip(1)
+        .filter(|a| !a.starts_with("--"))
+        .collect();
+    let seeds: u64 = args.first().and_then(|s| s.parse().ok()).unwrap_or(12);
+    let duration: f64 = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(30.0);
+    let dir: PathBuf = std::env::temp_dir().join(format!("dvlcal-e2e-bench-{}", std::process::id()));
+    let mut runs = Vec::new();
+    for seed in 0..seeds {
+        let r = one(seed, duration, &dir);
+        eprintln!(
+            "seed {seed}: {}/{} frames posed; NEES {:.2}; render {:.1} s, detect {:.1} s, calibrate {:.2} s",
+            r.posed, r.frames, r.nees, r.render_s, r.detect_s, r.calib_s
+        );
+        runs.push(r);
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+    println!(
+        "\n{seeds} seeds x {duration} s (board-view motion, 752x480 stereo at 10 Hz, DVL 10 Hz, 1 cm/s)\n"
+    );
+    println!("| parameter | RMSE | mean reported std | RMS of error/std |");
+    println!("|---|---|---|---|");
+    for k in 0..NPARAM {
+        let e: Vec<f64> = runs.iter().map(|r| r.err[k] * UNITS[k]).collect();
+        let s: Vec<f64> = runs.iter().map(|r| r.std[k] * UNITS[k]).collect();
+        let z: Vec<f64> = runs.iter().map(|r| r.err[k] / r.std[k]).collect();
+        let (e0, e1) = bootstrap(&e, &rms);
+        let (z0, z1) = bootstrap(&z, &rms);
+        println!(
+            "| {} | {:.3} [{:.3}, {:.3}] | {:.3} | {:.2} [{:.2}, {:.2}] |",
+            NAMES[k],
+            rms(&e),
+            e0,
+            e1,
+            mean(&s),
+            rms(&z),
+            z0,
+            z1
+        );
+    }
+    let nees: Vec<f64> = runs.iter().map(|r| r.nees).collect();
+    let (n0, n1) = bootstrap(&nees, &mean);
+    println!(
+        "\nmean NEES {:.2} [{:.2}, {:.2}] (expectation 8); per-seed timings: render {:.1} s, detect {:.1} s, calibrate {:.2} s (means)",
+        mean(&nees),
+        n0,
+        n1,
+        mean(&runs.iter().map(|r| r.render_s).collect::<Vec<_>>()),
+        mean(&runs.iter().map(|r| r.detect_s).collect::<Vec<_>>()),
+        mean(&runs.iter().map(|r| r.calib_s).collect::<Vec<_>>()),
+    );
+}
