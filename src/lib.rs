@@ -13,6 +13,7 @@ pub mod calib;
 pub mod error;
 pub mod eval;
 pub mod io;
+mod parallel;
 pub mod sim;
 pub mod time;
 pub mod trajectory;

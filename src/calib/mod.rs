@@ -304,6 +304,10 @@ pub fn calibrate(
     let mask = free.mask();
     let jp = JointProblem::new(poses, &traj, &obs, &idx)?;
     let mut traj = traj;
+    // The fit's covariance was for the initialisation; its storage serves the joint problem.
+    if let Some(storage) = traj.take_covariance_storage() {
+        jp.keep_storage(storage);
+    }
     let mut params = start;
     let mut iterations = Vec::new();
     let mut last_cost = f64::INFINITY;
