@@ -4,7 +4,8 @@
 //! 2. Clock offset and scale from speed magnitudes on calm samples ([`offset`]).
 //! 3. Rotation, lever arm and scale in closed form with bias elimination ([`closed_form`]).
 //! 4. Block-coordinate refinement: calibration update with the trajectory fixed ([`refine`]),
-//!    state update with the calibration fixed, until nothing changes.
+//!    state update with the calibration fixed, until nothing changes; a Gauss-Newton step on the
+//!    joint problem after an unsettled round speeds up the alternation ([`state::joint_step`]).
 //! 5. Uncertainty from the information matrix of the final problem and a verdict per parameter.
 
 pub mod closed_form;
@@ -22,7 +23,7 @@ use closed_form::{ClosedForm, ClosedFormRow, closed_form};
 use model::{NPARAM, Params, predict};
 use offset::{DvlObs, OffsetMethod, OffsetOptions, OffsetResult, estimate_offset};
 use refine::{FreeParams, ParamMat, calibration_update};
-use state::{JointProblem, joint_covariance, state_update};
+use state::{JointProblem, joint_covariance, joint_step, state_update};
 
 /// How the calibration starts.
 #[derive(Clone, Debug)]
@@ -311,7 +312,8 @@ pub fn calibrate(
     let mut params = start;
     let mut iterations = Vec::new();
     let mut last_cost = f64::INFINITY;
-    for _ in 0..opts.max_outer_iterations.max(1) {
+    let rounds = opts.max_outer_iterations.max(1);
+    for round in 1..=rounds {
         // Calibration update with the trajectory fixed, then state update with it fixed.
         let up = calibration_update(&traj, &obs, &idx, &params, free, 50)?;
         let change = refine::change_in_std(&params, &up.params, &up.hessian, &mask);
@@ -327,6 +329,16 @@ pub fn calibrate(
         // the joint cost changed by less than a part in 1e7.
         if iterations.len() >= 2 && (change < 0.05 || rel < 1e-7) {
             break;
+        }
+        // The alternation converges linearly (each round removes about half of the remaining
+        // error when the clock offset and the trajectory are coupled). A Gauss-Newton step on
+        // the joint problem takes both close to the fixed point the rounds are heading for; the
+        // next round then starts there and confirms it.
+        if round < rounds
+            && let Some(js) = joint_step(&jp, &traj, &params, &mask)?
+        {
+            traj = js.trajectory;
+            params = js.params;
         }
     }
 
