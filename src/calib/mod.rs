@@ -240,17 +240,17 @@ pub fn calibrate(
             let off = estimate_offset(&traj, &obs, &opts.offset)?;
             warnings.extend(off.notes.iter().cloned());
             let idx = usable(&traj, &obs, off.offset, 0.0);
-            let rows: Vec<ClosedFormRow> = idx
-                .iter()
-                .map(|&i| {
-                    let q = traj.query(obs[i].t + off.offset)?;
-                    Ok(ClosedFormRow {
-                        v_dvl: obs[i].v,
-                        twist: q.twist,
-                        twist_cov: q.twist_cov.unwrap_or_else(nalgebra::Matrix6::zeros),
-                    })
+            let rows: Vec<ClosedFormRow> = crate::parallel::map_indices(idx.len(), 2048, |j| {
+                let i = idx[j];
+                let q = traj.query(obs[i].t + off.offset)?;
+                Ok(ClosedFormRow {
+                    v_dvl: obs[i].v,
+                    twist: q.twist,
+                    twist_cov: q.twist_cov.unwrap_or_else(nalgebra::Matrix6::zeros),
                 })
-                .collect::<Result<_>>()?;
+            })
+            .into_iter()
+            .collect::<Result<_>>()?;
             let cf = closed_form(&rows, opts.bias_corrected)?;
             let params = Params {
                 time_offset: off.offset,
@@ -355,17 +355,30 @@ pub fn calibrate(
         covariance *= normalized_cost;
     }
 
+    // Residual and excitation sums, per piece of samples and then over the pieces in order.
+    let pieces = crate::parallel::map_pieces(idx.len(), 2048, |r| {
+        let mut sq = Vector3::zeros();
+        let (mut sv, mut sw, mut sl) = (0.0, 0.0, 0.0);
+        for &i in &idx[r] {
+            let q = traj.state(obs[i].t + params.time_offset)?;
+            let r = obs[i].v - predict(&params, &q.twist);
+            sq += r.component_mul(&r);
+            let v = q.twist.fixed_rows::<3>(0).into_owned();
+            let w = q.twist.fixed_rows::<3>(3).into_owned();
+            sv += v.norm_squared();
+            sw += w.norm_squared();
+            sl += w.cross(&params.lever_arm).norm_squared();
+        }
+        Ok((sq, sv, sw, sl))
+    });
     let mut sq = Vector3::zeros();
     let (mut sv, mut sw, mut sl) = (0.0, 0.0, 0.0);
-    for &i in &idx {
-        let q = traj.state(obs[i].t + params.time_offset)?;
-        let r = obs[i].v - predict(&params, &q.twist);
-        sq += r.component_mul(&r);
-        let v = q.twist.fixed_rows::<3>(0).into_owned();
-        let w = q.twist.fixed_rows::<3>(3).into_owned();
-        sv += v.norm_squared();
-        sw += w.norm_squared();
-        sl += w.cross(&params.lever_arm).norm_squared();
+    for piece in pieces {
+        let (q, v, w, l): (Vector3<f64>, f64, f64, f64) = piece?;
+        sq += q;
+        sv += v;
+        sw += w;
+        sl += l;
     }
     let n = idx.len() as f64;
     let excitation = Excitation {
