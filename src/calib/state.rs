@@ -220,11 +220,9 @@ impl<'a> DvlFactors<'a> {
         for &pos in samples {
             let i = self.jp.idx[pos];
             let (o, w) = (&self.jp.obs[i], &self.jp.dvl_info[i]);
-            let tj = view.twist_jacobian_in(k, o.t + p.time_offset, ls);
-            let r = o.v - predict(p, &tj.state.twist);
-            let jx = self.dh * tj.jacobian;
-            let j1: SMatrix<f64, 3, 18> = jx.fixed_view::<3, 18>(0, 0).into_owned();
-            let j2: SMatrix<f64, 3, 18> = jx.fixed_view::<3, 18>(0, 18).into_owned();
+            let (state, j1, j2) =
+                view.projected_twist_jacobian_in(k, o.t + p.time_offset, ls, &self.dh);
+            let r = o.v - predict(p, &state.twist);
             let (wj1, wj2) = (w * j1, w * j2);
             out.d1 += j1.transpose() * wj1;
             out.d2 += j2.transpose() * wj2;
@@ -233,7 +231,7 @@ impl<'a> DvlFactors<'a> {
             out.r2 += wj2.transpose() * r;
             out.cost += (r.transpose() * w * r)[0];
             if with_params {
-                let jt = d_predict_d_params(p, &tj.state.twist, &tj.state.rate);
+                let jt = d_predict_d_params(p, &state.twist, &state.rate);
                 let wjt = w * jt;
                 out.c1 += j1.transpose() * wjt;
                 out.c2 += j2.transpose() * wjt;

@@ -714,6 +714,49 @@ impl KnotView<'_> {
         Ok(self.twist_jacobian_in(k, t, &ls))
     }
 
+    /// The interpolated state at `t` in the interval `k` and the Jacobians of `m twist` with
+    /// respect to the variables of the two knots (3 x 18 each), for a fixed 3 x 6 map `m` (a DVL
+    /// velocity's dependence on the twist). The same derivative as `m` times
+    /// [`KnotView::twist_jacobian_in`], formed in the three rows from the 6 x 6 pieces of the
+    /// local state's Jacobians, without the 6 x 36 intermediate.
+    pub(crate) fn projected_twist_jacobian_in(
+        &self,
+        k: usize,
+        t: f64,
+        ls: &LocalState,
+        m: &SMatrix<f64, 3, 6>,
+    ) -> (Knot, SMatrix<f64, 3, 18>, SMatrix<f64, 3, 18>) {
+        type M36 = SMatrix<f64, 3, 6>;
+        let (s, dt) = self.offset_in(k, t);
+        let k1 = &self.knots[k];
+        let (lambda, omega, _) = interpolation_weights(s, dt);
+        let gamma = apply_scalar(&lambda, &first_local_state(k1)) + apply_scalar(&omega, &ls.gamma);
+        let state = knot_from_local(&k1.pose, &gamma);
+        let xi: Vector6<f64> = gamma.fixed_rows::<6>(0).into_owned();
+        let xid: Vector6<f64> = gamma.fixed_rows::<6>(6).into_owned();
+        // m d twist / d gamma = [p0, p1, 0] (the twist does not depend on xi'').
+        let p0: M36 = m * d_jr_times(&xi, &[&xid])[0];
+        let p1: M36 = m * se3_right_jacobian(&xi);
+        // Through Lambda (x) I6 and Omega (x) I6: block j is p0 s[0][j] + p1 s[1][j].
+        let through = |s: &Matrix3<f64>, j: usize| -> M36 { p0 * s[(0, j)] + p1 * s[(1, j)] };
+        let (a0, a1, a2) = (through(&omega, 0), through(&omega, 1), through(&omega, 2));
+        // gamma_2's Jacobians: d/dT_1 = -[I; du; da] J_l^-1 and d/dx_2 block lower triangular
+        // (see LocalState::d_pose1 and LocalState::d_knot2).
+        let pose = a0 + a1 * ls.du_dxi + a2 * ls.da_dxi;
+        let mut j1 = SMatrix::<f64, 3, 18>::zeros();
+        j1.fixed_view_mut::<3, 6>(0, 0).copy_from(&-(pose * ls.jli));
+        j1.fixed_view_mut::<3, 6>(0, 6)
+            .copy_from(&through(&lambda, 1));
+        j1.fixed_view_mut::<3, 6>(0, 12)
+            .copy_from(&through(&lambda, 2));
+        let mut j2 = SMatrix::<f64, 3, 18>::zeros();
+        j2.fixed_view_mut::<3, 6>(0, 0).copy_from(&(pose * ls.jri));
+        j2.fixed_view_mut::<3, 6>(0, 6)
+            .copy_from(&(a1 * ls.jri + a2 * ls.da_dw2));
+        j2.fixed_view_mut::<3, 6>(0, 12).copy_from(&(a2 * ls.jri));
+        (state, j1, j2)
+    }
+
     /// [`KnotView::twist_jacobian`] at `t` in the interval `k`, given the local state of knot
     /// `k + 1` relative to knot `k` with its Jacobians ([`local_state`]).
     pub(crate) fn twist_jacobian_in(&self, k: usize, t: f64, ls: &LocalState) -> TwistJacobian {
