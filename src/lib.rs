@@ -14,6 +14,7 @@ pub mod calib;
 pub mod error;
 pub mod eval;
 pub mod io;
+mod parallel;
 pub mod report;
 pub mod sim;
 pub mod time;

@@ -214,16 +214,17 @@ pub fn estimate_offset(
         (coarse_offset + margin).min(hi),
     );
     let near = inside(traj, obs, flo, fhi);
+    let is_calm = crate::parallel::map_indices(near.len(), 4096, |j| {
+        [flo, coarse_offset, fhi].iter().all(|d| {
+            traj.state(obs[near[j]].t + d)
+                .map(|q| q.twist.fixed_rows::<3>(3).norm() < opts.calm_threshold)
+                .unwrap_or(false)
+        })
+    });
     let calm: Vec<usize> = near
         .iter()
-        .copied()
-        .filter(|&i| {
-            [flo, coarse_offset, fhi].iter().all(|d| {
-                traj.state(obs[i].t + d)
-                    .map(|q| q.twist.fixed_rows::<3>(3).norm() < opts.calm_threshold)
-                    .unwrap_or(false)
-            })
-        })
+        .zip(is_calm)
+        .filter_map(|(&i, c)| c.then_some(i))
         .collect();
     let mut notes = Vec::new();
     let (idx, method) = if calm.len() >= opts.min_calm {

@@ -43,35 +43,49 @@ pub struct Linearized {
     pub used: usize,
 }
 
-/// Linearises the DVL term at `p` on the samples `idx`.
+/// Samples per unit of work of [`linearize`]. The sums are formed per piece and then over the
+/// pieces in order, so they do not depend on the number of threads.
+const LINEARIZE_PIECE: usize = 1024;
+
+/// Linearises the DVL term at `p` on the samples `idx` (pieces of samples on all cores).
 pub fn linearize(
     traj: &Trajectory,
     obs: &[DvlObs],
     idx: &[usize],
     p: &Params,
 ) -> Result<Linearized> {
-    let mut hessian = ParamMat::zeros();
-    let mut gradient = ParamVec::zeros();
-    let mut cost = 0.0;
-    for &i in idx {
-        let o = &obs[i];
-        let s = traj.state(o.t + p.time_offset)?;
-        let r = o.v - predict(p, &s.twist);
-        let j = d_predict_d_params(p, &s.twist, &s.rate);
-        let w = o.cov.try_inverse().ok_or_else(|| {
-            Error::Input(format!("DVL sample at t = {}: singular covariance", o.t))
-        })?;
-        let wj = w * j;
-        hessian += j.transpose() * wj;
-        gradient += wj.transpose() * r;
-        cost += (r.transpose() * w * r)[0];
-    }
-    Ok(Linearized {
-        cost,
-        hessian,
-        gradient,
+    let pieces = crate::parallel::map_pieces(idx.len(), LINEARIZE_PIECE, |r| {
+        let mut hessian = ParamMat::zeros();
+        let mut gradient = ParamVec::zeros();
+        let mut cost = 0.0;
+        for &i in &idx[r] {
+            let o = &obs[i];
+            let s = traj.state(o.t + p.time_offset)?;
+            let r = o.v - predict(p, &s.twist);
+            let j = d_predict_d_params(p, &s.twist, &s.rate);
+            let w = o.cov.try_inverse().ok_or_else(|| {
+                Error::Input(format!("DVL sample at t = {}: singular covariance", o.t))
+            })?;
+            let wj = w * j;
+            hessian += j.transpose() * wj;
+            gradient += wj.transpose() * r;
+            cost += (r.transpose() * w * r)[0];
+        }
+        Ok((hessian, gradient, cost))
+    });
+    let mut out = Linearized {
+        cost: 0.0,
+        hessian: ParamMat::zeros(),
+        gradient: ParamVec::zeros(),
         used: idx.len(),
-    })
+    };
+    for piece in pieces {
+        let (h, g, c): (ParamMat, ParamVec, f64) = piece?;
+        out.hessian += h;
+        out.gradient += g;
+        out.cost += c;
+    }
+    Ok(out)
 }
 
 /// Outcome of a calibration update.

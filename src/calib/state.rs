@@ -5,14 +5,20 @@
 //! depends on both through the GP interpolation, so its factor adds to the two diagonal blocks
 //! and the off-diagonal block between them: the normal equations stay block tridiagonal.
 
+use std::sync::Mutex;
+
 use nalgebra::{Matrix3, Matrix6, SMatrix, Vector6};
 
 use super::model::{NPARAM, Params, d_predict_d_params, d_predict_d_twist, predict};
 use super::offset::DvlObs;
-use super::refine::{ParamMat, pin_fixed};
+use super::refine::{ParamMat, ParamVec, pin_fixed};
 use crate::error::{Error, Result};
-use crate::trajectory::blocktri::{BlockTridiagonal, V18};
-use crate::trajectory::fit::{NormalEquations, Problem, gauss_newton, measurement_information};
+use crate::trajectory::blocktri::{BlockTridiagonal, M18, V18};
+use crate::trajectory::fit::{
+    ASSEMBLY_CHUNK, AssemblyChunk, GaussNewtonOptions, NormalEquations, Problem, assembly_chunks,
+    gauss_newton, measurement_information, step,
+};
+use crate::trajectory::gp::LocalState;
 use crate::trajectory::lie::Se3;
 use crate::trajectory::{Knot, KnotView, Trajectory};
 use crate::types::PoseMeasurement;
@@ -29,6 +35,9 @@ pub struct JointProblem<'a> {
     meas: Vec<Se3>,
     pose_info: Vec<Matrix6<f64>>,
     qc_inv: Vector6<f64>,
+    /// Storage of a system of the problem's size, kept between the updates (a system of 100k
+    /// knots takes half a gigabyte, which is slow to allocate and fault in every time).
+    storage: Mutex<Option<BlockTridiagonal>>,
 }
 
 impl<'a> JointProblem<'a> {
@@ -55,7 +64,20 @@ impl<'a> JointProblem<'a> {
             meas: poses.iter().map(|m| m.pose).collect(),
             pose_info: measurement_information(poses, traj.report().pose_sigma)?,
             qc_inv: traj.qc().map(|q| 1.0 / q),
+            storage: Mutex::new(None),
         })
+    }
+
+    /// The kept system storage, if any.
+    fn take_storage(&self) -> Option<BlockTridiagonal> {
+        self.storage.lock().ok().and_then(|mut s| s.take())
+    }
+
+    /// Keeps `sys` for the next update.
+    pub(crate) fn keep_storage(&self, sys: BlockTridiagonal) {
+        if let Ok(mut s) = self.storage.lock() {
+            *s = Some(sys);
+        }
     }
 
     /// The pose and GP-prior terms (the trajectory fit's own problem).
@@ -76,68 +98,303 @@ impl<'a> JointProblem<'a> {
     }
 }
 
-/// Contributions of the DVL factors at fixed calibration.
-struct DvlTerms {
-    cost: f64,
-    /// `H_x theta` per knot (18 x 8).
-    cross: Vec<SMatrix<f64, 18, NPARAM>>,
-    theta: ParamMat,
-}
+/// The 18 x 8 block `H_x theta` of one knot: how the knot's variables and the calibration
+/// parameters are coupled through the DVL factors.
+type CrossBlock = SMatrix<f64, 18, NPARAM>;
 
-/// Adds the DVL factors, linearised at the knots `view`, to `sys`.
-fn add_dvl_factors(
-    jp: &JointProblem,
-    view: KnotView,
-    p: &Params,
-    sys: &mut BlockTridiagonal,
-    with_params: bool,
-) -> Result<DvlTerms> {
-    let n = view.knots.len();
-    let mut cross = if with_params {
-        vec![SMatrix::<f64, 18, NPARAM>::zeros(); n]
-    } else {
-        Vec::new()
-    };
-    let mut theta = ParamMat::zeros();
-    let mut cost = 0.0;
-    let dh = d_predict_d_twist(p);
-    for &i in jp.idx {
-        let o = &jp.obs[i];
-        let w = &jp.dvl_info[i];
-        let tj = view.twist_jacobian(o.t + p.time_offset)?;
-        let r = o.v - predict(p, &tj.state.twist);
-        let jx = dh * tj.jacobian;
-        let j1: SMatrix<f64, 3, 18> = jx.fixed_view::<3, 18>(0, 0).into_owned();
-        let j2: SMatrix<f64, 3, 18> = jx.fixed_view::<3, 18>(0, 18).into_owned();
-        let (wj1, wj2) = (w * j1, w * j2);
-        let k = tj.knot;
-        sys.diag[k] += j1.transpose() * wj1;
-        sys.diag[k + 1] += j2.transpose() * wj2;
-        sys.upper[k] += j1.transpose() * wj2;
-        sys.rhs[k] += wj1.transpose() * r;
-        sys.rhs[k + 1] += wj2.transpose() * r;
-        cost += (r.transpose() * w * r)[0];
-        if with_params {
-            let jt = d_predict_d_params(p, &tj.state.twist, &tj.state.rate);
-            let wjt = w * jt;
-            cross[k] += j1.transpose() * wjt;
-            cross[k + 1] += j2.transpose() * wjt;
-            theta += jt.transpose() * wjt;
-        }
-    }
-    Ok(DvlTerms { cost, cross, theta })
-}
-
-/// The trajectory cost with the DVL factors at a fixed calibration.
-struct WithDvl<'a> {
+/// The DVL factors at a fixed calibration: which samples lie in which interval between knots
+/// (the clock offset fixes that), ready to be linearised at any knot states.
+struct DvlFactors<'a> {
     jp: &'a JointProblem<'a>,
-    params: &'a Params,
+    params: Params,
+    /// Derivative of the prediction with respect to the twist.
+    dh: SMatrix<f64, 3, 6>,
+    /// Samples of interval `k`: `order[start[k]..start[k + 1]]` (positions in `jp.idx`, in
+    /// their order there).
+    start: Vec<usize>,
+    order: Vec<usize>,
 }
 
-impl NormalEquations for WithDvl<'_> {
+/// What the DVL factors of one interval add to the joint normal equations.
+struct IntervalTerms {
+    /// Blocks of the interval's first knot, the coupling block, and the second knot's blocks.
+    d1: M18,
+    upper: M18,
+    d2: M18,
+    r1: V18,
+    r2: V18,
+    /// `H_x theta` of the two knots, and the calibration's own blocks (with parameters only).
+    c1: CrossBlock,
+    c2: CrossBlock,
+    theta: ParamMat,
+    gradient: ParamVec,
+    cost: f64,
+}
+
+/// The joint normal equations' parts beyond the trajectory's system.
+struct Assembled {
+    cost: f64,
+    /// `H_x theta` per knot (empty without parameters).
+    cross: Vec<CrossBlock>,
+    /// `H_theta theta` and the calibration's right-hand side.
+    theta: ParamMat,
+    gradient: ParamVec,
+}
+
+/// One chunk of knots of the joint assembly.
+struct JointChunk<'s> {
+    sys: AssemblyChunk<'s>,
+    cross: &'s mut [CrossBlock],
+    theta: ParamMat,
+    gradient: ParamVec,
+}
+
+impl<'a> DvlFactors<'a> {
+    /// The DVL factors of `jp` at the calibration `params`; fails when a sample's camera time
+    /// falls outside the trajectory.
+    fn new(jp: &'a JointProblem<'a>, params: &Params) -> Result<Self> {
+        let view = KnotView {
+            times: &jp.times,
+            knots: &[],
+        };
+        let n = jp.times.len();
+        let interval: Vec<usize> = jp
+            .idx
+            .iter()
+            .map(|&i| view.locate(jp.obs[i].t + params.time_offset))
+            .collect::<Result<_>>()?;
+        // Counting sort by interval, stable in the order of `idx`.
+        let mut start = vec![0usize; n + 1];
+        for &k in &interval {
+            start[k + 1] += 1;
+        }
+        for k in 0..n {
+            start[k + 1] += start[k];
+        }
+        let mut fill = start.clone();
+        let mut order = vec![0usize; interval.len()];
+        for (pos, &k) in interval.iter().enumerate() {
+            order[fill[k]] = pos;
+            fill[k] += 1;
+        }
+        Ok(DvlFactors {
+            jp,
+            params: *params,
+            dh: d_predict_d_twist(params),
+            start,
+            order,
+        })
+    }
+
+    /// Positions (in `jp.idx`) of the samples in interval `k`.
+    fn samples(&self, k: usize) -> &[usize] {
+        &self.order[self.start[k]..self.start[k + 1]]
+    }
+
+    /// The DVL terms of interval `k`, linearised at the knots of `view`, with `ls` the local
+    /// state of its second knot; `None` when no sample lies in it.
+    fn interval_terms(
+        &self,
+        view: KnotView,
+        k: usize,
+        ls: &LocalState,
+        with_params: bool,
+    ) -> Option<IntervalTerms> {
+        let samples = self.samples(k);
+        if samples.is_empty() {
+            return None;
+        }
+        let p = &self.params;
+        let mut out = IntervalTerms {
+            d1: M18::zeros(),
+            upper: M18::zeros(),
+            d2: M18::zeros(),
+            r1: V18::zeros(),
+            r2: V18::zeros(),
+            c1: CrossBlock::zeros(),
+            c2: CrossBlock::zeros(),
+            theta: ParamMat::zeros(),
+            gradient: ParamVec::zeros(),
+            cost: 0.0,
+        };
+        for &pos in samples {
+            let i = self.jp.idx[pos];
+            let (o, w) = (&self.jp.obs[i], &self.jp.dvl_info[i]);
+            let (state, j1, j2) =
+                view.projected_twist_jacobian_in(k, o.t + p.time_offset, ls, &self.dh);
+            let r = o.v - predict(p, &state.twist);
+            let (wj1, wj2) = (w * j1, w * j2);
+            out.d1 += j1.transpose() * wj1;
+            out.d2 += j2.transpose() * wj2;
+            out.upper += j1.transpose() * wj2;
+            out.r1 += wj1.transpose() * r;
+            out.r2 += wj2.transpose() * r;
+            out.cost += (r.transpose() * w * r)[0];
+            if with_params {
+                let jt = d_predict_d_params(p, &state.twist, &state.rate);
+                let wjt = w * jt;
+                out.c1 += j1.transpose() * wjt;
+                out.c2 += j2.transpose() * wjt;
+                out.theta += jt.transpose() * wjt;
+                out.gradient += wjt.transpose() * r;
+            }
+        }
+        Some(out)
+    }
+
+    /// The cost of the DVL factors of interval `k` at the knots of `view`, with `gamma2` the
+    /// local state of its second knot (the same sum as [`DvlFactors::interval_terms`] forms).
+    fn interval_cost(&self, view: KnotView, k: usize, gamma2: &V18) -> f64 {
+        let p = &self.params;
+        let mut cost = 0.0;
+        for &pos in self.samples(k) {
+            let i = self.jp.idx[pos];
+            let (o, w) = (&self.jp.obs[i], &self.jp.dvl_info[i]);
+            let s = view.state_in(k, o.t + p.time_offset, gamma2);
+            let r = o.v - predict(p, &s.twist);
+            cost += (r.transpose() * w * r)[0];
+        }
+        cost
+    }
+
+    /// The joint normal equations at `knots`: the trajectory's system (poses, prior and DVL
+    /// factors) into `sys` and, `with_params`, the calibration's blocks. Chunks of knots are
+    /// assembled on all cores; for every knot the terms are added in a fixed order and the
+    /// chunks' sums are combined in order, so the result does not depend on the thread count.
+    fn assemble(&self, knots: &[Knot], sys: &mut BlockTridiagonal, with_params: bool) -> Assembled {
+        let n = knots.len();
+        assert_eq!(sys.len(), n, "system size does not match the knots");
+        let mut cross = if with_params {
+            vec![CrossBlock::zeros(); n]
+        } else {
+            Vec::new()
+        };
+        let mut cross_chunks = cross.chunks_mut(ASSEMBLY_CHUNK);
+        let mut chunks: Vec<JointChunk> = assembly_chunks(sys)
+            .into_iter()
+            .map(|c| JointChunk {
+                sys: c,
+                cross: cross_chunks.next().unwrap_or_default(),
+                theta: ParamMat::zeros(),
+                gradient: ParamVec::zeros(),
+            })
+            .collect();
+        let view = self.jp.view(knots);
+        crate::parallel::for_each(&mut chunks, |c| self.assemble_chunk(view, c, with_params));
+        let mut out = Assembled {
+            cost: 0.0,
+            cross: Vec::new(),
+            theta: ParamMat::zeros(),
+            gradient: ParamVec::zeros(),
+        };
+        for c in &chunks {
+            out.cost += c.sys.cost;
+            out.theta += c.theta;
+            out.gradient += c.gradient;
+        }
+        drop(chunks);
+        out.cross = cross;
+        out
+    }
+
+    /// One chunk of [`DvlFactors::assemble`]. Per knot: its pose term, the prior and DVL terms
+    /// of the interval before it, then those of the interval after it. Each interval's terms
+    /// are added to both of its knots as soon as they are formed (the next knot's pose term is
+    /// written first). The interval before the chunk is recomputed here for its second knot's
+    /// part; its cost and calibration terms belong to the previous chunk.
+    fn assemble_chunk(&self, view: KnotView, chunk: &mut JointChunk, with_params: bool) {
+        let pose = self.jp.pose_problem();
+        let knots = view.knots;
+        let n = knots.len();
+        let c = &mut chunk.sys;
+        let len = c.diag.len();
+        let (first, diag, rhs, upper) = (c.first, &mut *c.diag, &mut *c.rhs, &mut *c.upper);
+        let mut pose_cost = pose.pose_terms(knots, first, &mut diag[0], &mut rhs[0]);
+        if first > 0 {
+            let (t, ls) = pose.prior_terms(knots, first - 1);
+            diag[0] += t.d2;
+            rhs[0] += t.r2;
+            if let Some(d) = self.interval_terms(view, first - 1, &ls, with_params) {
+                diag[0] += d.d2;
+                rhs[0] += d.r2;
+                if with_params {
+                    chunk.cross[0] += d.c2;
+                }
+            }
+        }
+        let mut cost = 0.0;
+        for i in 0..len {
+            let k = first + i;
+            cost += pose_cost;
+            let next = i + 1 < len;
+            if next {
+                pose_cost = pose.pose_terms(knots, k + 1, &mut diag[i + 1], &mut rhs[i + 1]);
+            }
+            if k + 1 < n {
+                let (t, ls) = pose.prior_terms(knots, k);
+                diag[i] += t.d1;
+                rhs[i] += t.r1;
+                upper[i] = t.upper;
+                cost += t.cost;
+                if next {
+                    diag[i + 1] += t.d2;
+                    rhs[i + 1] += t.r2;
+                }
+                if let Some(d) = self.interval_terms(view, k, &ls, with_params) {
+                    diag[i] += d.d1;
+                    rhs[i] += d.r1;
+                    upper[i] += d.upper;
+                    cost += d.cost;
+                    if next {
+                        diag[i + 1] += d.d2;
+                        rhs[i + 1] += d.r2;
+                    }
+                    if with_params {
+                        chunk.cross[i] += d.c1;
+                        if next {
+                            chunk.cross[i + 1] += d.c2;
+                        }
+                        chunk.theta += d.theta;
+                        chunk.gradient += d.gradient;
+                    }
+                }
+            }
+        }
+        c.cost = cost;
+    }
+
+    /// The joint cost at `knots` alone (the same terms in the same order as
+    /// [`DvlFactors::assemble`], so the two agree to the last bit).
+    fn cost(&self, knots: &[Knot]) -> f64 {
+        let pose = self.jp.pose_problem();
+        let view = self.jp.view(knots);
+        let n = knots.len();
+        crate::parallel::map_pieces(n, ASSEMBLY_CHUNK, |r| {
+            let mut cost = 0.0;
+            for k in r {
+                cost += pose.pose_cost(knots, k);
+                if k + 1 < n {
+                    let (c, gamma2) = pose.prior_cost(knots, k);
+                    cost += c;
+                    if !self.samples(k).is_empty() {
+                        cost += self.interval_cost(view, k, &gamma2);
+                    }
+                }
+            }
+            cost
+        })
+        .into_iter()
+        .sum()
+    }
+}
+
+impl NormalEquations for DvlFactors<'_> {
     fn normal_equations(&self, knots: &[Knot], sys: &mut BlockTridiagonal) -> Result<f64> {
-        let cost = self.jp.pose_problem().assemble_into(knots, sys);
-        Ok(cost + add_dvl_factors(self.jp, self.jp.view(knots), self.params, sys, false)?.cost)
+        Ok(self.assemble(knots, sys, false).cost)
+    }
+
+    fn cost(&self, knots: &[Knot]) -> Result<f64> {
+        Ok(DvlFactors::cost(self, knots))
     }
 }
 
@@ -150,9 +407,53 @@ pub fn state_update(
     p: &Params,
     max_iterations: usize,
 ) -> Result<(Trajectory, f64)> {
-    let problem = WithDvl { jp, params: p };
-    let solved = gauss_newton(&problem, traj.knots().to_vec(), max_iterations)?;
+    let problem = DvlFactors::new(jp, p)?;
+    let opts = GaussNewtonOptions {
+        max_iterations,
+        factor: false,
+        storage: jp.take_storage(),
+    };
+    let solved = gauss_newton(&problem, traj.knots().to_vec(), opts)?;
+    if let Some(s) = solved.spare {
+        jp.keep_storage(s);
+    }
     Ok((traj.with_knots(solved.knots, None), solved.cost))
+}
+
+/// The joint system at `(traj, p)` with the fixed parameters decoupled, factorised: the
+/// factor of `H_xx`, `H_x theta` per knot, `H_theta theta` and the calibration's right-hand side.
+struct JointSystem {
+    factor: crate::trajectory::blocktri::Factored,
+    cross: Vec<CrossBlock>,
+    theta: ParamMat,
+    gradient: ParamVec,
+    cost: f64,
+}
+
+fn joint_system(
+    jp: &JointProblem,
+    traj: &Trajectory,
+    p: &Params,
+    free: &[bool; NPARAM],
+) -> Result<JointSystem> {
+    let n = traj.knots().len();
+    let mut sys = jp
+        .take_storage()
+        .filter(|s| s.len() == n)
+        .unwrap_or_else(|| BlockTridiagonal::zeros(n));
+    let mut a = DvlFactors::new(jp, p)?.assemble(traj.knots(), &mut sys, true);
+    for (c, _) in free.iter().enumerate().filter(|(_, f)| !**f) {
+        a.cross.iter_mut().for_each(|m| m.column_mut(c).fill(0.0));
+        a.gradient[c] = 0.0;
+    }
+    pin_fixed(&mut a.theta, free);
+    Ok(JointSystem {
+        factor: sys.factor()?,
+        cross: a.cross,
+        theta: a.theta,
+        gradient: a.gradient,
+        cost: a.cost,
+    })
 }
 
 /// Marginal covariance of the calibration parameters in the joint problem (trajectory and
@@ -164,32 +465,12 @@ pub fn joint_covariance(
     p: &Params,
     free: &[bool; NPARAM],
 ) -> Result<(ParamMat, f64)> {
-    let (mut sys, pose_cost) = jp.pose_problem().assemble(traj.knots());
-    let terms = add_dvl_factors(jp, traj.view(), p, &mut sys, true)?;
-    let factor = sys.factor()?;
-    let mut schur = terms.theta;
-    for c in 0..NPARAM {
-        if !free[c] {
-            continue;
-        }
-        let rhs: Vec<V18> = terms
-            .cross
-            .iter()
-            .map(|m| m.column(c).into_owned())
-            .collect();
-        let y = factor.solve_rhs(&rhs);
-        for r in 0..NPARAM {
-            let dot: f64 = terms
-                .cross
-                .iter()
-                .zip(&y)
-                .map(|(m, yk)| m.column(r).dot(yk))
-                .sum();
-            schur[(r, c)] -= dot;
-        }
-    }
+    let js = joint_system(jp, traj, p, free)?;
+    let (reduction, _) = js.factor.quadratic_forms(&js.cross);
+    let schur = js.theta - reduction;
+    jp.keep_storage(js.factor.into_system());
+    let mut schur = (schur + schur.transpose()) * 0.5;
     pin_fixed(&mut schur, free);
-    let schur = (schur + schur.transpose()) * 0.5;
     let mut cov = schur
         .try_inverse()
         .unwrap_or_else(|| ParamMat::from_diagonal_element(f64::INFINITY));
@@ -198,5 +479,69 @@ pub fn joint_covariance(
             cov[(k, k)] = 0.0;
         }
     }
-    Ok((cov, pose_cost + terms.cost))
+    Ok((cov, js.cost))
+}
+
+/// Outcome of a joint step.
+pub struct JointStep {
+    pub trajectory: Trajectory,
+    pub params: Params,
+    /// Joint cost after the step.
+    pub cost: f64,
+}
+
+/// One Gauss-Newton step on the joint problem (trajectory and free calibration parameters
+/// together, the calibration eliminated by its Schur complement), with step halving. `None`
+/// when no step along the Gauss-Newton direction lowers the joint cost.
+///
+/// Block-coordinate descent converges linearly when the trajectory and the calibration (above
+/// all the clock offset) are coupled; a joint step moves both towards their common fixed
+/// point at once.
+pub fn joint_step(
+    jp: &JointProblem,
+    traj: &Trajectory,
+    p: &Params,
+    free: &[bool; NPARAM],
+) -> Result<Option<JointStep>> {
+    let js = joint_system(jp, traj, p, free)?;
+    // Calibration step from the Schur complement, then the trajectory's step for it:
+    // `H_xx dx = g_x - H_x theta dtheta`.
+    let (reduction, cross_g) = js.factor.quadratic_forms(&js.cross);
+    let schur = js.theta - reduction;
+    let mut schur = (schur + schur.transpose()) * 0.5;
+    pin_fixed(&mut schur, free);
+    let mut b = js.gradient - cross_g;
+    for c in 0..NPARAM {
+        if !free[c] {
+            b[c] = 0.0;
+        }
+    }
+    let Some(dtheta) = schur.cholesky().map(|c| c.solve(&b)) else {
+        jp.keep_storage(js.factor.into_system());
+        return Ok(None);
+    };
+    let u = js.factor.solve();
+    let correction = js
+        .factor
+        .solve_many(&js.cross.iter().map(|c| c * dtheta).collect::<Vec<V18>>());
+    jp.keep_storage(js.factor.into_system());
+    let dx: Vec<V18> = u.iter().zip(&correction).map(|(u, c)| u - c).collect();
+    let mut scale = 1.0;
+    for _ in 0..8 {
+        let params = p.updated(&(dtheta * scale));
+        // A step that moves a sample outside the trajectory is too long.
+        if let Ok(f) = DvlFactors::new(jp, &params) {
+            let knots = step(traj.knots(), &dx, scale);
+            let cost = f.cost(&knots);
+            if cost.is_finite() && cost <= js.cost {
+                return Ok(Some(JointStep {
+                    trajectory: traj.with_knots(knots, None),
+                    params,
+                    cost,
+                }));
+            }
+        }
+        scale *= 0.5;
+    }
+    Ok(None)
 }

@@ -168,9 +168,19 @@ pub struct BlockTridiagonal {
     pub rhs: Vec<V18>,
 }
 
-/// The eliminated system, in the storage of the [`BlockTridiagonal`] it came from: the Cholesky
-/// factors `L_k` of the Schur complements `S_k`, the gains `G_k = S_k^-1 B_k` and the forward
-/// solution `w_k = L_k^-1 z_k` of the eliminated right-hand side.
+/// The eliminated system, in the storage of the [`BlockTridiagonal`] it came from.
+///
+/// The blocks are eliminated from both ends towards the middle block `m = n / 2` (a "twisted"
+/// factorisation): blocks `0..m` from the top, with Schur complements `S_k`, and blocks
+/// `m+1..n` from the bottom, with Schur complements `R_k`; the middle block's complement takes
+/// both sides' contributions. The two sweeps are independent, so they run on two cores, and the
+/// order of every operation is fixed by `n` alone: the result does not depend on the number of
+/// threads.
+///
+/// Storage: `chol[k]` holds the Cholesky factor `L_k` of the complement eliminated at `k`;
+/// `gain[k]` (the slot of `A[k, k+1]`) holds `G_k = S_k^-1 A[k, k+1]` for `k < m` and
+/// `G'_{k+1} = R_{k+1}^-1 A[k+1, k]` for `k >= m`; `w[k] = L_k^-1 z_k` is the eliminated
+/// right-hand side.
 pub struct Factored {
     chol: Vec<M18>,
     gain: Vec<M18>,
@@ -187,12 +197,122 @@ pub struct BandedInverse {
     pub upper: Vec<M18>,
 }
 
+/// Systems smaller than this are eliminated on one thread (the two sweeps are the same).
+const PARALLEL_MIN: usize = 2048;
+
+/// Runs `a` and `b`, on two threads when `parallel` and more than one core is available.
+fn both<A: Send, B: Send>(
+    parallel: bool,
+    a: impl FnOnce() -> A + Send,
+    b: impl FnOnce() -> B + Send,
+) -> (A, B) {
+    let cores = std::thread::available_parallelism().map_or(1, |t| t.get());
+    if parallel && cores > 1 {
+        std::thread::scope(|scope| {
+            let hb = scope.spawn(b);
+            let ra = a();
+            // A panic in `b` is a bug; re-raise it here rather than lose it.
+            let rb = hb.join().unwrap_or_else(|e| std::panic::resume_unwind(e));
+            (ra, rb)
+        })
+    } else {
+        (a(), b())
+    }
+}
+
+/// The middle block of a twisted elimination of `n` blocks.
+fn middle(n: usize) -> usize {
+    n / 2
+}
+
+/// One elimination step. `l` is the Cholesky factor of the block being eliminated and `y` holds
+/// the rows of its coupling block `C` to the next block in the sweep. With `Y = L^-1 C`:
+/// subtracts `Y^T Y` from `next` and `Y^T w` from `next_w` (`w = L^-1 z` of the block), and
+/// returns the column-major storage of the gain `G = L^-T Y`.
+fn eliminate(l: &Cols, mut y: Cols, w: &[f64; N], next: &mut M18, next_w: &mut V18) -> Cols {
+    // Rows of Y = L^-1 C by forward substitution on the rows of C, so that every inner loop
+    // runs over a full row of 18.
+    for j in 0..N {
+        let (done, rest) = y.split_at_mut(j);
+        let yj = &mut rest[0];
+        for (yk, lk) in done.iter().zip(l) {
+            let l_jk = lk[j];
+            for (a, b) in yj.iter_mut().zip(yk) {
+                *a -= l_jk * b;
+            }
+        }
+        let d = l[j][j];
+        yj.iter_mut().for_each(|a| *a /= d);
+    }
+    // next -= Y^T Y (a sum of outer products of the rows of Y) on the lower triangle only: the
+    // Cholesky factorisation of `next` reads nothing else.
+    let s = cols_mut(next);
+    let mut yty = [[0.0; N]; N];
+    for yj in &y {
+        for (c, (col, yjc)) in yty.iter_mut().zip(yj).enumerate() {
+            for (a, b) in col[c..].iter_mut().zip(&yj[c..]) {
+                *a += b * yjc;
+            }
+        }
+    }
+    for (c, (sc, pc)) in s.iter_mut().zip(&yty).enumerate() {
+        for (a, b) in sc[c..].iter_mut().zip(&pc[c..]) {
+            *a -= b;
+        }
+    }
+    // next_w -= Y^T w.
+    let mut ytw = [0.0; N];
+    for (yj, wj) in y.iter().zip(w) {
+        for (a, b) in ytw.iter_mut().zip(yj) {
+            *a += b * wj;
+        }
+    }
+    *next_w -= V18::from(ytw);
+    // Rows of G = L^-T Y by backward substitution (column j of L below the diagonal holds the
+    // multipliers of row j).
+    for j in (0..N).rev() {
+        let (head, done) = y.split_at_mut(j + 1);
+        let gj = &mut head[j];
+        for (gk, l_kj) in done.iter().zip(&l[j][j + 1..]) {
+            for (a, b) in gj.iter_mut().zip(gk) {
+                *a -= l_kj * b;
+            }
+        }
+        let d = l[j][j];
+        gj.iter_mut().for_each(|a| *a /= d);
+    }
+    transpose(&y)
+}
+
+/// Factorises a block in place and forward-substitutes its right-hand side; returns the
+/// log-determinant of the block.
+fn factor_block(k: usize, chol: &mut M18, w: &mut V18) -> Result<f64> {
+    let log_det = cholesky_in_place(chol).ok_or_else(|| {
+        Error::Numerical(format!(
+            "information matrix not positive definite at knot {k} (too few or degenerate measurements)"
+        ))
+    })?;
+    let mut wk: [f64; N] = (*w).into();
+    forward_substitute(cols(chol), &mut wk);
+    *w = wk.into();
+    Ok(log_det)
+}
+
 impl BlockTridiagonal {
     /// A zero system of `n` blocks.
     pub fn zeros(n: usize) -> Self {
+        // Large systems take hundreds of megabytes: their pages are first touched on all cores.
+        use rayon::prelude::*;
+        let zeros = |len: usize| -> Vec<M18> {
+            if len >= PARALLEL_MIN {
+                (0..len).into_par_iter().map(|_| M18::zeros()).collect()
+            } else {
+                vec![M18::zeros(); len]
+            }
+        };
         BlockTridiagonal {
-            diag: vec![M18::zeros(); n],
-            upper: vec![M18::zeros(); n.saturating_sub(1)],
+            diag: zeros(n),
+            upper: zeros(n.saturating_sub(1)),
             rhs: vec![V18::zeros(); n],
         }
     }
@@ -205,11 +325,13 @@ impl BlockTridiagonal {
         self.diag.is_empty()
     }
 
-    /// Block elimination; fails when a Schur complement is not positive definite.
+    /// Block elimination from both ends (see [`Factored`]); fails when a Schur complement is not
+    /// positive definite.
     ///
-    /// With `S_0 = D_0`, `z_0 = r_0` and `S_k = L_k L_k^T`: `Y_k = L_k^-1 B_k`,
-    /// `S_{k+1} = D_{k+1} - Y_k^T Y_k`, `G_k = L_k^-T Y_k`, `w_k = L_k^-1 z_k`,
-    /// `z_{k+1} = r_{k+1} - Y_k^T w_k`.
+    /// Top sweep, `k = 0..m`: with `S_0 = D_0`, `z_0 = r_0` and `S_k = L_k L_k^T`:
+    /// `Y_k = L_k^-1 B_k`, `S_{k+1} = D_{k+1} - Y_k^T Y_k`, `G_k = L_k^-T Y_k`,
+    /// `w_k = L_k^-1 z_k`, `z_{k+1} = r_{k+1} - Y_k^T w_k`. The bottom sweep is the same on the
+    /// reversed chain (`B_{k-1}^T` couples block `k` to block `k - 1`).
     pub fn factor(self) -> Result<Factored> {
         let BlockTridiagonal {
             diag: mut chol,
@@ -220,131 +342,197 @@ impl BlockTridiagonal {
         if n == 0 {
             return Err(Error::Numerical("empty system".into()));
         }
-        let mut log_det = 0.0;
-        for k in 0..n {
-            log_det += cholesky_in_place(&mut chol[k]).ok_or_else(|| {
-                Error::Numerical(format!(
-                    "information matrix not positive definite at knot {k} (too few or degenerate measurements)"
-                ))
-            })?;
-            let l = *cols(&chol[k]);
-            let mut wk: [f64; N] = w[k].into();
-            forward_substitute(&l, &mut wk);
-            w[k] = wk.into();
-            if k + 1 < n {
-                // Rows of Y = L^-1 B by forward substitution on the rows of B, so that every
-                // inner loop runs over a full row of 18.
-                let mut y = transpose(cols(&gain[k]));
-                for j in 0..N {
-                    let (done, rest) = y.split_at_mut(j);
-                    let yj = &mut rest[0];
-                    for (yk, lk) in done.iter().zip(&l) {
-                        let l_jk = lk[j];
-                        for (a, b) in yj.iter_mut().zip(yk) {
-                            *a -= l_jk * b;
-                        }
-                    }
-                    let d = l[j][j];
-                    yj.iter_mut().for_each(|a| *a /= d);
+        let m = middle(n);
+        let (top_chol, bottom_chol) = chol.split_at_mut(m + 1);
+        let (top_w, bottom_w) = w.split_at_mut(m + 1);
+        let (top_gain, bottom_gain) = gain.split_at_mut(m);
+        // The bottom sweep's contribution to the middle block is kept apart and subtracted after
+        // the top sweep's, so both orders of completion give the same middle block.
+        let (top, bottom) = both(
+            n >= PARALLEL_MIN,
+            || -> Result<f64> {
+                let mut log_det = 0.0;
+                for k in 0..m {
+                    let (cur, next) = top_chol.split_at_mut(k + 1);
+                    let (wc, wn) = top_w.split_at_mut(k + 1);
+                    log_det += factor_block(k, &mut cur[k], &mut wc[k])?;
+                    let wk: [f64; N] = wc[k].into();
+                    let y = transpose(cols(&top_gain[k]));
+                    *cols_mut(&mut top_gain[k]) =
+                        eliminate(cols(&cur[k]), y, &wk, &mut next[0], &mut wn[0]);
                 }
-                // S_{k+1} = D_{k+1} - Y^T Y (a sum of outer products of the rows of Y; both
-                // triangles are formed, with identical roundings, so it stays symmetric).
-                let s = cols_mut(&mut chol[k + 1]);
-                let mut yty = [[0.0; N]; N];
-                for yj in &y {
-                    for (col, yjc) in yty.iter_mut().zip(yj) {
-                        for (a, b) in col.iter_mut().zip(yj) {
-                            *a += b * yjc;
-                        }
-                    }
+                Ok(log_det)
+            },
+            || -> Result<(f64, M18, V18)> {
+                let mut log_det = 0.0;
+                let (mut to_mid, mut to_mid_w) = (M18::zeros(), V18::zeros());
+                // Bottom block j is knot m + 1 + j; its coupling to knot m + j sits in gain slot
+                // m + j, i.e. bottom_gain[j].
+                for j in (0..bottom_chol.len()).rev() {
+                    let (prev, cur) = bottom_chol.split_at_mut(j);
+                    let (wp, wc) = bottom_w.split_at_mut(j);
+                    log_det += factor_block(m + 1 + j, &mut cur[0], &mut wc[0])?;
+                    let wk: [f64; N] = wc[0].into();
+                    let y = *cols(&bottom_gain[j]);
+                    let (next, next_w) = if j > 0 {
+                        (&mut prev[j - 1], &mut wp[j - 1])
+                    } else {
+                        (&mut to_mid, &mut to_mid_w)
+                    };
+                    *cols_mut(&mut bottom_gain[j]) = eliminate(cols(&cur[0]), y, &wk, next, next_w);
                 }
-                for (sc, pc) in s.iter_mut().zip(&yty) {
-                    for (a, b) in sc.iter_mut().zip(pc) {
-                        *a -= b;
-                    }
-                }
-                // z_{k+1} = r_{k+1} - Y^T w_k.
-                let mut ytw = [0.0; N];
-                for (yj, wj) in y.iter().zip(&wk) {
-                    for (a, b) in ytw.iter_mut().zip(yj) {
-                        *a += b * wj;
-                    }
-                }
-                w[k + 1] -= V18::from(ytw);
-                // Rows of G = L^-T Y by backward substitution (column j of L below the diagonal
-                // holds the multipliers of row j).
-                for j in (0..N).rev() {
-                    let (head, done) = y.split_at_mut(j + 1);
-                    let gj = &mut head[j];
-                    for (gk, l_kj) in done.iter().zip(&l[j][j + 1..]) {
-                        for (a, b) in gj.iter_mut().zip(gk) {
-                            *a -= l_kj * b;
-                        }
-                    }
-                    let d = l[j][j];
-                    gj.iter_mut().for_each(|a| *a /= d);
-                }
-                *cols_mut(&mut gain[k]) = transpose(&y);
-            }
-        }
+                Ok((log_det, to_mid, to_mid_w))
+            },
+        );
+        let top = top?;
+        let (bottom, to_mid, to_mid_w) = bottom?;
+        // `to_mid` holds `-C^T C` and `to_mid_w` `-C^T w` (subtracted from zero).
+        chol[m] += to_mid;
+        w[m] += to_mid_w;
+        let mid = factor_block(m, &mut chol[m], &mut w[m])?;
         Ok(Factored {
             chol,
             gain,
             w,
-            log_det,
+            log_det: top + bottom + mid,
         })
     }
 }
 
+/// `x <- L^-1 x` on every column of an 18 x C block.
+fn forward_columns<const C: usize>(l: &Cols, x: &mut SMatrix<f64, N, C>) {
+    for c in 0..C {
+        let mut col: [f64; N] = x.column(c).into_owned().into();
+        forward_substitute(l, &mut col);
+        x.set_column(c, &V18::from(col));
+    }
+}
+
+/// `x <- L^-T x` on every column of an 18 x C block.
+fn backward_columns<const C: usize>(l: &Cols, x: &mut SMatrix<f64, N, C>) {
+    let lt = transpose(l);
+    for c in 0..C {
+        let mut col: [f64; N] = x.column(c).into_owned().into();
+        backward_substitute(&lt, &mut col);
+        x.set_column(c, &V18::from(col));
+    }
+}
+
 impl Factored {
-    /// The solution `x` of `A x = rhs`: `x_k = L_k^-T w_k - G_k x_{k+1}`.
-    pub fn solve(&self) -> Vec<V18> {
+    fn middle(&self) -> usize {
+        middle(self.chol.len())
+    }
+
+    /// `L^-1 R` for other right-hand sides (one 18 x C block per knot, missing blocks are zero):
+    /// the forward half of a solve, in the elimination order of the factor.
+    fn forward_many<const C: usize>(&self, rhs: &[SMatrix<f64, N, C>]) -> Vec<SMatrix<f64, N, C>> {
         let n = self.chol.len();
-        let mut x = vec![V18::zeros(); n];
-        for k in (0..n).rev() {
-            let mut xk: [f64; N] = self.w[k].into();
-            backward_substitute(&transpose(cols(&self.chol[k])), &mut xk);
-            if k + 1 < n {
-                let g = cols(&self.gain[k]);
-                for (gc, xc) in g.iter().zip(x[k + 1].iter()) {
-                    for r in 0..N {
-                        xk[r] -= gc[r] * xc;
+        let m = self.middle();
+        let block = |k: usize| rhs.get(k).copied().unwrap_or_else(SMatrix::zeros);
+        let mut w: Vec<SMatrix<f64, N, C>> = (0..n).map(block).collect();
+        let (top, bottom) = w.split_at_mut(m + 1);
+        let (mid_top, mid_bottom) = both(
+            n >= PARALLEL_MIN,
+            || {
+                // z_{k+1} = r_{k+1} - G_k^T z_k (since Y_k^T L_k^-1 = G_k^T), w_k = L_k^-1 z_k.
+                let mut to_mid = SMatrix::<f64, N, C>::zeros();
+                for k in 0..m {
+                    let contribution = self.gain[k].tr_mul(&top[k]);
+                    if k + 1 < m {
+                        top[k + 1] -= contribution;
+                    } else {
+                        to_mid = contribution;
                     }
+                    forward_columns(cols(&self.chol[k]), &mut top[k]);
                 }
-            }
-            x[k] = xk.into();
-        }
+                to_mid
+            },
+            || {
+                let mut to_mid = SMatrix::<f64, N, C>::zeros();
+                for j in (0..bottom.len()).rev() {
+                    let contribution = self.gain[m + j].tr_mul(&bottom[j]);
+                    if j > 0 {
+                        bottom[j - 1] -= contribution;
+                    } else {
+                        to_mid = contribution;
+                    }
+                    forward_columns(cols(&self.chol[m + 1 + j]), &mut bottom[j]);
+                }
+                to_mid
+            },
+        );
+        w[m] -= mid_top;
+        w[m] -= mid_bottom;
+        forward_columns(cols(&self.chol[m]), &mut w[m]);
+        w
+    }
+
+    /// `L^-T W` in place: the backward half of a solve, from the middle block outwards.
+    fn backward_many<const C: usize>(&self, x: &mut [SMatrix<f64, N, C>]) {
+        let n = self.chol.len();
+        let m = self.middle();
+        backward_columns(cols(&self.chol[m]), &mut x[m]);
+        let (top, bottom) = x.split_at_mut(m);
+        let (mid, bottom) = bottom.split_at_mut(1);
+        let xm = mid[0];
+        both(
+            n >= PARALLEL_MIN,
+            || {
+                let mut next = xm;
+                for k in (0..top.len()).rev() {
+                    backward_columns(cols(&self.chol[k]), &mut top[k]);
+                    top[k] -= self.gain[k] * next;
+                    next = top[k];
+                }
+            },
+            || {
+                let mut prev = xm;
+                for (j, xk) in bottom.iter_mut().enumerate() {
+                    backward_columns(cols(&self.chol[m + 1 + j]), xk);
+                    *xk -= self.gain[m + j] * prev;
+                    prev = *xk;
+                }
+            },
+        );
+    }
+
+    /// The solution `x` of `A x = rhs`.
+    pub fn solve(&self) -> Vec<V18> {
+        let mut x: Vec<SMatrix<f64, N, 1>> = self.w.clone();
+        self.backward_many(&mut x);
         x
     }
 
     /// The solution `x` of `A x = rhs` for another right-hand side (one block per knot).
-    ///
-    /// Forward: `z_0 = r_0`, `z_{k+1} = r_{k+1} - G_k^T z_k` (since `Y_k^T L_k^-1 = G_k^T`),
-    /// `w_k = L_k^-1 z_k`; backward as in [`Factored::solve`].
     pub fn solve_rhs(&self, rhs: &[V18]) -> Vec<V18> {
-        let n = self.chol.len();
-        let mut w = Vec::with_capacity(n);
-        let mut z = rhs.first().copied().unwrap_or_else(V18::zeros);
-        for k in 0..n {
-            let mut wk: [f64; N] = z.into();
-            forward_substitute(cols(&self.chol[k]), &mut wk);
-            w.push(V18::from(wk));
-            if k + 1 < n {
-                z = rhs.get(k + 1).copied().unwrap_or_else(V18::zeros)
-                    - self.gain[k].transpose() * z;
-            }
-        }
-        let mut x = vec![V18::zeros(); n];
-        for k in (0..n).rev() {
-            let mut xk: [f64; N] = w[k].into();
-            backward_substitute(&transpose(cols(&self.chol[k])), &mut xk);
-            let mut xv = V18::from(xk);
-            if k + 1 < n {
-                xv -= self.gain[k] * x[k + 1];
-            }
-            x[k] = xv;
-        }
+        self.solve_many(rhs)
+    }
+
+    /// The solutions of `A X = R` for `C` right-hand sides at once (one 18 x C block per knot).
+    pub fn solve_many<const C: usize>(
+        &self,
+        rhs: &[SMatrix<f64, N, C>],
+    ) -> Vec<SMatrix<f64, N, C>> {
+        let mut x = self.forward_many(rhs);
+        self.backward_many(&mut x);
         x
+    }
+
+    /// `R^T A^-1 R` and `R^T A^-1 rhs` (with `rhs` the system's own right-hand side) for
+    /// `C` columns `R` (one 18 x C block per knot): Schur complements need only the forward half
+    /// of a solve, `R^T A^-1 R = (L^-1 R)^T (L^-1 R)`. Summed over the knots in order.
+    pub fn quadratic_forms<const C: usize>(
+        &self,
+        r: &[SMatrix<f64, N, C>],
+    ) -> (SMatrix<f64, C, C>, SMatrix<f64, C, 1>) {
+        let lr = self.forward_many(r);
+        let mut rr = SMatrix::<f64, C, C>::zeros();
+        let mut rw = SMatrix::<f64, C, 1>::zeros();
+        for (a, w) in lr.iter().zip(&self.w) {
+            rr += a.tr_mul(a);
+            rw += a.tr_mul(w);
+        }
+        (rr, rw)
     }
 
     /// The storage of the factor, as a system to assemble into (its contents are meaningless).
@@ -361,9 +549,9 @@ impl Factored {
         self.log_det
     }
 
-    /// Blocks of `A^-1` on and next to the diagonal, by the backward recursion
-    /// `Sigma_k = S_k^-1 + G_k Sigma_{k+1} G_k^T`, `Sigma_{k,k+1} = -G_k Sigma_{k+1}`. Reuses the
-    /// factor's storage.
+    /// Blocks of `A^-1` on and next to the diagonal, from the middle block outwards:
+    /// `Sigma_k = S_k^-1 + G_k Sigma_{k+1} G_k^T`, `Sigma_{k,k+1} = -G_k Sigma_{k+1}` above it and
+    /// the mirror image below. Reuses the factor's storage.
     pub fn banded_inverse(self) -> BandedInverse {
         let Factored {
             chol: mut diag,
@@ -371,15 +559,38 @@ impl Factored {
             ..
         } = self;
         let n = diag.len();
-        for k in (0..n).rev() {
-            let mut d = inverse_from_cholesky(&diag[k]);
-            if k + 1 < n {
-                let off = -mul(&upper[k], &diag[k + 1]);
-                add_symmetric_abt(&mut d, cols(&off), cols(&upper[k]), -1.0);
-                upper[k] = off;
-            }
-            diag[k] = d;
-        }
+        let m = middle(n);
+        diag[m] = inverse_from_cholesky(&diag[m]);
+        let (top, rest) = diag.split_at_mut(m);
+        let (mid, bottom) = rest.split_at_mut(1);
+        let sigma_m = mid[0];
+        let (top_gain, bottom_gain) = upper.split_at_mut(m);
+        both(
+            n >= PARALLEL_MIN,
+            || {
+                let mut next = sigma_m;
+                for k in (0..top.len()).rev() {
+                    let mut d = inverse_from_cholesky(&top[k]);
+                    let off = -mul(&top_gain[k], &next);
+                    add_symmetric_abt(&mut d, cols(&off), cols(&top_gain[k]), -1.0);
+                    top_gain[k] = off;
+                    top[k] = d;
+                    next = d;
+                }
+            },
+            || {
+                let mut prev = sigma_m;
+                for (j, dk) in bottom.iter_mut().enumerate() {
+                    let mut d = inverse_from_cholesky(dk);
+                    // Sigma_{k,k-1} = -G'_k Sigma_{k-1}; the slot holds Sigma_{k-1,k}.
+                    let off = -mul(&bottom_gain[j], &prev);
+                    add_symmetric_abt(&mut d, cols(&off), cols(&bottom_gain[j]), -1.0);
+                    bottom_gain[j] = off.transpose();
+                    *dk = d;
+                    prev = d;
+                }
+            },
+        );
         BandedInverse { diag, upper }
     }
 }
@@ -436,7 +647,7 @@ mod tests {
     #[test]
     fn matches_dense_solution_inverse_and_determinant() {
         let mut seed = 7;
-        for n in [1usize, 2, 5, 9] {
+        for n in [1usize, 2, 3, 4, 5, 9, 10] {
             let sys = random_system(n, &mut seed);
             let a = dense(&sys);
             let b = DMatrix::from_fn(18 * n, 1, |i, _| sys.rhs[i / 18][i % 18]);
@@ -446,6 +657,23 @@ mod tests {
             for (a, b) in x.iter().zip(&x2) {
                 assert!((a - b).abs().max() < 1e-9 * (1.0 + a.abs().max()));
             }
+            // Two right-hand sides at once: the system's own and its double.
+            let both: Vec<SMatrix<f64, 18, 2>> = sys
+                .rhs
+                .iter()
+                .map(|r| SMatrix::<f64, 18, 2>::from_columns(&[*r, *r * 2.0]))
+                .collect();
+            for (a, b) in x.iter().zip(f.solve_many(&both)) {
+                assert!((a - b.column(0)).abs().max() < 1e-9 * (1.0 + a.abs().max()));
+                assert!((a * 2.0 - b.column(1)).abs().max() < 1e-9 * (1.0 + a.abs().max()));
+            }
+            // b^T A^-1 b and b^T A^-1 (2 b) from the forward half alone.
+            let (rr, rw) = f.quadratic_forms(&both[..]);
+            let q: f64 = x.iter().zip(&sys.rhs).map(|(x, r)| x.dot(r)).sum();
+            assert!((rr[(0, 0)] - q).abs() < 1e-9 * q.abs().max(1.0));
+            assert!((rr[(1, 1)] - 4.0 * q).abs() < 1e-9 * q.abs().max(1.0));
+            assert!((rr[(0, 1)] - 2.0 * q).abs() < 1e-9 * q.abs().max(1.0));
+            assert!((rw[1] - 2.0 * q).abs() < 1e-9 * q.abs().max(1.0));
             let xd = a.clone().lu().solve(&b).unwrap();
             for i in 0..18 * n {
                 assert!((x[i / 18][i % 18] - xd[i]).abs() < 1e-9 * (1.0 + xd[i].abs()));
@@ -470,6 +698,39 @@ mod tests {
                     assert!((bi.upper[k] - u).abs().max() < 1e-10);
                 }
             }
+        }
+    }
+
+    #[test]
+    fn long_system_is_solved_and_inverted() {
+        // Long enough for the two sweeps to run on separate threads where there are two cores.
+        let mut seed = 3;
+        let n = PARALLEL_MIN + 101;
+        let sys = random_system(n, &mut seed);
+        let f = sys.clone().factor().unwrap();
+        let x = f.solve();
+        let max_rhs = sys.rhs.iter().map(|r| r.abs().max()).fold(0.0, f64::max);
+        for k in 0..n {
+            let mut ax = sys.diag[k] * x[k];
+            if k > 0 {
+                ax += sys.upper[k - 1].transpose() * x[k - 1];
+            }
+            if k + 1 < n {
+                ax += sys.upper[k] * x[k + 1];
+            }
+            assert!((ax - sys.rhs[k]).abs().max() < 1e-9 * max_rhs, "block {k}");
+        }
+        // A Sigma = I on the band: block row k of A times block column k of Sigma.
+        let inv = f.banded_inverse();
+        for k in [0, 1, n / 2 - 1, n / 2, n / 2 + 1, n - 2, n - 1] {
+            let mut e = sys.diag[k] * inv.diag[k];
+            if k > 0 {
+                e += sys.upper[k - 1].transpose() * inv.upper[k - 1];
+            }
+            if k + 1 < n {
+                e += sys.upper[k] * inv.upper[k].transpose();
+            }
+            assert!((e - M18::identity()).abs().max() < 1e-9, "block {k}");
         }
     }
 

@@ -423,12 +423,14 @@ fn scale_rows(d: &Vector6<f64>, m: &Matrix6<f64>) -> Matrix6<f64> {
 
 /// `(qi (x) diag(d)) x` for a block column `x` of three 6x6 blocks.
 fn weigh(qi: &Matrix3<f64>, d: &Vector6<f64>, x: &[Matrix6<f64>; 3]) -> [Matrix6<f64>; 3] {
-    std::array::from_fn(|i| {
+    // Written out rather than with `array::from_fn`, which copies each block through a guard.
+    let row = |i: usize| {
         scale_rows(
             d,
             &(x[0] * qi[(i, 0)] + x[1] * qi[(i, 1)] + x[2] * qi[(i, 2)]),
         )
-    })
+    };
+    [row(0), row(1), row(2)]
 }
 
 /// Writes the 6x6 block `(a, b)` of `out`, and its transpose at `(b, a)` when `mirror`.

@@ -15,7 +15,10 @@
 
 use nalgebra::Vector6;
 
-use super::fit::{FitOptions, Problem, gauss_newton, initial_knots, measurement_information, step};
+use super::fit::{
+    FitOptions, GaussNewtonOptions, Problem, gauss_newton, initial_knots, measurement_information,
+    step,
+};
 use super::gp::Knot;
 use super::lie::{Se3, so3};
 use crate::error::Result;
@@ -113,7 +116,12 @@ fn window_log_likelihood(w: &mut Window, qc: &Vector6<f64>, sigma: (f64, f64)) -
         qc_inv: qc.map(|q| 1.0 / q),
     };
     if !w.converged_once {
-        w.knots = gauss_newton(&problem, w.knots.clone(), 5)?.knots;
+        let opts = GaussNewtonOptions {
+            max_iterations: 5,
+            factor: false,
+            storage: None,
+        };
+        w.knots = gauss_newton(&problem, w.knots.clone(), opts)?.knots;
         w.converged_once = true;
     }
     let (sys, cost) = problem.assemble(&w.knots);
