@@ -2,7 +2,9 @@
 //! motion) rendered as 752x480 stereo images, AprilTag detection, stereo PnP with covariances,
 //! then UIC, compared with the truth.
 //!
-//! `cargo bench --bench end_to_end [-- SEEDS DURATION_S]` (default 12 seeds of 30 s). Prints a
+//! `cargo bench --bench end_to_end [-- SEEDS DURATION_S [poses]]` (default 12 seeds of 30 s;
+//! `poses` or `poses:SIGMA` skips the images and calibrates from the simulator's noisy poses
+//! (default 2 mm / 2 mrad), to separate the vision's share of the errors from the motion's). Prints a
 //! table: per parameter the RMSE over the seeds, the mean reported standard deviation, and the RMS
 //! of error / std (1 for honest uncertainties), each with a 95 % percentile-bootstrap interval;
 //! and the mean NEES of the 8 parameters (expectation 8).
@@ -58,11 +60,13 @@ struct Run {
     calib_s: f64,
 }
 
-fn one(seed: u64, duration: f64, dir: &std::path::Path) -> Run {
+fn one(seed: u64, duration: f64, dir: &std::path::Path, images: bool, pose_sigma: f64) -> Run {
     let cfg = SimConfig {
         seed,
         duration_s: duration,
         motion: MotionKind::BoardView,
+        pose_sigma_pos_m: pose_sigma,
+        pose_sigma_rot_rad: pose_sigma,
         ..SimConfig::default()
     };
     let ds = simulate(&cfg).expect("simulation");
@@ -79,6 +83,21 @@ fn one(seed: u64, duration: f64, dir: &std::path::Path) -> Run {
             t_board_cam0: t_board_world * s.pose,
         })
         .collect();
+    if !images {
+        // The same motion with the simulator's own pose noise (default 2 mm, 2 mrad), no images: tells
+        // the vision's share of the errors from the motion's.
+        let start = Instant::now();
+        let o = calibrate(&ds.poses, &ds.dvl, &CalibOptions::default()).expect("calibrate");
+        return summarise(
+            &o,
+            &ds.truth,
+            ds.poses.len(),
+            ds.poses.len(),
+            0.0,
+            0.0,
+            start,
+        );
+    }
     let _ = std::fs::remove_dir_all(dir);
     let settings = ImageSimSettings {
         seed,
@@ -96,8 +115,8 @@ fn one(seed: u64, duration: f64, dir: &std::path::Path) -> Run {
         threads: 1,
         ..DetectorSettings::default()
     };
-    let (results, _) =
-        detect_frames(&stereo, &board, &chain, &det, &PnpOptions::default(), false).expect("detect");
+    let (results, _) = detect_frames(&stereo, &board, &chain, &det, &PnpOptions::default(), false)
+        .expect("detect");
     let detect_s = start.elapsed().as_secs_f64();
     // Camera times on the simulation's epoch, so that the DVL samples line up.
     let poses: Vec<PoseMeasurement> = results
@@ -112,8 +131,28 @@ fn one(seed: u64, duration: f64, dir: &std::path::Path) -> Run {
         .collect();
     let start = Instant::now();
     let o = calibrate(&poses, &ds.dvl, &CalibOptions::default()).expect("calibrate");
+    summarise(
+        &o,
+        &ds.truth,
+        results.len(),
+        poses.len(),
+        render_s,
+        detect_s,
+        start,
+    )
+}
+
+fn summarise(
+    o: &dvlcal::calib::CalibrationOutcome,
+    truth: &dvlcal::types::CalibrationParams,
+    frames: usize,
+    posed: usize,
+    render_s: f64,
+    detect_s: f64,
+    start: Instant,
+) -> Run {
     let calib_s = start.elapsed().as_secs_f64();
-    let truth = Params::from_calibration(&ds.truth);
+    let truth = Params::from_calibration(truth);
     let err = difference(&o.params, &truth);
     let std = SMatrix::<f64, NPARAM, 1>::from_fn(|k, _| o.covariance[(k, k)].max(0.0).sqrt());
     let nees = o
@@ -125,8 +164,8 @@ fn one(seed: u64, duration: f64, dir: &std::path::Path) -> Run {
         err,
         std,
         nees,
-        frames: results.len(),
-        posed: poses.len(),
+        frames,
+        posed,
         render_s,
         detect_s,
         calib_s,
@@ -164,10 +203,18 @@ fn main() {
         .collect();
     let seeds: u64 = args.first().and_then(|s| s.parse().ok()).unwrap_or(12);
     let duration: f64 = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(30.0);
-    let dir: PathBuf = std::env::temp_dir().join(format!("dvlcal-e2e-bench-{}", std::process::id()));
+    // Third argument: `poses` or `poses:SIGMA` (pose noise, metres and radians; default 0.002).
+    let mode = args.get(2).map(String::as_str).unwrap_or("images");
+    let images = !mode.starts_with("poses");
+    let pose_sigma: f64 = mode
+        .strip_prefix("poses:")
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(0.002);
+    let dir: PathBuf =
+        std::env::temp_dir().join(format!("dvlcal-e2e-bench-{}", std::process::id()));
     let mut runs = Vec::new();
     for seed in 0..seeds {
-        let r = one(seed, duration, &dir);
+        let r = one(seed, duration, &dir, images, pose_sigma);
         eprintln!(
             "seed {seed}: {}/{} frames posed; NEES {:.2}; render {:.1} s, detect {:.1} s, calibrate {:.2} s",
             r.posed, r.frames, r.nees, r.render_s, r.detect_s, r.calib_s
@@ -176,7 +223,12 @@ fn main() {
     }
     let _ = std::fs::remove_dir_all(&dir);
     println!(
-        "\n{seeds} seeds x {duration} s (board-view motion, 752x480 stereo at 10 Hz, DVL 10 Hz, 1 cm/s)\n"
+        "\n{seeds} seeds x {duration} s (board-view motion, {}, DVL 10 Hz, 1 cm/s)\n",
+        if images {
+            "752x480 stereo images at 10 Hz"
+        } else {
+            "poses at 10 Hz with the given noise, no images"
+        }
     );
     println!("| parameter | RMSE | mean reported std | RMS of error/std |");
     println!("|---|---|---|---|");

@@ -54,17 +54,28 @@ impl Space<'_> {
         }
     }
 
-    /// Line space to image pixel.
-    fn to_image(&self, q: &Vector2<f64>) -> Option<Vector2<f64>> {
+    /// Line space to image pixel, with the Jacobian `d image / d line`.
+    fn to_image_jac(&self, q: &Vector2<f64>) -> Option<(Vector2<f64>, Matrix2<f64>)> {
         match self.cam {
-            None => Some(*q),
+            None => Some((*q, Matrix2::identity())),
             Some(c) => {
                 let n = Vector2::new((q.x - c.pu) / c.fu, (q.y - c.pv) / c.fv);
-                let (d, _) = c.distortion.distort(&n);
+                let (d, jd) = c.distortion.distort(&n);
                 let p = Vector2::new(c.fu * d.x + c.pu, c.fv * d.y + c.pv);
-                p.iter().all(|v| v.is_finite()).then_some(p)
+                let j = Matrix2::new(
+                    jd[(0, 0)],
+                    jd[(0, 1)] * c.fu / c.fv,
+                    jd[(1, 0)] * c.fv / c.fu,
+                    jd[(1, 1)],
+                );
+                (p.iter().chain(j.iter()).all(|v| v.is_finite())).then_some((p, j))
             }
         }
+    }
+
+    /// Line space to image pixel.
+    fn to_image(&self, q: &Vector2<f64>) -> Option<Vector2<f64>> {
+        self.to_image_jac(q).map(|(p, _)| p)
     }
 }
 
@@ -164,7 +175,7 @@ pub fn refine_corners(
     }
     let w = (0.45 * cell).clamp(1.0, 3.0);
     let steps = (2.0 * w / STEP).round() as usize;
-    let mut profile = vec![0.0; steps + 1];
+    let mut profiles: Vec<f64> = Vec::new();
     for _ in 0..PASSES {
         let mut lines = [Line {
             p: Vector2::zeros(),
@@ -182,8 +193,11 @@ pub fn refine_corners(
             let n_samples = ((len - 2.0 * margin) / 1.0).floor().max(0.0) as usize + 1;
             let mut pts: Vec<(Vector2<f64>, f64)> = Vec::with_capacity(n_samples);
             let mut polarity = 0.0;
-            let mut found: Vec<(Vector2<f64>, Vec<f64>, Vector2<f64>)> =
+            // Per sample: its point in line space, its outward normal in the image, the inverse
+            // Jacobian of the distortion there; the profiles side by side in one buffer.
+            let mut found: Vec<(Vector2<f64>, Vector2<f64>, Matrix2<f64>)> =
                 Vec::with_capacity(n_samples);
+            profiles.clear();
             for s in 0..n_samples {
                 let t = if n_samples == 1 {
                     0.5 * len
@@ -191,17 +205,14 @@ pub fn refine_corners(
                     margin + (len - 2.0 * margin) * s as f64 / (n_samples - 1) as f64
                 };
                 let ql = a + dir * t;
-                let Some(p) = space.to_image(&ql) else {
+                let Some((p, jac)) = space.to_image_jac(&ql) else {
+                    continue;
+                };
+                let Some(jinv) = jac.try_inverse() else {
                     continue;
                 };
                 // The side's direction and outward normal in the image.
-                let (Some(p1), Some(p0)) = (
-                    space.to_image(&(ql + dir * 0.5)),
-                    space.to_image(&(ql - dir * 0.5)),
-                ) else {
-                    continue;
-                };
-                let d_img = p1 - p0;
+                let d_img = jac * dir;
                 let dn = d_img.norm();
                 if dn.is_nan() || dn <= 0.0 {
                     continue;
@@ -210,11 +221,12 @@ pub fn refine_corners(
                 if nrm.dot(&(p - centre_img)) < 0.0 {
                     nrm = -nrm;
                 }
+                let start = profiles.len();
                 let mut ok = true;
-                for (i, v) in profile.iter_mut().enumerate() {
+                for i in 0..=steps {
                     let off = -w + i as f64 * STEP;
                     match bilinear(img, p.x + off * nrm.x, p.y + off * nrm.y) {
-                        Some(g) => *v = g,
+                        Some(g) => profiles.push(g),
                         None => {
                             ok = false;
                             break;
@@ -222,13 +234,15 @@ pub fn refine_corners(
                     }
                 }
                 if !ok {
+                    profiles.truncate(start);
                     continue;
                 }
-                polarity += profile[steps] - profile[0];
-                found.push((p, profile.clone(), nrm));
+                polarity += profiles[start + steps] - profiles[start];
+                found.push((ql, nrm, jinv));
             }
             let sign = if polarity >= 0.0 { 1.0 } else { -1.0 };
-            for (p, prof, nrm) in &found {
+            for (k, (ql, nrm, jinv)) in found.iter().enumerate() {
+                let prof = &profiles[k * (steps + 1)..(k + 1) * (steps + 1)];
                 let (mut sw, mut swn) = (0.0, 0.0);
                 for i in 0..steps {
                     let d = sign * (prof[i + 1] - prof[i]);
@@ -242,10 +256,9 @@ pub fn refine_corners(
                 if sw < 8.0 {
                     continue;
                 }
-                let edge = p + nrm * (swn / sw);
-                if let Some(el) = space.to_line(&edge) {
-                    pts.push((el, sw));
-                }
+                // The edge lies a fraction of a pixel from the sample (less with every pass):
+                // mapped back to line space through the local inverse Jacobian.
+                pts.push((ql + jinv * (nrm * (swn / sw)), sw));
             }
             let mut line = fit_line(&pts)?;
             // One pass of outlier removal: points far from the line (a neighbour's edge, a
