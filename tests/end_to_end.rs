@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use dvlcal::calib::model::{Params, difference};
+use dvlcal::eval::calibration_error;
 use dvlcal::io::calib_yaml::read_calib_yaml;
 
 const STEREO: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/sample_data/stereo");
@@ -64,22 +64,11 @@ fn rendered_dataset_calibrates_within_its_uncertainty_and_identically_on_any_thr
     assert_eq!(a, b, "results differ between 1 and 2 threads");
 
     let est_file = read_calib_yaml(&two).unwrap();
-    let est = Params::from_calibration(&est_file.to_params().unwrap());
     let truth_file = Path::new(STEREO).join("truth").join("calibration.yaml");
-    let truth =
-        Params::from_calibration(&read_calib_yaml(&truth_file).unwrap().to_params().unwrap());
-    let d = difference(&est, &truth);
-    let s = est_file.std.expect("std in the result");
-    let std = [
-        s.rotation_deg[0].to_radians(),
-        s.rotation_deg[1].to_radians(),
-        s.rotation_deg[2].to_radians(),
-        s.lever_arm_m[0],
-        s.lever_arm_m[1],
-        s.lever_arm_m[2],
-        s.velocity_scale,
-        s.time_offset_s,
-    ];
+    let truth = read_calib_yaml(&truth_file).unwrap().to_params().unwrap();
+    let ce = calibration_error(&est_file, &truth).unwrap();
+    let d = ce.error;
+    let std = ce.std.expect("std in the result");
     let names = [
         "rot x", "rot y", "rot z", "lever x", "lever y", "lever z", "scale", "offset",
     ];

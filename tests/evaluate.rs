@@ -229,6 +229,25 @@ fn calibrate_a_folder_then_cross_validate_three() {
     for f in ["cal.yaml", "cal-tf.txt", "cal-camchain-dvl.yaml"] {
         assert!(tmp.0.join("res").join(f).is_file(), "{f} missing");
     }
+    // compare-calib against the truth: the clock error it prints is the files' difference.
+    let truth_yaml = dirs[0].join("truth").join("calibration.yaml");
+    let r = dvlcal(&[
+        "compare-calib",
+        "--estimate",
+        s(&out),
+        "--truth",
+        s(&truth_yaml),
+    ]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let text = String::from_utf8_lossy(&r.stdout);
+    let est = dvlcal::io::calib_yaml::read_calib_yaml(&out).unwrap();
+    let tru = dvlcal::io::calib_yaml::read_calib_yaml(&truth_yaml).unwrap();
+    let want = format!(
+        "clock      {:+.2} ms",
+        1e3 * (est.time_offset_s - tru.time_offset_s)
+    );
+    assert!(text.contains(&want), "{want}\n{text}");
+    assert!(text.contains("largest error"), "{text}");
 
     // The calibration checked on the other datasets, and the truth as a guess for the
     // baselines of the cross-validation.

@@ -72,3 +72,43 @@ pub fn twist_errors(estimate: &[TwistSample], truth: &[TwistSample]) -> Result<T
         mean_normalized_sq: nsq / n,
     })
 }
+
+/// The error of a calibration file against a reference, in the estimator's parameter order
+/// (`calib::model::difference`: rotation (rad, about the DVL axes), lever arm (m), scale,
+/// offset (s)), with the file's standard deviations in the same order when it has them.
+#[derive(Clone, Debug)]
+pub struct CalibrationError {
+    pub error: nalgebra::SVector<f64, { crate::calib::model::NPARAM }>,
+    pub std: Option<nalgebra::SVector<f64, { crate::calib::model::NPARAM }>>,
+}
+
+impl CalibrationError {
+    /// Each error over its standard deviation (`None` without standard deviations; a zero
+    /// deviation gives an infinite or NaN ratio).
+    pub fn normalized(&self) -> Option<nalgebra::SVector<f64, { crate::calib::model::NPARAM }>> {
+        self.std.map(|s| self.error.component_div(&s))
+    }
+}
+
+/// Compares `estimate` (a result file) with `truth`.
+pub fn calibration_error(
+    estimate: &crate::io::calib_yaml::CalibrationFile,
+    truth: &crate::types::CalibrationParams,
+) -> Result<CalibrationError> {
+    use crate::calib::model::{Params, difference};
+    let est = Params::from_calibration(&estimate.to_params()?);
+    let error = difference(&est, &Params::from_calibration(truth));
+    let std = estimate.std.as_ref().map(|s| {
+        nalgebra::SVector::<f64, { crate::calib::model::NPARAM }>::from_column_slice(&[
+            s.rotation_deg[0].to_radians(),
+            s.rotation_deg[1].to_radians(),
+            s.rotation_deg[2].to_radians(),
+            s.lever_arm_m[0],
+            s.lever_arm_m[1],
+            s.lever_arm_m[2],
+            s.velocity_scale,
+            s.time_offset_s,
+        ])
+    });
+    Ok(CalibrationError { error, std })
+}

@@ -50,33 +50,17 @@ pub fn ros_static_transform(c: &CalibrationParams, names: &FrameNames) -> String
         s,
         "# ROS 1 (tf2_ros): x y z qx qy qz qw parent child; the DVL frame in the camera frame"
     );
+    let [x, y, z, qx, qy, qz, qw] = [t.x, t.y, t.z, q[0], q[1], q[2], q[3]].map(fmt_f);
+    let (parent, child) = (&names.camera, &names.dvl);
     let _ = writeln!(
         s,
-        "rosrun tf2_ros static_transform_publisher {} {} {} {} {} {} {} {} {}",
-        fmt_f(t.x),
-        fmt_f(t.y),
-        fmt_f(t.z),
-        fmt_f(q[0]),
-        fmt_f(q[1]),
-        fmt_f(q[2]),
-        fmt_f(q[3]),
-        names.camera,
-        names.dvl
+        "rosrun tf2_ros static_transform_publisher {x} {y} {z} {qx} {qy} {qz} {qw} {parent} {child}"
     );
     let _ = writeln!(s, "# ROS 2 (tf2_ros)");
     let _ = writeln!(
         s,
-        "ros2 run tf2_ros static_transform_publisher --x {} --y {} --z {} --qx {} --qy {} \
-         --qz {} --qw {} --frame-id {} --child-frame-id {}",
-        fmt_f(t.x),
-        fmt_f(t.y),
-        fmt_f(t.z),
-        fmt_f(q[0]),
-        fmt_f(q[1]),
-        fmt_f(q[2]),
-        fmt_f(q[3]),
-        names.camera,
-        names.dvl
+        "ros2 run tf2_ros static_transform_publisher --x {x} --y {y} --z {z} --qx {qx} --qy {qy} \
+         --qz {qz} --qw {qw} --frame-id {parent} --child-frame-id {child}"
     );
     let _ = writeln!(
         s,

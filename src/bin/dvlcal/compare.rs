@@ -4,7 +4,7 @@
 use anyhow::Result;
 use std::path::PathBuf;
 
-use dvlcal::calib::model::{Params, difference};
+use dvlcal::eval::calibration_error;
 use dvlcal::io::calib_yaml::read_calib_yaml;
 
 #[derive(clap::Args)]
@@ -18,22 +18,10 @@ pub struct CompareArgs {
 }
 
 pub fn run(a: CompareArgs) -> Result<()> {
-    let est_file = read_calib_yaml(&a.estimate)?;
-    let est = Params::from_calibration(&est_file.to_params()?);
-    let truth = Params::from_calibration(&read_calib_yaml(&a.truth)?.to_params()?);
-    let d = difference(&est, &truth);
-    let std: Option<[f64; 8]> = est_file.std.as_ref().map(|s| {
-        [
-            s.rotation_deg[0].to_radians(),
-            s.rotation_deg[1].to_radians(),
-            s.rotation_deg[2].to_radians(),
-            s.lever_arm_m[0],
-            s.lever_arm_m[1],
-            s.lever_arm_m[2],
-            s.velocity_scale,
-            s.time_offset_s,
-        ]
-    });
+    let truth = read_calib_yaml(&a.truth)?.to_params()?;
+    let ce = calibration_error(&read_calib_yaml(&a.estimate)?, &truth)?;
+    let d = ce.error;
+    let std = ce.std;
     let z = |k: usize| -> String {
         match std {
             Some(s) if s[k] > 0.0 => format!("{:+.1}", d[k] / s[k]),
