@@ -129,6 +129,9 @@ fn one(seed: u64, duration: f64, dir: &std::path::Path, images: bool, pose_sigma
             })
         })
         .collect();
+    if std::env::var_os("DVLCAL_POSE_DIAG").is_some() {
+        pose_diagnostics(&results, &frames);
+    }
     let start = Instant::now();
     let o = calibrate(&poses, &ds.dvl, &CalibOptions::default()).expect("calibrate");
     summarise(
@@ -140,6 +143,41 @@ fn one(seed: u64, duration: f64, dir: &std::path::Path, images: bool, pose_sigma
         detect_s,
         start,
     )
+}
+
+/// The PnP poses against the rendered truth: mean NEES, mean error (bias) per component, and the
+/// lag-1 autocorrelation of the whitened errors (0 for errors independent between frames).
+fn pose_diagnostics(results: &[dvlcal::vision::pipeline::FrameResult], frames: &[FrameSpec]) {
+    let mut ws: Vec<nalgebra::Vector6<f64>> = Vec::new();
+    let mut es: Vec<nalgebra::Vector6<f64>> = Vec::new();
+    for (r, f) in results.iter().zip(frames) {
+        let Some(p) = &r.pose else { continue };
+        let e = (f.t_board_cam0.inverse() * p.t_board_cam0).log();
+        let Some(l) = p.cov.cholesky() else { continue };
+        ws.push(l.l().solve_lower_triangular(&e).unwrap_or_default());
+        es.push(e);
+    }
+    let n = ws.len() as f64;
+    let nees = ws.iter().map(|w| w.norm_squared()).sum::<f64>() / n;
+    let mean_e = es.iter().sum::<nalgebra::Vector6<f64>>() / n;
+    let rms_e = (es.iter().map(|e| e.component_mul(e)).sum::<nalgebra::Vector6<f64>>() / n).map(f64::sqrt);
+    let mut ac = nalgebra::Vector6::zeros();
+    for k in 0..6 {
+        let (mut num, mut den) = (0.0, 0.0);
+        for i in 0..ws.len() {
+            den += ws[i][k] * ws[i][k];
+            if i + 1 < ws.len() {
+                num += ws[i][k] * ws[i + 1][k];
+            }
+        }
+        ac[k] = num / den;
+    }
+    eprintln!(
+        "  poses: mean NEES {nees:.2}; mean error [{:.2e} {:.2e} {:.2e} | {:.2e} {:.2e} {:.2e}], RMS [{:.2e} {:.2e} {:.2e} | {:.2e} {:.2e} {:.2e}]; lag-1 autocorrelation of whitened errors [{:.2} {:.2} {:.2} {:.2} {:.2} {:.2}]",
+        mean_e[0], mean_e[1], mean_e[2], mean_e[3], mean_e[4], mean_e[5],
+        rms_e[0], rms_e[1], rms_e[2], rms_e[3], rms_e[4], rms_e[5],
+        ac[0], ac[1], ac[2], ac[3], ac[4], ac[5]
+    );
 }
 
 fn summarise(
