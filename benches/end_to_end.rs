@@ -160,7 +160,12 @@ fn pose_diagnostics(results: &[dvlcal::vision::pipeline::FrameResult], frames: &
     let n = ws.len() as f64;
     let nees = ws.iter().map(|w| w.norm_squared()).sum::<f64>() / n;
     let mean_e = es.iter().sum::<nalgebra::Vector6<f64>>() / n;
-    let rms_e = (es.iter().map(|e| e.component_mul(e)).sum::<nalgebra::Vector6<f64>>() / n).map(f64::sqrt);
+    let rms_e = (es
+        .iter()
+        .map(|e| e.component_mul(e))
+        .sum::<nalgebra::Vector6<f64>>()
+        / n)
+        .map(f64::sqrt);
     let mut ac = nalgebra::Vector6::zeros();
     for k in 0..6 {
         let (mut num, mut den) = (0.0, 0.0);
@@ -174,9 +179,24 @@ fn pose_diagnostics(results: &[dvlcal::vision::pipeline::FrameResult], frames: &
     }
     eprintln!(
         "  poses: mean NEES {nees:.2}; mean error [{:.2e} {:.2e} {:.2e} | {:.2e} {:.2e} {:.2e}], RMS [{:.2e} {:.2e} {:.2e} | {:.2e} {:.2e} {:.2e}]; lag-1 autocorrelation of whitened errors [{:.2} {:.2} {:.2} {:.2} {:.2} {:.2}]",
-        mean_e[0], mean_e[1], mean_e[2], mean_e[3], mean_e[4], mean_e[5],
-        rms_e[0], rms_e[1], rms_e[2], rms_e[3], rms_e[4], rms_e[5],
-        ac[0], ac[1], ac[2], ac[3], ac[4], ac[5]
+        mean_e[0],
+        mean_e[1],
+        mean_e[2],
+        mean_e[3],
+        mean_e[4],
+        mean_e[5],
+        rms_e[0],
+        rms_e[1],
+        rms_e[2],
+        rms_e[3],
+        rms_e[4],
+        rms_e[5],
+        ac[0],
+        ac[1],
+        ac[2],
+        ac[3],
+        ac[4],
+        ac[5]
     );
 }
 
