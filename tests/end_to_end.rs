@@ -2,30 +2,16 @@
 //! calibration, checked against the simulation's truth with the reported uncertainty, and the
 //! same digits whatever the number of threads.
 
-use std::path::{Path, PathBuf};
+mod tmp_common;
+use tmp_common::TmpDir;
+
+use std::path::Path;
 use std::process::Command;
 
 use dvlcal::eval::calibration_error;
 use dvlcal::io::calib_yaml::read_calib_yaml;
 
 const STEREO: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/sample_data/stereo");
-
-struct TmpDir(PathBuf);
-
-impl TmpDir {
-    fn new(tag: &str) -> TmpDir {
-        let d = std::env::temp_dir().join(format!("dvlcal-e2e-{tag}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&d);
-        std::fs::create_dir_all(&d).unwrap();
-        TmpDir(d)
-    }
-}
-
-impl Drop for TmpDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
 
 fn calibrate(out: &Path, threads: &str) -> String {
     let r = Command::new(env!("CARGO_BIN_EXE_dvlcal"))
@@ -51,7 +37,7 @@ fn calibrate(out: &Path, threads: &str) -> String {
 
 #[test]
 fn rendered_dataset_calibrates_within_its_uncertainty_and_identically_on_any_thread_count() {
-    let tmp = TmpDir::new("stereo");
+    let tmp = TmpDir::new("e2e-stereo");
     let one = tmp.0.join("one.yaml");
     let two = tmp.0.join("two.yaml");
     let stdout = calibrate(&two, "2");

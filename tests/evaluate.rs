@@ -1,6 +1,9 @@
 //! The odometry check (DVL dead reckoning against camera positions) and the dataset-folder
 //! handling of `calibrate` and `evaluate`.
 
+mod tmp_common;
+use tmp_common::TmpDir;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -118,23 +121,6 @@ fn odometry_restarts_across_gaps_and_counts_them() {
     assert!(e.contains("at least two camera poses"), "{e}");
 }
 
-struct TmpDir(PathBuf);
-
-impl TmpDir {
-    fn new(tag: &str) -> TmpDir {
-        let d = std::env::temp_dir().join(format!("dvlcal-eval-{tag}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&d);
-        std::fs::create_dir_all(&d).unwrap();
-        TmpDir(d)
-    }
-}
-
-impl Drop for TmpDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
 fn dvlcal(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_dvlcal"))
         .args(args)
@@ -161,7 +147,7 @@ fn simulate_dir(dir: &Path, seed: u64, duration: f64) {
 
 #[test]
 fn discovery_finds_a_simulated_dataset_and_names_competing_files() {
-    let tmp = TmpDir::new("discover");
+    let tmp = TmpDir::new("eval-discover");
     let d = tmp.0.join("a");
     simulate_dir(&d, 3, 20.0);
     let f = discover(&d, &DatasetOverrides::default()).unwrap();
@@ -212,7 +198,7 @@ fn discovery_finds_a_simulated_dataset_and_names_competing_files() {
 
 #[test]
 fn calibrate_a_folder_then_cross_validate_three() {
-    let tmp = TmpDir::new("cross");
+    let tmp = TmpDir::new("eval-cross");
     let dirs: Vec<PathBuf> = (0..3).map(|k| tmp.0.join(format!("traj{k}"))).collect();
     for (k, d) in dirs.iter().enumerate() {
         simulate_dir(d, 20 + k as u64, 40.0);
@@ -309,7 +295,7 @@ fn discovery_recognises_real_a50_logs_and_bags() {
         "{e}"
     );
     // A bag beside a pose file is found as the DVL log; a README is ignored with a reason.
-    let tmp = TmpDir::new("bag");
+    let tmp = TmpDir::new("eval-bag");
     let d = tmp.0.join("run");
     simulate_dir(&d, 9, 5.0);
     std::fs::remove_file(d.join("dvl.jsonl")).unwrap();

@@ -1,0 +1,21 @@
+//! A temporary folder for a test, removed when the test ends (pass or fail).
+
+use std::path::PathBuf;
+
+pub struct TmpDir(pub PathBuf);
+
+impl TmpDir {
+    /// A fresh, empty folder named after the test's `tag` and the process.
+    pub fn new(tag: &str) -> TmpDir {
+        let d = std::env::temp_dir().join(format!("dvlcal-{tag}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).expect("create a temporary folder");
+        TmpDir(d)
+    }
+}
+
+impl Drop for TmpDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
