@@ -75,12 +75,11 @@ fn one(seed: u64, duration: f64, dir: &std::path::Path, images: bool, pose_sigma
     let t_world_board = board_facing(&ds.truth_poses[0].pose, &board, DEFAULT_BOARD_DISTANCE_M);
     let t_board_world = t_world_board.inverse();
     let frames: Vec<FrameSpec> = ds
-        .poses
+        .true_poses_in(&t_board_world)
         .iter()
-        .zip(&ds.truth_poses)
-        .map(|(p, s)| FrameSpec {
-            t_ns: ds.epoch.sec * 1_000_000_000 + (p.t * 1e9).round() as i64,
-            t_board_cam0: t_board_world * s.pose,
+        .map(|p| FrameSpec {
+            t_ns: ds.unix_ns(p.t),
+            t_board_cam0: p.pose,
         })
         .collect();
     if !images {

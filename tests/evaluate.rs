@@ -26,15 +26,7 @@ fn sim(seed: u64, motion: MotionKind, duration: f64) -> SimDataset {
 
 /// The simulation's poses without noise, so that the check measures the dead reckoning alone.
 fn true_poses(ds: &SimDataset) -> Vec<PoseMeasurement> {
-    ds.poses
-        .iter()
-        .zip(&ds.truth_poses)
-        .map(|(p, s)| PoseMeasurement {
-            t: p.t,
-            pose: s.pose,
-            cov: None,
-        })
-        .collect()
+    ds.true_poses_in(&Se3::identity())
 }
 
 fn perturbed(

@@ -182,6 +182,27 @@ pub struct SimDataset {
     pub truth: CalibrationParams,
 }
 
+impl SimDataset {
+    /// The true camera poses at the pose times, expressed in another fixed frame:
+    /// `T_frame_world * T_world_cam` (the identity gives `T_world_cam`); no covariance.
+    pub fn true_poses_in(&self, t_frame_world: &Se3) -> Vec<PoseMeasurement> {
+        self.poses
+            .iter()
+            .zip(&self.truth_poses)
+            .map(|(p, s)| PoseMeasurement {
+                t: p.t,
+                pose: t_frame_world * &s.pose,
+                cov: None,
+            })
+            .collect()
+    }
+
+    /// Absolute Unix time in nanoseconds of camera time `t` (image file names).
+    pub fn unix_ns(&self, t: f64) -> i64 {
+        self.epoch.sec * 1_000_000_000 + (t * 1e9).round() as i64
+    }
+}
+
 /// Builds the motion `cfg.motion` of `cfg` (the one [`simulate`] uses).
 pub fn build_motion(cfg: &SimConfig) -> Result<Box<dyn Motion>> {
     Ok(match cfg.motion {

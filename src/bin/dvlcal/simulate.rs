@@ -25,7 +25,7 @@ use dvlcal::sim::dataset::{MotionKind, SimConfig, SimDataset, simulate};
 use dvlcal::sim::motion::MotionState;
 use dvlcal::time::Epoch;
 use dvlcal::trajectory::lie::Se3;
-use dvlcal::types::{DvlSample, PoseMeasurement};
+use dvlcal::types::DvlSample;
 use dvlcal::vision::board::Board;
 use dvlcal::vision::camera::Camchain;
 use dvlcal::vision::synth::{
@@ -231,16 +231,7 @@ pub fn run(a: SimulateArgs) -> Result<()> {
         out("poses.txt")
     };
     write_tum(&noisy, ds.epoch, &ds.poses)?;
-    let truth_poses: Vec<PoseMeasurement> = ds
-        .poses
-        .iter()
-        .zip(&ds.truth_poses)
-        .map(|(p, s)| PoseMeasurement {
-            t: p.t,
-            pose: s.pose,
-            cov: None,
-        })
-        .collect();
+    let truth_poses = ds.true_poses_in(&Se3::identity());
     write_tum(&truth_out("poses.txt"), ds.epoch, &truth_poses)?;
     write_twist_csv(
         &truth_out("twist.csv"),
@@ -302,20 +293,11 @@ fn write_images(a: &SimulateArgs, ds: &SimDataset, board: &Board, chain: &Camcha
         .context("the simulation produced no camera pose")?;
     let t_world_board = board_facing(&first.pose, board, a.board_distance);
     let t_board_world = t_world_board.inverse();
-    let board_poses: Vec<PoseMeasurement> = ds
-        .poses
-        .iter()
-        .zip(&ds.truth_poses)
-        .map(|(p, s)| PoseMeasurement {
-            t: p.t,
-            pose: t_board_world * s.pose,
-            cov: None,
-        })
-        .collect();
+    let board_poses = ds.true_poses_in(&t_board_world);
     let frames: Vec<FrameSpec> = board_poses
         .iter()
         .map(|p| FrameSpec {
-            t_ns: ds.epoch.sec * 1_000_000_000 + (p.t * 1e9).round() as i64,
+            t_ns: ds.unix_ns(p.t),
             t_board_cam0: p.pose,
         })
         .collect();
