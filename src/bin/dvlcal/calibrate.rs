@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use crate::dataset::{DatasetArgs, load, print_found, resolve};
+use crate::detect::worker_pool;
 use crate::dvl_info::DvlInputArgs;
 
 use dvlcal::calib::model::Params;
@@ -19,7 +20,6 @@ use dvlcal::io::calib_yaml::{
 use dvlcal::io::dvl::DvlLog;
 use dvlcal::io::exports::{FrameNames, kalibr_dvl_block, ros_static_transform};
 use dvlcal::io::write_atomic;
-use dvlcal::vision::camera::Camchain;
 use nalgebra::Matrix4;
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -218,18 +218,6 @@ pub fn options(
     Ok(opts)
 }
 
-/// A thread pool of `threads` workers (default: all cores).
-pub fn pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
-    let n = threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
-    if n == 0 {
-        bail!("--threads must be at least 1");
-    }
-    rayon::ThreadPoolBuilder::new()
-        .num_threads(n)
-        .build()
-        .context("starting the worker threads")
-}
-
 /// `RESULT-<suffix>` beside `RESULT` (its extension dropped).
 pub fn sibling(out: &Path, suffix: &str) -> PathBuf {
     let stem = out
@@ -262,7 +250,7 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
         std::fs::create_dir_all(d).with_context(|| format!("creating {}", d.display()))?;
     }
     let data = load(files, &a.vision, &a.dvl_input.read_options(a.strict))?;
-    let workers = pool(a.vision.threads)?;
+    let workers = worker_pool(a.vision.threads)?;
     let start = Instant::now();
     let o = workers
         .install(|| calibrate(&data.poses, &data.log.samples, &opts))
@@ -282,13 +270,10 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
         &tf,
         ros_static_transform(&calib, &FrameNames::default()).as_bytes(),
     )?;
-    let t_cn_c0: Vec<Matrix4<f64>> = match &data.files.camchain {
-        Some(c) if data.vision.is_some() => Camchain::load(c)?
-            .t_cn_c0
-            .iter()
-            .map(|t| t.to_matrix())
-            .collect(),
-        _ => vec![Matrix4::identity()],
+    // With images, the DVL block is given for every camera of the chain; with poses, for cam0.
+    let t_cn_c0: Vec<Matrix4<f64>> = match &data.vision {
+        Some(run) => run.chain.t_cn_c0.iter().map(|t| t.to_matrix()).collect(),
+        None => vec![Matrix4::identity()],
     };
     let block = sibling(&a.out, "camchain-dvl.yaml");
     write_atomic(&block, kalibr_dvl_block(&calib, &t_cn_c0).as_bytes())?;

@@ -63,8 +63,22 @@ pub struct DetectArgs {
     pub tuning: VisionTuning,
 }
 
+/// A thread pool of `threads` workers (default: all cores).
+pub fn worker_pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
+    let n = threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    if n == 0 {
+        bail!("--threads must be at least 1");
+    }
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(n)
+        .build()
+        .context("starting the worker threads")
+}
+
 /// Everything a run of the pipeline produced.
 pub struct VisionRun {
+    /// The camera chain the poses were solved with.
+    pub chain: Camchain,
     pub epoch: Epoch,
     /// One per posed frame, in time order, with covariances.
     pub poses: Vec<PoseMeasurement>,
@@ -111,16 +125,7 @@ pub fn run_pipeline(
         sigma_px: t.pixel_sigma,
         ..PnpOptions::default()
     };
-    let threads = t
-        .threads
-        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
-    if threads == 0 {
-        bail!("--threads must be at least 1");
-    }
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .context("starting the worker threads")?;
+    let pool = worker_pool(t.threads)?;
     let start = Instant::now();
     let (results, stats) =
         pool.install(|| detect_frames(&frames, &board, &chain, &det, &opts, !t.no_progress))?;
@@ -147,6 +152,7 @@ pub fn run_pipeline(
         })
         .collect();
     let run = VisionRun {
+        chain,
         epoch,
         poses,
         results,

@@ -15,9 +15,9 @@ use dvlcal::io::calib_yaml::read_calib_yaml;
 use dvlcal::io::write_atomic;
 use dvlcal::types::CalibrationParams;
 
-use crate::calibrate::{MethodArg, options, pool};
+use crate::calibrate::{MethodArg, options};
 use crate::dataset::{DatasetArgs, Loaded, load, resolve};
-use crate::detect::VisionTuning;
+use crate::detect::{VisionTuning, worker_pool};
 use crate::dvl_info::DvlInputArgs;
 
 #[derive(Args)]
@@ -160,7 +160,7 @@ pub fn run(a: EvaluateArgs) -> Result<()> {
             &a.offset_range,
             false,
         )?;
-        let workers = pool(a.vision.threads)?;
+        let workers = worker_pool(a.vision.threads)?;
         // results[m][i][j]: method m calibrated on i, checked on j (i != j).
         let n = data.len();
         let mut results: Vec<Vec<Vec<Option<Odometry>>>> = Vec::new();
