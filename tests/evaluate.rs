@@ -168,6 +168,18 @@ fn discovery_finds_a_simulated_dataset_and_names_competing_files() {
     assert_eq!(f.dvl.as_deref(), Some(d.join("other.json").as_path()));
     std::fs::remove_file(d.join("other.json")).unwrap();
 
+    // An unreadable YAML (not UTF-8) is listed as ignored, with the reason, not fatal.
+    std::fs::write(d.join("broken.yaml"), [0xff, 0xfe, 0x00, 0x41]).unwrap();
+    let f = discover(&d, &DatasetOverrides::default()).unwrap();
+    assert!(
+        f.ignored
+            .iter()
+            .any(|(p, why)| p.ends_with("broken.yaml") && why.starts_with("unreadable")),
+        "{:?}",
+        f.ignored
+    );
+    std::fs::remove_file(d.join("broken.yaml")).unwrap();
+
     // Images beside a pose file: ambiguous.
     std::fs::create_dir_all(d.join("cam0")).unwrap();
     let e = discover(&d, &DatasetOverrides::default())

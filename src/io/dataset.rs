@@ -205,13 +205,17 @@ pub fn discover(dir: &Path, given: &DatasetOverrides) -> Result<DatasetFiles> {
             continue;
         }
         let role = if is_yaml(&p) {
-            yaml_role(&p)?
+            yaml_role(&p)
         } else {
-            data_role(&p)?
+            data_role(&p)
         };
+        // A file that cannot be read cannot be a part either: it is listed with the reason
+        // rather than stopping the search (a part named explicitly is still read, and fails,
+        // later).
         match role {
-            Ok(r) => candidates.push((r, p)),
-            Err(why) => found.ignored.push((p, why)),
+            Ok(Ok(r)) => candidates.push((r, p)),
+            Ok(Err(why)) => found.ignored.push((p, why)),
+            Err(e) => found.ignored.push((p, format!("unreadable ({e})"))),
         }
     }
     let pick = |role: Role, given: &Option<PathBuf>| -> Result<Option<PathBuf>> {
