@@ -61,11 +61,9 @@ fn main() {
         let out = last.expect("one run");
         let t = median(times);
         let truth = dvlcal::calib::model::Params::from_calibration(&ds.truth);
-        let rot = dvlcal::trajectory::lie::so3::log(
-            &(out.params.r_dvl_cam * truth.r_dvl_cam.transpose()),
-        )
-        .norm()
-        .to_degrees();
+        let rot = dvlcal::lie::so3::log(&(out.params.r_dvl_cam * truth.r_dvl_cam.transpose()))
+            .norm()
+            .to_degrees();
         println!(
             "| {} | {} | {reps} | {t:.3} s | {:.1} | {} | {rot:.4} | {:.2} | {:.3} |",
             ds.dvl.len(),

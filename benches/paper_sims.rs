@@ -23,10 +23,10 @@ use std::time::Instant;
 use dvlcal::calib::closed_form::{ClosedFormRow, closed_form};
 use dvlcal::calib::model::Params;
 use dvlcal::calib::{CalibOptions, Method, calibrate};
+use dvlcal::lie::so3;
 use dvlcal::sim::rng::Rng;
 use dvlcal::sim::{MotionKind, SimConfig, SimDataset, simulate};
 use dvlcal::trajectory::Knot;
-use dvlcal::trajectory::lie::so3;
 use nalgebra::{Matrix6, Vector3};
 
 const DVL_SIGMA: f64 = 0.01;

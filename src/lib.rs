@@ -14,6 +14,7 @@ pub mod calib;
 pub mod error;
 pub mod eval;
 pub mod io;
+pub mod lie;
 mod parallel;
 pub mod report;
 pub mod sim;

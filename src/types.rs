@@ -2,7 +2,7 @@
 
 use nalgebra::{Matrix3, Matrix6, Vector3};
 
-use crate::trajectory::lie::Se3;
+use crate::lie::Se3;
 
 /// One measured camera pose, `T_world_cam`, on the camera clock.
 #[derive(Clone, Debug)]

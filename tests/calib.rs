@@ -4,8 +4,8 @@
 use dvlcal::calib::model::{NPARAM, Params, difference};
 use dvlcal::calib::offset::OffsetMethod;
 use dvlcal::calib::{CalibOptions, CalibrationOutcome, Method, calibrate};
+use dvlcal::lie::so3;
 use dvlcal::sim::dataset::{MotionKind, SimConfig, SimDataset, simulate};
-use dvlcal::trajectory::lie::so3;
 use nalgebra::{SVector, Vector3};
 
 fn dataset(seed: u64, motion: MotionKind, duration: f64) -> SimDataset {

@@ -24,9 +24,9 @@ use std::time::Instant;
 
 use dvlcal::calib::closed_form::{ClosedFormRow, closed_form};
 use dvlcal::calib::model::{Params, predict};
+use dvlcal::lie::{Se3, so3};
 use dvlcal::sim::rng::Rng;
 use dvlcal::trajectory::gp::{phi_scalar, q_scalar};
-use dvlcal::trajectory::lie::{Se3, so3};
 use dvlcal::trajectory::{FitOptions, Trajectory};
 use dvlcal::types::PoseMeasurement;
 use nalgebra::{DMatrix, Matrix3, Matrix6, Vector3, Vector6};

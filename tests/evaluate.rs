@@ -9,8 +9,8 @@ use std::process::Command;
 
 use dvlcal::eval::odometry::{OdometryOptions, dvl_odometry};
 use dvlcal::io::dataset::{DatasetOverrides, discover};
+use dvlcal::lie::{Se3, so3};
 use dvlcal::sim::dataset::{MotionKind, SimConfig, SimDataset, simulate};
-use dvlcal::trajectory::lie::{Se3, so3};
 use dvlcal::types::{CalibrationParams, PoseMeasurement};
 use nalgebra::Vector3;
 

@@ -15,8 +15,8 @@ use dvlcal::io::times::read_times;
 use dvlcal::io::tum::{read_tum, write_tum};
 use dvlcal::io::twist_csv::{TWIST_CSV_HEADER, TwistRow, read_twist_csv, write_twist_csv};
 use dvlcal::io::write_atomic;
+use dvlcal::lie::Se3;
 use dvlcal::time::Epoch;
-use dvlcal::trajectory::lie::Se3;
 use dvlcal::types::{CalibrationParams, PoseMeasurement};
 use nalgebra::{Vector3, Vector6};
 

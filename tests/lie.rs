@@ -1,4 +1,4 @@
-//! Property tests for the SO(3)/SE(3) module `dvlcal::trajectory::lie`.
+//! Property tests for the SO(3)/SE(3) module `dvlcal::lie`.
 //!
 //! Every formula is checked against an independent reference: numeric central differences for
 //! the Jacobians, a scaling-and-squaring matrix exponential and power series in `curly(xi)` for
@@ -8,7 +8,7 @@
 //! that a wrong sign or coefficient in any term fails; they are looser than machine precision
 //! only by the conditioning of the reference (e.g. `eps / h` for central differences).
 
-use dvlcal::trajectory::lie::{self, Se3, so3};
+use dvlcal::lie::{self, Se3, so3};
 use nalgebra::{
     DMatrix, DVector, Matrix3, Matrix4, Quaternion, SMatrix, SVector, UnitQuaternion, Vector3,
     Vector4,

@@ -1,12 +1,12 @@
 //! Tests of the simulator: random numbers, motions and datasets.
 
 use dvlcal::Error;
+use dvlcal::lie::Se3;
 use dvlcal::sim::motion::{
     MeanReversion, Motion, SampledConfig, SampledMotion, ScrewMotion, SinusoidMotion,
 };
 use dvlcal::sim::rng::{Rng, splitmix64};
 use dvlcal::sim::{MotionKind, SimConfig, build_motion, dvl_model, simulate};
-use dvlcal::trajectory::lie::Se3;
 use nalgebra::{Vector3, Vector6};
 
 // ---------------------------------------------------------------------------------------------

@@ -5,10 +5,10 @@
 //! when the reported covariance `Sigma` is honest. Seeds are independent, so the spread of the
 //! per-seed mean NEES gives the standard error of the across-seed mean.
 
+use dvlcal::lie::{Se3, curly, se3_right_jacobian_inv, so3};
 use dvlcal::sim::motion::{Motion, SampledMotion, ScrewMotion, SinusoidMotion};
 use dvlcal::sim::rng::Rng;
 use dvlcal::sim::{SimConfig, simulate_with};
-use dvlcal::trajectory::lie::{Se3, curly, se3_right_jacobian_inv, so3};
 use dvlcal::trajectory::{FitOptions, Trajectory};
 use dvlcal::types::PoseMeasurement;
 use nalgebra::{DMatrix, DVector, Matrix3, Matrix6, Vector3, Vector6};

@@ -2,7 +2,7 @@
 //! camchain files).
 
 use dvlcal::Error;
-use dvlcal::trajectory::lie::Se3;
+use dvlcal::lie::Se3;
 use dvlcal::vision::board::{Board, TagFamily, family_code_count};
 use dvlcal::vision::camera::{Camchain, Camera, Distortion};
 use dvlcal::vision::render::{family_layout, tag_cells};

@@ -6,7 +6,7 @@ mod vision_seq;
 use std::path::Path;
 use std::process::Command;
 
-use dvlcal::trajectory::lie::Se3;
+use dvlcal::lie::Se3;
 use dvlcal::vision::board::Board;
 use dvlcal::vision::camera::Camchain;
 use dvlcal::vision::detect::DetectorSettings;

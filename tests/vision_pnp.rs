@@ -3,8 +3,8 @@
 
 use nalgebra::{Matrix3, Vector2, Vector3, Vector6};
 
+use dvlcal::lie::{Se3, so3};
 use dvlcal::sim::rng::Rng;
-use dvlcal::trajectory::lie::{Se3, so3};
 use dvlcal::vision::board::{Board, TagFamily};
 use dvlcal::vision::camera::{Camchain, Camera, Distortion};
 use dvlcal::vision::detect::TagDetection;

@@ -2,8 +2,8 @@
 //! detector reports land where the board's corners project (which also fixes the corner order of
 //! `BoardTag::corners` to libapriltag's p[0..4]).
 
+use dvlcal::lie::Se3;
 use dvlcal::sim::rng::Rng;
-use dvlcal::trajectory::lie::Se3;
 use dvlcal::vision::board::{Board, TagFamily};
 use dvlcal::vision::camera::{Camera, Distortion};
 use dvlcal::vision::detect::{Detector, DetectorSettings};

@@ -4,8 +4,8 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+use dvlcal::lie::Se3;
 use dvlcal::sim::dataset::{MotionKind, SimConfig, simulate};
-use dvlcal::trajectory::lie::Se3;
 use dvlcal::vision::board::Board;
 use dvlcal::vision::camera::Camchain;
 use dvlcal::vision::detect::{Detector, DetectorSettings, load_gray};

@@ -11,7 +11,7 @@ use nalgebra::{Matrix3, Matrix6, SMatrix, Vector3, Vector6};
 
 use super::model::Params;
 use crate::error::{Error, Result};
-use crate::trajectory::lie::vee;
+use crate::lie::vee;
 
 /// One row of the stacked problem.
 #[derive(Clone, Debug)]
@@ -136,8 +136,8 @@ pub fn closed_form(rows: &[ClosedFormRow], bias_corrected: bool) -> Result<Close
 mod tests {
     use super::*;
     use crate::calib::model::predict;
+    use crate::lie::so3;
     use crate::sim::rng::Rng;
-    use crate::trajectory::lie::so3;
 
     #[test]
     fn exact_data_gives_exact_parameters() {

@@ -5,7 +5,7 @@
 
 use nalgebra::{Matrix3, SMatrix, Vector3, Vector6};
 
-use crate::trajectory::lie::{Se3, hat, so3};
+use crate::lie::{Se3, hat, so3};
 use crate::types::CalibrationParams;
 
 /// Calibration parameters in the form the estimator works with.

@@ -13,13 +13,13 @@ use super::model::{NPARAM, Params, d_predict_d_params, d_predict_d_twist, predic
 use super::offset::DvlObs;
 use super::refine::{ParamMat, ParamVec, pin_fixed};
 use crate::error::{Error, Result};
+use crate::lie::Se3;
 use crate::trajectory::blocktri::{BlockTridiagonal, M18, V18};
 use crate::trajectory::fit::{
     ASSEMBLY_CHUNK, AssemblyChunk, GaussNewtonOptions, NormalEquations, Problem, assembly_chunks,
     gauss_newton, measurement_information, step,
 };
 use crate::trajectory::gp::LocalState;
-use crate::trajectory::lie::Se3;
 use crate::trajectory::{Knot, KnotView, Trajectory};
 use crate::types::PoseMeasurement;
 

@@ -20,7 +20,7 @@
 use nalgebra::{Matrix3, Vector3};
 
 use crate::error::{Error, Result};
-use crate::trajectory::lie::so3;
+use crate::lie::so3;
 use crate::types::{CalibrationParams, DvlSample, PoseMeasurement};
 
 /// Settings of the odometry check.

@@ -14,7 +14,7 @@ use serde::{Deserialize, Serialize};
 
 use super::read_text;
 use crate::error::{Error, Result};
-use crate::trajectory::lie::Se3;
+use crate::lie::Se3;
 use crate::types::CalibrationParams;
 
 /// Tolerance of the rigidity and consistency checks of [`CalibrationFile::to_params`].

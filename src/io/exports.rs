@@ -112,7 +112,7 @@ pub fn kalibr_dvl_block(c: &CalibrationParams, t_cn_c0: &[Matrix4<f64>]) -> Stri
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::trajectory::lie::Se3;
+    use crate::lie::Se3;
     use nalgebra::{Vector3, Vector6};
 
     fn params() -> CalibrationParams {

@@ -8,8 +8,8 @@ use nalgebra::Vector3;
 
 use super::{content_lines, fmt_f64, last_line, non_finite, parse_finite, parse_time, read_text};
 use crate::error::{Error, Result};
+use crate::lie::Se3;
 use crate::time::{Epoch, RawTime};
-use crate::trajectory::lie::Se3;
 use crate::types::PoseMeasurement;
 
 /// Largest accepted difference between a quaternion's norm and 1; smaller deviations are

@@ -15,8 +15,8 @@ use super::motion::{
     BoardViewMotion, Motion, MotionState, SampledMotion, SinusoidMotion, check_rotation,
 };
 use super::rng::Rng;
+use crate::lie::{Se3, so3};
 use crate::time::Epoch;
-use crate::trajectory::lie::{Se3, so3};
 use crate::types::{CalibrationParams, DvlSample, PoseMeasurement};
 use crate::{Error, Result};
 

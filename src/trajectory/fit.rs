@@ -14,8 +14,8 @@ use super::gp::{
     prior_factor, prior_normal, q_scalar_inv,
 };
 use super::hyper;
-use super::lie::{Se3, se3_right_jacobian, se3_right_jacobian_inv};
 use crate::error::{Error, Result};
+use crate::lie::{Se3, se3_right_jacobian, se3_right_jacobian_inv};
 use crate::types::PoseMeasurement;
 
 /// How to fit.

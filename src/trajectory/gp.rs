@@ -15,7 +15,7 @@
 use nalgebra::{Matrix3, Matrix6, SMatrix, Vector6};
 
 use super::blocktri::{M18, V18};
-use super::lie::{Se3, curly, se3_right_jacobian, se3_right_jacobian_inv};
+use crate::lie::{Se3, curly, se3_right_jacobian, se3_right_jacobian_inv};
 
 /// State of the trajectory at a knot.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -633,7 +633,7 @@ mod tests {
 
     #[test]
     fn series_derivatives_match_numeric_differentiation() {
-        use super::super::lie::{se3_right_jacobian, se3_right_jacobian_inv};
+        use crate::lie::{se3_right_jacobian, se3_right_jacobian_inv};
         let c = Vector6::new(0.7, -1.3, 0.4, 2.1, -0.6, 1.1);
         let dirs = [
             Vector6::new(0.3, -0.2, 0.5, 0.4, -0.3, 0.2),
@@ -749,7 +749,7 @@ mod tests {
             assert!((k.twist - twist).abs().max() < 1e-9, "s {s}");
             assert!(k.rate.abs().max() < 1e-8, "s {s}: {}", k.rate);
             assert!((k.pose.trans - expect.trans).norm() < 1e-10);
-            let dr = super::super::lie::so3::log(&(k.pose.rot.transpose() * expect.rot));
+            let dr = crate::lie::so3::log(&(k.pose.rot.transpose() * expect.rot));
             assert!(dr.norm() < 1e-10);
         }
         let _ = Vector3::<f64>::zeros();

@@ -20,8 +20,8 @@ use super::fit::{
     step,
 };
 use super::gp::Knot;
-use super::lie::{Se3, so3};
 use crate::error::Result;
+use crate::lie::{Se3, so3};
 use crate::types::PoseMeasurement;
 
 /// Search bounds of the jerk power spectral density.

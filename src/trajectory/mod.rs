@@ -4,7 +4,6 @@ pub mod blocktri;
 pub mod fit;
 pub mod gp;
 pub mod hyper;
-pub mod lie;
 
 pub use fit::{FitOptions, FitReport, KnotView, Trajectory, TrajectoryState};
 pub use gp::Knot;

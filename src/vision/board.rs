@@ -54,7 +54,7 @@ use nalgebra::{Matrix4, Vector3};
 use serde::Deserialize;
 use std::path::Path;
 
-use crate::trajectory::lie::Se3;
+use crate::lie::Se3;
 use crate::{Error, Result};
 
 /// The tag families libapriltag ships.

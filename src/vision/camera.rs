@@ -19,7 +19,7 @@ use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use crate::trajectory::lie::Se3;
+use crate::lie::Se3;
 use crate::{Error, Result};
 
 /// Lens distortion model and coefficients.

@@ -17,8 +17,8 @@ use apriltag_sys as sys;
 use image::GrayImage;
 use nalgebra::{Matrix2, Vector2, Vector3};
 
+use crate::lie::Se3;
 use crate::sim::rng::Rng;
-use crate::trajectory::lie::Se3;
 use crate::vision::board::{Board, TagFamily};
 use crate::vision::camera::Camera;
 

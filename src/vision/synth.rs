@@ -25,8 +25,8 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use image::GrayImage;
 use nalgebra::{Matrix3, Vector3};
 
+use crate::lie::{Se3, so3};
 use crate::sim::rng::Rng;
-use crate::trajectory::lie::{Se3, so3};
 use crate::vision::board::{Board, TagFamily};
 use crate::vision::camera::{Camchain, Camera, Distortion};
 use crate::vision::render::{RenderSettings, render};

@@ -8,8 +8,8 @@ use std::path::{Path, PathBuf};
 
 use nalgebra::{Matrix3, Vector3};
 
+use dvlcal::lie::{Se3, so3};
 use dvlcal::sim::rng::Rng;
-use dvlcal::trajectory::lie::{Se3, so3};
 use dvlcal::vision::board::{Board, TagFamily};
 use dvlcal::vision::camera::{Camchain, Camera, Distortion};
 use dvlcal::vision::render::{RenderSettings, render};
