@@ -15,11 +15,11 @@ use super::refine::{ParamMat, ParamVec, pin_fixed};
 use crate::error::{Error, Result};
 use crate::lie::Se3;
 use crate::trajectory::blocktri::{BlockTridiagonal, M18, V18};
-use crate::trajectory::fit::{
+use crate::trajectory::gp::LocalState;
+use crate::trajectory::solver::{
     ASSEMBLY_CHUNK, AssemblyChunk, GaussNewtonOptions, NormalEquations, Problem, assembly_chunks,
     gauss_newton, measurement_information, step,
 };
-use crate::trajectory::gp::LocalState;
 use crate::trajectory::{Knot, KnotView, Trajectory};
 use crate::types::PoseMeasurement;
 

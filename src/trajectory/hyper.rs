@@ -15,11 +15,10 @@
 
 use nalgebra::Vector6;
 
-use super::fit::{
-    FitOptions, GaussNewtonOptions, Problem, gauss_newton, initial_knots, measurement_information,
-    step,
-};
 use super::gp::Knot;
+use super::solver::{
+    GaussNewtonOptions, Problem, gauss_newton, initial_knots, measurement_information, step,
+};
 use crate::error::Result;
 use crate::lie::{Se3, so3};
 use crate::types::PoseMeasurement;
@@ -229,11 +228,17 @@ fn nelder_mead(
     pts[best].clone()
 }
 
-/// Hyperparameters for a fit: the user's where given, estimated otherwise.
-pub fn choose(poses: &[PoseMeasurement], opts: &FitOptions) -> Result<Hyper> {
+/// Hyperparameters for a fit: the user's `qc` and `pose_sigma` where given, estimated otherwise
+/// on windows of at most `window_knots` knots in all.
+pub fn choose(
+    poses: &[PoseMeasurement],
+    qc: Option<Vector6<f64>>,
+    pose_sigma: Option<(f64, f64)>,
+    window_knots: usize,
+) -> Result<Hyper> {
     let all_have_cov = poses.iter().all(|p| p.cov.is_some());
-    let sigma_known = opts.pose_sigma.or(all_have_cov.then_some((1.0, 1.0)));
-    if let Some(qc) = opts.qc {
+    let sigma_known = pose_sigma.or(all_have_cov.then_some((1.0, 1.0)));
+    if let Some(qc) = qc {
         let (sigma, est) = match sigma_known {
             Some(s) => (s, false),
             None => (noise_from_differences(poses), true),
@@ -245,7 +250,7 @@ pub fn choose(poses: &[PoseMeasurement], opts: &FitOptions) -> Result<Hyper> {
             pose_sigma_estimated: est,
         });
     }
-    let mut wins: Vec<Window> = windows(poses.len(), opts.hyper_knots)
+    let mut wins: Vec<Window> = windows(poses.len(), window_knots)
         .into_iter()
         .map(|(a, b)| {
             let ps = &poses[a..b];

@@ -4,6 +4,7 @@ pub mod blocktri;
 pub mod fit;
 pub mod gp;
 pub mod hyper;
+pub(crate) mod solver;
 
 pub use fit::{FitOptions, FitReport, KnotView, Trajectory, TrajectoryState};
 pub use gp::Knot;
