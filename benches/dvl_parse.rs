@@ -5,7 +5,7 @@
 use std::path::Path;
 use std::time::Instant;
 
-use dvlcal::io::a50_json::{parse_velocity_report, velocity_report_line};
+use dvlcal::io::dvl::a50::{parse_velocity_report, velocity_report_line};
 use dvlcal::io::dvl::serial::wrz_sentence;
 use dvlcal::io::dvl::{DvlReadOptions, read_dvl_log};
 

@@ -8,7 +8,7 @@ use std::path::Path;
 use std::sync::OnceLock;
 
 use dvl_common::*;
-use dvlcal::io::a50_json::{A50Transducer, A50VelocityReport, velocity_report_line};
+use dvlcal::io::dvl::a50::{A50Transducer, A50VelocityReport, velocity_report_line};
 use dvlcal::io::dvl::report::crc8;
 use dvlcal::io::dvl::{
     DvlReadOptions, Parsed, VelocityReport, detect_format, json, read_dvl_log, read_dvl_text,

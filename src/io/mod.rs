@@ -4,7 +4,6 @@
 //! writer goes through [`write_atomic`], so an interrupted or failed write never leaves a
 //! half-written file behind.
 
-pub mod a50_json;
 pub mod calib_yaml;
 pub mod dataset;
 pub mod dvl;

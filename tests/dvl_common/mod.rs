@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-use dvlcal::io::a50_json::{A50VelocityReport, parse_velocity_report};
+use dvlcal::io::dvl::a50::{A50VelocityReport, parse_velocity_report};
 use dvlcal::io::dvl::serial::with_checksum;
 
 /// The real logs, in the shared folder beside the repository.

@@ -17,7 +17,7 @@ use clap::ValueEnum;
 use nalgebra::Vector3;
 use std::path::{Path, PathBuf};
 
-use dvlcal::io::a50_json::{A50Transducer, A50VelocityReport, write_a50_jsonl};
+use dvlcal::io::dvl::a50::{A50Transducer, A50VelocityReport, write_a50_jsonl};
 use dvlcal::io::calib_yaml::{CalibrationFile, CalibrationInfo, read_calib_yaml, write_calib_yaml};
 use dvlcal::io::tum::write_tum;
 use dvlcal::io::twist_csv::{TwistRow, write_twist_csv};

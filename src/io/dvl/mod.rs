@@ -13,6 +13,7 @@
 //! rejected with its reason (lenient mode) or stops the read with an error naming `file:line`
 //! (strict mode).
 
+pub mod a50;
 pub mod bag;
 pub mod detect;
 pub mod json;

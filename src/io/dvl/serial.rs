@@ -9,7 +9,7 @@
 //! `wrp`, `wrt` and other replies (counted as other reports).
 
 use super::report::{Parsed, Reject, VelocityReport, content_hash, crc8};
-use crate::io::a50_json::A50VelocityReport;
+use crate::io::dvl::a50::A50VelocityReport;
 
 /// Parses one line of a serial capture.
 pub fn parse_line(line: &[u8]) -> Result<Parsed, Reject> {

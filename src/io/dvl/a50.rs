@@ -1,16 +1,13 @@
-//! The Water Linked A50 TCP JSON stream (port 16171): one JSON object per line, lines ended by
-//! CRLF. This module writes json_v3 velocity reports exactly as the DVL does and reads the
-//! velocities back from json_v3 (and later) logs.
+//! Writing the Water Linked A50's formats: json_v3 velocity reports exactly as the DVL sends them
+//! on its TCP JSON stream (port 16171; one JSON object per line, lines ended by CRLF), and the
+//! typed report they are made from. Reading every A50 format is [`super::read_dvl_log`]'s job.
 
 use std::fmt::Write as _;
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use super::dvl::{DvlReadOptions, read_dvl_log};
 use crate::error::Result;
-use crate::time::Epoch;
-use crate::types::DvlSample;
 
 /// One beam of a velocity report.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -243,12 +240,12 @@ pub fn write_a50_jsonl(path: &Path, reports: &[A50VelocityReport]) -> Result<()>
     let mut out = String::with_capacity(reports.len() * 1100);
     for (i, r) in reports.iter().enumerate() {
         if !report_is_finite(r) {
-            return Err(super::non_finite(path, format!("a value of report {i}")));
+            return Err(crate::io::non_finite(path, format!("a value of report {i}")));
         }
         out.push_str(&velocity_report_line(r));
         out.push_str("\r\n");
     }
-    super::write_atomic(path, out.as_bytes())
+    crate::io::write_atomic(path, out.as_bytes())
 }
 
 /// Parses one velocity report line. serde_json's `float_roundtrip` feature (enabled in
@@ -256,40 +253,4 @@ pub fn write_a50_jsonl(path: &Path, reports: &[A50VelocityReport]) -> Result<()>
 /// for bit.
 pub fn parse_velocity_report(line: &str) -> serde_json::Result<A50VelocityReport> {
     serde_json::from_str(line)
-}
-
-/// Velocities read from an A50 JSON log.
-#[derive(Clone, Debug)]
-pub struct A50Log {
-    /// The epoch the sample times are relative to.
-    pub epoch: Epoch,
-    /// The velocity reports, in file order; `t` is `time_of_validity`.
-    pub samples: Vec<DvlSample>,
-    /// The 1-based source line of each sample.
-    pub lines: Vec<usize>,
-    /// Number of reports of other types (dead reckoning, water tracking, ...), skipped.
-    pub other_reports: usize,
-}
-
-/// Reads the bottom-tracking velocity reports of an A50 log, valid and invalid, strictly: the
-/// first malformed line is an error naming it. Times are `time_of_validity` relative to
-/// `epoch`, or, when it is `None`, to the whole second of the earliest report. Reports of other
-/// types are counted and skipped; exact repeats are kept once; samples are in time order.
-///
-/// A thin wrapper over [`crate::io::dvl::read_dvl_log`], which reads every A50 format (JSON
-/// lines, serial, ROS1 bags) and has a lenient mode: use that for new code.
-pub fn read_a50_velocities(path: &Path, epoch: Option<Epoch>) -> Result<A50Log> {
-    let opts = DvlReadOptions {
-        strict: true,
-        epoch,
-        include_invalid: true,
-        ..DvlReadOptions::default()
-    };
-    let log = read_dvl_log(path, &opts)?;
-    Ok(A50Log {
-        epoch: log.epoch,
-        samples: log.samples,
-        lines: log.lines,
-        other_reports: log.stats.other_reports + log.stats.water_velocity_reports,
-    })
 }
