@@ -17,16 +17,16 @@ use nalgebra::SMatrix;
 use dvlcal::calib::model::{NPARAM, Params, difference};
 use dvlcal::calib::{CalibOptions, calibrate};
 use dvlcal::sim::dataset::{MotionKind, SimConfig, simulate};
+use dvlcal::sim::image_dataset::{
+    DEFAULT_BOARD_DISTANCE_M, FrameSpec, ImageSimSettings, board_facing, default_board,
+    default_stereo_camchain, write_image_dataset,
+};
 use dvlcal::sim::rng::Rng;
 use dvlcal::types::PoseMeasurement;
 use dvlcal::vision::detect::DetectorSettings;
 use dvlcal::vision::images::scan_images;
 use dvlcal::vision::pipeline::detect_frames;
 use dvlcal::vision::pnp::PnpOptions;
-use dvlcal::vision::synth::{
-    DEFAULT_BOARD_DISTANCE_M, FrameSpec, ImageSimSettings, board_facing, default_board,
-    default_stereo_camchain, write_image_dataset,
-};
 
 const NAMES: [&str; NPARAM] = [
     "rot x (deg)",

@@ -3,14 +3,14 @@
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use dvlcal::io::dvl::a50::{
-    A50Transducer, A50VelocityReport, parse_velocity_report, velocity_report_line, write_a50_jsonl,
-};
-use dvlcal::io::dvl::{DvlLog, DvlReadOptions, read_dvl_log};
 use dvlcal::io::calib_yaml::{
     CalibrationFile, CalibrationInfo, CalibrationStd, Observability, ObservabilityFlags,
     read_calib_yaml, write_calib_yaml,
 };
+use dvlcal::io::dvl::a50::{
+    A50Transducer, A50VelocityReport, parse_velocity_report, velocity_report_line, write_a50_jsonl,
+};
+use dvlcal::io::dvl::{DvlLog, DvlReadOptions, read_dvl_log};
 use dvlcal::io::times::read_times;
 use dvlcal::io::tum::{read_tum, write_tum};
 use dvlcal::io::twist_csv::{TWIST_CSV_HEADER, TwistRow, read_twist_csv, write_twist_csv};
@@ -365,7 +365,10 @@ fn a50_report_line_parses_back_to_the_same_sample() {
     let log = read_a50_velocities(&p, None).unwrap();
     assert_eq!(log.epoch, Epoch { sec: 1_718_000_000 });
     assert_eq!(log.lines, [1, 2, 3, 4, 5]);
-    assert_eq!((log.stats.other_reports + log.stats.water_velocity_reports), 0);
+    assert_eq!(
+        (log.stats.other_reports + log.stats.water_velocity_reports),
+        0
+    );
     for (r, s) in reports.iter().zip(&log.samples) {
         assert!((s.t - (r.time_of_validity - 1_718_000_000_000_000) as f64 * 1e-6).abs() < 1e-12);
         assert_eq!(s.v, Vector3::new(r.vx, r.vy, r.vz));
@@ -385,7 +388,10 @@ fn a50_real_log_counts_and_exact_reproduction() {
     let log = read_a50_velocities(path, None).unwrap();
     assert_eq!(log.samples.len(), 1423);
     assert_eq!(log.samples.iter().filter(|s| s.valid).count(), 1295);
-    assert_eq!((log.stats.other_reports + log.stats.water_velocity_reports), 0);
+    assert_eq!(
+        (log.stats.other_reports + log.stats.water_velocity_reports),
+        0
+    );
     assert_eq!(log.epoch, Epoch { sec: 1_550_140_933 });
     assert!(log.samples.iter().all(|s| s.cov.is_some()));
     let span = log.samples.last().unwrap().t - log.samples[0].t;
@@ -431,7 +437,11 @@ fn a50_reader_errors_and_other_reports() {
     );
     let log = read_a50_velocities(&p, Some(Epoch { sec: 1_718_000_000 })).unwrap();
     assert_eq!(
-        (log.samples.len(), (log.stats.other_reports + log.stats.water_velocity_reports), log.lines.clone()),
+        (
+            log.samples.len(),
+            (log.stats.other_reports + log.stats.water_velocity_reports),
+            log.lines.clone()
+        ),
         (1, 1, vec![2])
     );
 

@@ -3,9 +3,9 @@
 
 use dvlcal::Error;
 use dvlcal::lie::Se3;
-use dvlcal::vision::board::{Board, TagFamily, family_code_count};
+use dvlcal::vision::board::{Board, TagFamily};
 use dvlcal::vision::camera::{Camchain, Camera, Distortion};
-use dvlcal::vision::render::{family_layout, tag_cells};
+use dvlcal::vision::family::{family_layout, tag_cells};
 use nalgebra::{Matrix2x3, Vector2, Vector3, Vector6};
 use std::path::{Path, PathBuf};
 
@@ -160,12 +160,7 @@ fn family_names_and_library_data() {
     for f in TagFamily::ALL {
         assert_eq!(TagFamily::from_name(f.name()), Some(f));
         let l = family_layout(f).unwrap();
-        assert_eq!(
-            Some(l.ncodes as usize),
-            family_code_count(f),
-            "{}",
-            f.name()
-        );
+        assert_eq!(l.ncodes as usize, f.code_count(), "{}", f.name());
         let c = tag_cells(f, 0).unwrap();
         assert_eq!(c.len(), l.total_width as usize);
         assert!(tag_cells(f, l.ncodes).is_none());

@@ -7,13 +7,13 @@ use std::path::Path;
 use std::process::Command;
 
 use dvlcal::lie::Se3;
+use dvlcal::sim::render::RenderSettings;
 use dvlcal::vision::board::Board;
 use dvlcal::vision::camera::Camchain;
 use dvlcal::vision::detect::DetectorSettings;
 use dvlcal::vision::images::{Layout, scan_images};
 use dvlcal::vision::pipeline::{FrameStatus, detect_frames, detect_poses};
 use dvlcal::vision::pnp::PnpOptions;
-use dvlcal::vision::render::RenderSettings;
 use vision_seq::*;
 
 fn touch(p: &Path) {
@@ -295,10 +295,10 @@ fn calibrate_takes_images_or_poses_not_both() {
 /// changes the apparent size of the tags, which the covariance from the residuals cannot cover.
 #[test]
 fn pose_covariance_is_consistent_on_rendered_frames() {
+    use dvlcal::sim::render::render;
     use dvlcal::sim::rng::Rng;
     use dvlcal::vision::detect::Detector;
     use dvlcal::vision::pnp::stereo_pose;
-    use dvlcal::vision::render::render;
     let chain = chain();
     let board = board();
     let opts = PnpOptions::default();

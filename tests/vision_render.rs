@@ -3,11 +3,12 @@
 //! `BoardTag::corners` to libapriltag's p[0..4]).
 
 use dvlcal::lie::Se3;
+use dvlcal::sim::render::{RenderSettings, render, render_exhaustive};
 use dvlcal::sim::rng::Rng;
 use dvlcal::vision::board::{Board, TagFamily};
 use dvlcal::vision::camera::{Camera, Distortion};
 use dvlcal::vision::detect::{Detector, DetectorSettings};
-use dvlcal::vision::render::{RenderSettings, render, render_exhaustive, tag_cells};
+use dvlcal::vision::family::tag_cells;
 use nalgebra::{Matrix3, Vector3, Vector6};
 
 fn camera(distortion: Distortion) -> Camera {

@@ -6,16 +6,16 @@ use std::process::Command;
 
 use dvlcal::lie::Se3;
 use dvlcal::sim::dataset::{MotionKind, SimConfig, simulate};
+use dvlcal::sim::image_dataset::{
+    DEFAULT_BOARD_DISTANCE_M, board_centre, board_facing, board_fully_visible, board_in_cameras,
+    default_board, default_stereo_camchain,
+};
 use dvlcal::vision::board::Board;
 use dvlcal::vision::camera::Camchain;
 use dvlcal::vision::detect::{Detector, DetectorSettings, load_gray};
 use dvlcal::vision::images::scan_images;
 use dvlcal::vision::pipeline::detect_poses;
 use dvlcal::vision::pnp::PnpOptions;
-use dvlcal::vision::synth::{
-    DEFAULT_BOARD_DISTANCE_M, board_centre, board_facing, board_fully_visible, board_in_cameras,
-    default_board, default_stereo_camchain,
-};
 
 struct TempDir(PathBuf);
 

@@ -4,9 +4,13 @@
 //! - [`motion`]: continuous camera motions with exact poses, twists and twist rates.
 //! - [`dataset`]: noisy camera poses and DVL velocities simulated from a motion and a known
 //!   calibration.
+//! - [`render`]: camera images of a board, rendered from libapriltag's own tag patterns.
+//! - [`image_dataset`]: the stereo images of a simulated recording, written as a dataset folder.
 
 pub mod dataset;
+pub mod image_dataset;
 pub mod motion;
+pub mod render;
 pub mod rng;
 
 pub use dataset::{

@@ -50,70 +50,13 @@
 //! - Kalibr's aprilgrid target YAML, unchanged (`target_type: 'aprilgrid'`, `tagCols`,
 //!   `tagRows`, `tagSize`, `tagSpacing`), with tag ids from 0.
 
-use nalgebra::{Matrix4, Vector3};
+use nalgebra::{Matrix4, Vector2, Vector3};
 use serde::Deserialize;
 use std::path::Path;
 
 use crate::lie::Se3;
+pub use crate::vision::family::TagFamily;
 use crate::{Error, Result};
-
-/// The tag families libapriltag ships.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum TagFamily {
-    Tag36h11,
-    Tag36h10,
-    Tag25h9,
-    Tag16h5,
-    TagCircle21h7,
-    TagCircle49h12,
-    TagStandard41h12,
-    TagStandard52h13,
-    TagCustom48h12,
-}
-
-impl TagFamily {
-    /// Every family, in a fixed order.
-    pub const ALL: [TagFamily; 9] = [
-        TagFamily::Tag36h11,
-        TagFamily::Tag36h10,
-        TagFamily::Tag25h9,
-        TagFamily::Tag16h5,
-        TagFamily::TagCircle21h7,
-        TagFamily::TagCircle49h12,
-        TagFamily::TagStandard41h12,
-        TagFamily::TagStandard52h13,
-        TagFamily::TagCustom48h12,
-    ];
-
-    /// The family's name as libapriltag spells it ("tag36h11", "tagStandard41h12", ...).
-    pub fn name(&self) -> &'static str {
-        match self {
-            TagFamily::Tag36h11 => "tag36h11",
-            TagFamily::Tag36h10 => "tag36h10",
-            TagFamily::Tag25h9 => "tag25h9",
-            TagFamily::Tag16h5 => "tag16h5",
-            TagFamily::TagCircle21h7 => "tagCircle21h7",
-            TagFamily::TagCircle49h12 => "tagCircle49h12",
-            TagFamily::TagStandard41h12 => "tagStandard41h12",
-            TagFamily::TagStandard52h13 => "tagStandard52h13",
-            TagFamily::TagCustom48h12 => "tagCustom48h12",
-        }
-    }
-
-    /// The family of a name; case-insensitive ("tag36h11", "TAG36H11", "tagStandard41h12").
-    pub fn from_name(s: &str) -> Option<TagFamily> {
-        let s = s.trim();
-        TagFamily::ALL
-            .into_iter()
-            .find(|f| f.name().eq_ignore_ascii_case(s))
-    }
-}
-
-impl std::fmt::Display for TagFamily {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
-    }
-}
 
 /// One tag of a board.
 #[derive(Clone, Debug, PartialEq)]
@@ -387,19 +330,18 @@ impl Board {
             }
             Board::grid(family, g.rows, g.cols, g.tag_size, g.spacing, g.first_id)
         };
-        if let Some(n) = crate::vision::board::family_code_count(board.family) {
-            if let Some(t) = board.tags.iter().find(|t| t.id as usize >= n) {
-                return Err(Error::parse(
-                    path,
-                    0,
-                    format!(
-                        "tag id {} does not exist in {} ({} codes)",
-                        t.id,
-                        board.family.name(),
-                        n
-                    ),
-                ));
-            }
+        let n = board.family.code_count();
+        if let Some(t) = board.tags.iter().find(|t| t.id as usize >= n) {
+            return Err(Error::parse(
+                path,
+                0,
+                format!(
+                    "tag id {} does not exist in {} ({} codes)",
+                    t.id,
+                    board.family.name(),
+                    n
+                ),
+            ));
         }
         Ok(board)
     }
@@ -492,17 +434,21 @@ impl Board {
     }
 }
 
-/// Number of codes of a family, when known here (used to reject ids the family lacks).
-pub fn family_code_count(f: TagFamily) -> Option<usize> {
-    Some(match f {
-        TagFamily::Tag36h11 => 587,
-        TagFamily::Tag36h10 => 2320,
-        TagFamily::Tag25h9 => 35,
-        TagFamily::Tag16h5 => 30,
-        TagFamily::TagCircle21h7 => 38,
-        TagFamily::TagCircle49h12 => 65535,
-        TagFamily::TagStandard41h12 => 2115,
-        TagFamily::TagStandard52h13 => 48714,
-        TagFamily::TagCustom48h12 => 42211,
-    })
+/// The white paper of a grid board in the board plane: lower-left and upper-right corners. The
+/// margin around the outer tags' black squares is the gap between tags, and at least the pattern's
+/// own white ring plus one cell.
+pub fn grid_paper(board: &Board, g: &GridLayout) -> (Vector2<f64>, Vector2<f64>) {
+    let layout = crate::vision::family::family_layout(board.family);
+    let (tw, wab) = layout
+        .map(|l| (l.total_width as f64, l.width_at_border.max(1) as f64))
+        .unwrap_or((10.0, 8.0));
+    let cell = g.tag_size_m / wab;
+    let margin = (g.spacing * g.tag_size_m).max(((tw - wab) / 2.0 + 1.0) * cell);
+    let d = g.tag_size_m * (1.0 + g.spacing);
+    let w = (g.cols as f64 - 1.0) * d + g.tag_size_m;
+    let h = (g.rows as f64 - 1.0) * d + g.tag_size_m;
+    (
+        Vector2::new(-margin, -margin),
+        Vector2::new(w + margin, h + margin),
+    )
 }

@@ -29,8 +29,8 @@ use std::path::Path;
 use apriltag_sys as sys;
 use nalgebra::Vector2;
 
-use crate::vision::board::TagFamily;
 use crate::vision::camera::Camera;
+use crate::vision::family::{Destroy, TagFamily};
 use crate::vision::refine::refine_corners;
 use crate::{Error, Result};
 
@@ -128,39 +128,12 @@ pub struct TagDetection {
     pub corners: [Vector2<f64>; 4],
 }
 
-unsafe extern "C" {
-    // Present in Debian's libapriltag 3.3 but not in apriltag-sys's bindings.
-    fn tag36h10_create() -> *mut sys::apriltag_family_t;
-    fn tag36h10_destroy(tf: *mut sys::apriltag_family_t);
-}
-
-type FamilyDestroy = unsafe extern "C" fn(*mut sys::apriltag_family_t);
-
-type FamilyCreate = unsafe extern "C" fn() -> *mut sys::apriltag_family_t;
-
-/// Constructor and destructor of a family, by libapriltag's name of it.
-fn family_fns(name: &str) -> Option<(FamilyCreate, FamilyDestroy)> {
-    let fns: (FamilyCreate, FamilyDestroy) = match name {
-        "tag36h11" => (sys::tag36h11_create, sys::tag36h11_destroy),
-        "tag36h10" => (tag36h10_create, tag36h10_destroy),
-        "tag25h9" => (sys::tag25h9_create, sys::tag25h9_destroy),
-        "tag16h5" => (sys::tag16h5_create, sys::tag16h5_destroy),
-        "tagCircle21h7" => (sys::tagCircle21h7_create, sys::tagCircle21h7_destroy),
-        "tagCircle49h12" => (sys::tagCircle49h12_create, sys::tagCircle49h12_destroy),
-        "tagStandard41h12" => (sys::tagStandard41h12_create, sys::tagStandard41h12_destroy),
-        "tagStandard52h13" => (sys::tagStandard52h13_create, sys::tagStandard52h13_destroy),
-        "tagCustom48h12" => (sys::tagCustom48h12_create, sys::tagCustom48h12_destroy),
-        _ => return None,
-    };
-    Some(fns)
-}
-
 /// An AprilTag detector for one family. Owns the libapriltag detector and family and frees both
 /// when dropped. Not shared between threads: make one per worker thread.
 pub struct Detector {
     td: *mut sys::apriltag_detector_t,
     tf: *mut sys::apriltag_family_t,
-    destroy_family: FamilyDestroy,
+    destroy_family: Destroy,
     settings: DetectorSettings,
     /// Pattern cells across the square the corners belong to (the family's `width_at_border`).
     cells_across: f64,
@@ -175,9 +148,7 @@ impl Detector {
     /// A detector with these settings.
     pub fn new(s: &DetectorSettings) -> Result<Detector> {
         s.validate()?;
-        let (create, destroy_family) = family_fns(s.family.name()).ok_or_else(|| {
-            Error::Input(format!("libapriltag has no tag family {}", s.family.name()))
-        })?;
+        let (create, destroy_family) = s.family.ffi();
         // SAFETY: plain constructors of the C library; null results are checked below.
         let tf = unsafe { create() };
         if tf.is_null() {

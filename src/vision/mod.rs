@@ -1,11 +1,11 @@
 //! Camera poses from stereo images of an AprilTag board: board and camera models, tag detection
-//! through libapriltag, stereo PnP through OpenCV, and a renderer for datasets with known truth.
+//! through libapriltag, and stereo PnP through OpenCV. (Rendered images with known truth are simulation: `sim::render`.)
 pub mod board;
+pub mod board_svg;
 pub mod camera;
 pub mod detect;
+pub mod family;
 pub mod images;
 pub mod pipeline;
 pub mod pnp;
 pub mod refine;
-pub mod render;
-pub mod synth;

@@ -9,10 +9,10 @@ use std::path::{Path, PathBuf};
 use nalgebra::{Matrix3, Vector3};
 
 use dvlcal::lie::{Se3, so3};
+use dvlcal::sim::render::{RenderSettings, render};
 use dvlcal::sim::rng::Rng;
 use dvlcal::vision::board::{Board, TagFamily};
 use dvlcal::vision::camera::{Camchain, Camera, Distortion};
-use dvlcal::vision::render::{RenderSettings, render};
 
 /// First frame time, ns (an EuRoC-like Unix time with a sub-microsecond part).
 pub const T0_NS: i64 = 1_403_636_579_763_555_584;

@@ -3,7 +3,7 @@
 //!
 //! The data: `dvl.jsonl` (A50 JSON lines) and `poses.txt` (noisy camera poses, TUM). With
 //! `--images`, the stereo images of a board along the motion instead of the poses (see
-//! `dvlcal::vision::synth` for the frames): `cam0/<ns>.png`, `cam1/<ns>.png` (absolute Unix
+//! `dvlcal::sim::image_dataset` for the frames): `cam0/<ns>.png`, `cam1/<ns>.png` (absolute Unix
 //! nanoseconds of the camera pose times), `camchain.yaml`, `target.yaml`.
 //!
 //! The truth, in `truth/` (which dataset discovery never reads): `calibration.yaml`, `poses.txt`
@@ -17,21 +17,21 @@ use clap::ValueEnum;
 use nalgebra::Vector3;
 use std::path::{Path, PathBuf};
 
-use dvlcal::io::dvl::a50::{A50Transducer, A50VelocityReport, write_a50_jsonl};
 use dvlcal::io::calib_yaml::{CalibrationFile, CalibrationInfo, read_calib_yaml, write_calib_yaml};
+use dvlcal::io::dvl::a50::{A50Transducer, A50VelocityReport, write_a50_jsonl};
 use dvlcal::io::tum::write_tum;
 use dvlcal::io::twist_csv::{TwistRow, write_twist_csv};
 use dvlcal::lie::Se3;
 use dvlcal::sim::dataset::{MotionKind, SimConfig, SimDataset, simulate};
+use dvlcal::sim::image_dataset::{
+    DEFAULT_BOARD_DISTANCE_M, FrameSpec, ImageSimSettings, board_facing, default_board,
+    default_stereo_camchain, write_image_dataset,
+};
 use dvlcal::sim::motion::MotionState;
 use dvlcal::time::Epoch;
 use dvlcal::types::DvlSample;
 use dvlcal::vision::board::Board;
 use dvlcal::vision::camera::Camchain;
-use dvlcal::vision::synth::{
-    DEFAULT_BOARD_DISTANCE_M, FrameSpec, ImageSimSettings, board_facing, default_board,
-    default_stereo_camchain, write_image_dataset,
-};
 
 #[derive(Clone, Copy, ValueEnum)]
 pub enum MotionArg {

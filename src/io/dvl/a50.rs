@@ -240,7 +240,10 @@ pub fn write_a50_jsonl(path: &Path, reports: &[A50VelocityReport]) -> Result<()>
     let mut out = String::with_capacity(reports.len() * 1100);
     for (i, r) in reports.iter().enumerate() {
         if !report_is_finite(r) {
-            return Err(crate::io::non_finite(path, format!("a value of report {i}")));
+            return Err(crate::io::non_finite(
+                path,
+                format!("a value of report {i}"),
+            ));
         }
         out.push_str(&velocity_report_line(r));
         out.push_str("\r\n");

@@ -13,14 +13,14 @@
 
 use std::sync::{Arc, Mutex};
 
-use apriltag_sys as sys;
 use image::GrayImage;
 use nalgebra::{Matrix2, Vector2, Vector3};
 
 use crate::lie::Se3;
 use crate::sim::rng::Rng;
-use crate::vision::board::{Board, TagFamily};
+use crate::vision::board::{Board, grid_paper};
 use crate::vision::camera::Camera;
+use crate::vision::family::tags_cells;
 
 /// Image formation settings.
 #[derive(Clone, Debug, PartialEq)]
@@ -66,135 +66,6 @@ impl RenderSettings {
 const BLACK: f32 = 20.0;
 const WHITE: f32 = 235.0;
 const BACKGROUND: f32 = 128.0;
-
-unsafe extern "C" {
-    // In Debian's libapriltag 3.3 but missing from apriltag-sys's bindings.
-    fn tag36h10_create() -> *mut sys::apriltag_family_t;
-    fn tag36h10_destroy(tf: *mut sys::apriltag_family_t);
-}
-
-type Create = unsafe extern "C" fn() -> *mut sys::apriltag_family_t;
-type Destroy = unsafe extern "C" fn(*mut sys::apriltag_family_t);
-
-fn family_fns(f: TagFamily) -> (Create, Destroy) {
-    match f {
-        TagFamily::Tag36h11 => (sys::tag36h11_create, sys::tag36h11_destroy),
-        TagFamily::Tag36h10 => (tag36h10_create, tag36h10_destroy),
-        TagFamily::Tag25h9 => (sys::tag25h9_create, sys::tag25h9_destroy),
-        TagFamily::Tag16h5 => (sys::tag16h5_create, sys::tag16h5_destroy),
-        TagFamily::TagCircle21h7 => (sys::tagCircle21h7_create, sys::tagCircle21h7_destroy),
-        TagFamily::TagCircle49h12 => (sys::tagCircle49h12_create, sys::tagCircle49h12_destroy),
-        TagFamily::TagStandard41h12 => {
-            (sys::tagStandard41h12_create, sys::tagStandard41h12_destroy)
-        }
-        TagFamily::TagStandard52h13 => {
-            (sys::tagStandard52h13_create, sys::tagStandard52h13_destroy)
-        }
-        TagFamily::TagCustom48h12 => (sys::tagCustom48h12_create, sys::tagCustom48h12_destroy),
-    }
-}
-
-/// A family's layout and the cell patterns of some of its tags, read from libapriltag.
-#[derive(Clone, Debug, PartialEq)]
-pub struct FamilyLayout {
-    /// Number of codes (valid ids are 0..ncodes).
-    pub ncodes: u32,
-    /// Cells across the whole tag pattern.
-    pub total_width: u32,
-    /// Cells across the square whose edge is the tag size (the black square's outer edge for
-    /// the classic families; the black-white border for the others).
-    pub width_at_border: u32,
-    /// Whether the border is white inside black (tagStandard and tagCircle families).
-    pub reversed_border: bool,
-}
-
-/// Reads the family from libapriltag and calls `f` with its layout and a cell function.
-fn with_family<T>(
-    family: TagFamily,
-    f: impl FnOnce(&FamilyLayout, &dyn Fn(u32) -> Option<Vec<Vec<bool>>>) -> T,
-) -> Option<T> {
-    let (create, destroy) = family_fns(family);
-    // SAFETY: the family constructors return a heap-allocated family (or null); it is read only
-    // here, while alive, through the counts it states, and freed with its own destructor.
-    unsafe {
-        let tf = create();
-        if tf.is_null() {
-            return None;
-        }
-        let fam = &*tf;
-        let layout = FamilyLayout {
-            ncodes: fam.ncodes,
-            total_width: fam.total_width.max(0) as u32,
-            width_at_border: fam.width_at_border.max(0) as u32,
-            reversed_border: fam.reversed_border,
-        };
-        let codes = std::slice::from_raw_parts(fam.codes, fam.ncodes as usize);
-        let nbits = fam.nbits as usize;
-        let bit_x = std::slice::from_raw_parts(fam.bit_x, nbits);
-        let bit_y = std::slice::from_raw_parts(fam.bit_y, nbits);
-        let tw = layout.total_width as usize;
-        let wab = layout.width_at_border as usize;
-        let cells = |id: u32| -> Option<Vec<Vec<bool>>> {
-            let code = *codes.get(id as usize)?;
-            if tw == 0 || wab > tw {
-                return None;
-            }
-            // Everything black, then the white ring just outside the border square (classic
-            // families) or just inside it (reversed border), then the white data bits.
-            let mut black = vec![vec![true; tw]; tw];
-            let ring = wab + if layout.reversed_border { 0 } else { 2 };
-            let start = (tw as isize - ring as isize) / 2;
-            if ring >= 2 && start >= 0 {
-                let (s, e) = (start as usize, start as usize + ring - 1);
-                #[allow(clippy::needless_range_loop)] // rows and columns of the same ring
-                for i in s..=e {
-                    black[s][i] = false;
-                    black[e][i] = false;
-                    black[i][s] = false;
-                    black[i][e] = false;
-                }
-            }
-            let border_start = (tw - wab) / 2;
-            for i in 0..nbits {
-                if (code >> (nbits - 1 - i)) & 1 == 1 {
-                    // The families outside the border (tagStandard, tagCircle) store negative
-                    // positions in these unsigned fields.
-                    let x = bit_x[i] as i32 as isize + border_start as isize;
-                    let y = bit_y[i] as i32 as isize + border_start as isize;
-                    if (0..tw as isize).contains(&x) && (0..tw as isize).contains(&y) {
-                        black[y as usize][x as usize] = false;
-                    }
-                }
-            }
-            Some(black)
-        };
-        let out = f(&layout, &cells);
-        destroy(tf);
-        Some(out)
-    }
-}
-
-/// The layout of a family, from libapriltag.
-pub fn family_layout(family: TagFamily) -> Option<FamilyLayout> {
-    with_family(family, |l, _| l.clone())
-}
-
-/// The cells of a tag (`true` = black): the full tag pattern including its border, row 0 at the
-/// top, in the canonical orientation (as libapriltag's `apriltag_to_image` draws it). `None` for
-/// an id the family does not have.
-pub fn tag_cells(family: TagFamily, id: u32) -> Option<Vec<Vec<bool>>> {
-    with_family(family, |_, cells| cells(id)).flatten()
-}
-
-/// The cells of several tags of one family at once (reads the family once).
-/// Black/white cells of one tag, row 0 at the top (`true` = black).
-pub type TagCells = Vec<Vec<bool>>;
-
-pub fn tags_cells(family: TagFamily, ids: &[u32]) -> Option<(FamilyLayout, Vec<Option<TagCells>>)> {
-    with_family(family, |l, cells| {
-        (l.clone(), ids.iter().map(|&i| cells(i)).collect())
-    })
-}
 
 /// One tag, prepared for sampling: its black square's bottom-left corner and axes in its plane's
 /// 2D coordinates, and its cells.
@@ -359,28 +230,6 @@ fn prepare(board: &Board, t_cam_board: &Se3) -> Vec<Plane> {
         });
     }
     planes
-}
-
-/// The white paper of a grid board in the board plane: lower-left and upper-right corners. The
-/// margin around the outer tags' black squares is the gap between tags, and at least the pattern's
-/// own white ring plus one cell.
-pub fn grid_paper(
-    board: &Board,
-    g: &crate::vision::board::GridLayout,
-) -> (Vector2<f64>, Vector2<f64>) {
-    let layout = family_layout(board.family);
-    let (tw, wab) = layout
-        .map(|l| (l.total_width as f64, l.width_at_border.max(1) as f64))
-        .unwrap_or((10.0, 8.0));
-    let cell = g.tag_size_m / wab;
-    let margin = (g.spacing * g.tag_size_m).max(((tw - wab) / 2.0 + 1.0) * cell);
-    let d = g.tag_size_m * (1.0 + g.spacing);
-    let w = (g.cols as f64 - 1.0) * d + g.tag_size_m;
-    let h = (g.rows as f64 - 1.0) * d + g.tag_size_m;
-    (
-        Vector2::new(-margin, -margin),
-        Vector2::new(w + margin, h + margin),
-    )
 }
 
 /// Renders what `cam` sees of `board` when the board is at `t_cam_board`; background mid-grey.

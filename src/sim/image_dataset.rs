@@ -26,10 +26,10 @@ use image::GrayImage;
 use nalgebra::{Matrix3, Vector3};
 
 use crate::lie::{Se3, so3};
+use crate::sim::render::{RenderSettings, render};
 use crate::sim::rng::Rng;
 use crate::vision::board::{Board, TagFamily};
 use crate::vision::camera::{Camchain, Camera, Distortion};
-use crate::vision::render::{RenderSettings, render};
 use crate::{Error, Result};
 
 /// First stream number of the per-frame image streams (frame `k` uses `IMAGE_STREAM_BASE + k`);

@@ -1,0 +1,276 @@
+//! The AprilTag families libapriltag ships: one table of their names, code counts and
+//! libapriltag constructors, shared by the detector, the renderer and the board printer, and the
+//! tag patterns read from libapriltag's own family data.
+
+use apriltag_sys as sys;
+
+unsafe extern "C" {
+    // In Debian's libapriltag 3.3 but missing from apriltag-sys's bindings.
+    fn tag36h10_create() -> *mut sys::apriltag_family_t;
+    fn tag36h10_destroy(tf: *mut sys::apriltag_family_t);
+}
+
+/// A libapriltag family constructor.
+pub(crate) type Create = unsafe extern "C" fn() -> *mut sys::apriltag_family_t;
+/// A libapriltag family destructor.
+pub(crate) type Destroy = unsafe extern "C" fn(*mut sys::apriltag_family_t);
+
+/// One row of the family table.
+struct FamilyEntry {
+    family: TagFamily,
+    name: &'static str,
+    /// Number of codes (checked against libapriltag's `ncodes` by `tests/vision_board.rs`).
+    codes: usize,
+    create: Create,
+    destroy: Destroy,
+}
+
+/// Every family with its name, code count and libapriltag constructor, in the enum's order.
+const FAMILIES: [FamilyEntry; 9] = [
+    FamilyEntry {
+        family: TagFamily::Tag36h11,
+        name: "tag36h11",
+        codes: 587,
+        create: sys::tag36h11_create,
+        destroy: sys::tag36h11_destroy,
+    },
+    FamilyEntry {
+        family: TagFamily::Tag36h10,
+        name: "tag36h10",
+        codes: 2320,
+        create: tag36h10_create,
+        destroy: tag36h10_destroy,
+    },
+    FamilyEntry {
+        family: TagFamily::Tag25h9,
+        name: "tag25h9",
+        codes: 35,
+        create: sys::tag25h9_create,
+        destroy: sys::tag25h9_destroy,
+    },
+    FamilyEntry {
+        family: TagFamily::Tag16h5,
+        name: "tag16h5",
+        codes: 30,
+        create: sys::tag16h5_create,
+        destroy: sys::tag16h5_destroy,
+    },
+    FamilyEntry {
+        family: TagFamily::TagCircle21h7,
+        name: "tagCircle21h7",
+        codes: 38,
+        create: sys::tagCircle21h7_create,
+        destroy: sys::tagCircle21h7_destroy,
+    },
+    FamilyEntry {
+        family: TagFamily::TagCircle49h12,
+        name: "tagCircle49h12",
+        codes: 65535,
+        create: sys::tagCircle49h12_create,
+        destroy: sys::tagCircle49h12_destroy,
+    },
+    FamilyEntry {
+        family: TagFamily::TagStandard41h12,
+        name: "tagStandard41h12",
+        codes: 2115,
+        create: sys::tagStandard41h12_create,
+        destroy: sys::tagStandard41h12_destroy,
+    },
+    FamilyEntry {
+        family: TagFamily::TagStandard52h13,
+        name: "tagStandard52h13",
+        codes: 48714,
+        create: sys::tagStandard52h13_create,
+        destroy: sys::tagStandard52h13_destroy,
+    },
+    FamilyEntry {
+        family: TagFamily::TagCustom48h12,
+        name: "tagCustom48h12",
+        codes: 42211,
+        create: sys::tagCustom48h12_create,
+        destroy: sys::tagCustom48h12_destroy,
+    },
+];
+
+/// The tag families libapriltag ships.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum TagFamily {
+    Tag36h11,
+    Tag36h10,
+    Tag25h9,
+    Tag16h5,
+    TagCircle21h7,
+    TagCircle49h12,
+    TagStandard41h12,
+    TagStandard52h13,
+    TagCustom48h12,
+}
+
+impl TagFamily {
+    /// The family's row of [`FAMILIES`].
+    fn entry(&self) -> &'static FamilyEntry {
+        // FAMILIES lists the families in declaration order (checked by a unit test).
+        let e = &FAMILIES[*self as usize];
+        debug_assert_eq!(e.family, *self);
+        e
+    }
+
+    /// The family's name as libapriltag spells it ("tag36h11", "tagStandard41h12", ...).
+    pub fn name(&self) -> &'static str {
+        self.entry().name
+    }
+
+    /// Number of codes (valid ids are `0..code_count()`).
+    pub fn code_count(&self) -> usize {
+        self.entry().codes
+    }
+
+    /// libapriltag's constructor and destructor of the family.
+    pub(crate) fn ffi(&self) -> (Create, Destroy) {
+        let e = self.entry();
+        (e.create, e.destroy)
+    }
+
+    /// Every family, in a fixed order.
+    pub const ALL: [TagFamily; 9] = [
+        TagFamily::Tag36h11,
+        TagFamily::Tag36h10,
+        TagFamily::Tag25h9,
+        TagFamily::Tag16h5,
+        TagFamily::TagCircle21h7,
+        TagFamily::TagCircle49h12,
+        TagFamily::TagStandard41h12,
+        TagFamily::TagStandard52h13,
+        TagFamily::TagCustom48h12,
+    ];
+
+    /// The family of a name; case-insensitive ("tag36h11", "TAG36H11", "tagStandard41h12").
+    pub fn from_name(s: &str) -> Option<TagFamily> {
+        let s = s.trim();
+        TagFamily::ALL
+            .into_iter()
+            .find(|f| f.name().eq_ignore_ascii_case(s))
+    }
+}
+
+impl std::fmt::Display for TagFamily {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A family's layout and the cell patterns of some of its tags, read from libapriltag.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FamilyLayout {
+    /// Number of codes (valid ids are 0..ncodes).
+    pub ncodes: u32,
+    /// Cells across the whole tag pattern.
+    pub total_width: u32,
+    /// Cells across the square whose edge is the tag size (the black square's outer edge for
+    /// the classic families; the black-white border for the others).
+    pub width_at_border: u32,
+    /// Whether the border is white inside black (tagStandard and tagCircle families).
+    pub reversed_border: bool,
+}
+
+/// Reads the family from libapriltag and calls `f` with its layout and a cell function.
+fn with_family<T>(
+    family: TagFamily,
+    f: impl FnOnce(&FamilyLayout, &dyn Fn(u32) -> Option<Vec<Vec<bool>>>) -> T,
+) -> Option<T> {
+    let entry = family.entry();
+    let (create, destroy) = (entry.create, entry.destroy);
+    // SAFETY: the family constructors return a heap-allocated family (or null); it is read only
+    // here, while alive, through the counts it states, and freed with its own destructor.
+    unsafe {
+        let tf = create();
+        if tf.is_null() {
+            return None;
+        }
+        let fam = &*tf;
+        let layout = FamilyLayout {
+            ncodes: fam.ncodes,
+            total_width: fam.total_width.max(0) as u32,
+            width_at_border: fam.width_at_border.max(0) as u32,
+            reversed_border: fam.reversed_border,
+        };
+        let codes = std::slice::from_raw_parts(fam.codes, fam.ncodes as usize);
+        let nbits = fam.nbits as usize;
+        let bit_x = std::slice::from_raw_parts(fam.bit_x, nbits);
+        let bit_y = std::slice::from_raw_parts(fam.bit_y, nbits);
+        let tw = layout.total_width as usize;
+        let wab = layout.width_at_border as usize;
+        let cells = |id: u32| -> Option<Vec<Vec<bool>>> {
+            let code = *codes.get(id as usize)?;
+            if tw == 0 || wab > tw {
+                return None;
+            }
+            // Everything black, then the white ring just outside the border square (classic
+            // families) or just inside it (reversed border), then the white data bits.
+            let mut black = vec![vec![true; tw]; tw];
+            let ring = wab + if layout.reversed_border { 0 } else { 2 };
+            let start = (tw as isize - ring as isize) / 2;
+            if ring >= 2 && start >= 0 {
+                let (s, e) = (start as usize, start as usize + ring - 1);
+                #[allow(clippy::needless_range_loop)] // rows and columns of the same ring
+                for i in s..=e {
+                    black[s][i] = false;
+                    black[e][i] = false;
+                    black[i][s] = false;
+                    black[i][e] = false;
+                }
+            }
+            let border_start = (tw - wab) / 2;
+            for i in 0..nbits {
+                if (code >> (nbits - 1 - i)) & 1 == 1 {
+                    // The families outside the border (tagStandard, tagCircle) store negative
+                    // positions in these unsigned fields.
+                    let x = bit_x[i] as i32 as isize + border_start as isize;
+                    let y = bit_y[i] as i32 as isize + border_start as isize;
+                    if (0..tw as isize).contains(&x) && (0..tw as isize).contains(&y) {
+                        black[y as usize][x as usize] = false;
+                    }
+                }
+            }
+            Some(black)
+        };
+        let out = f(&layout, &cells);
+        destroy(tf);
+        Some(out)
+    }
+}
+
+/// The layout of a family, from libapriltag.
+pub fn family_layout(family: TagFamily) -> Option<FamilyLayout> {
+    with_family(family, |l, _| l.clone())
+}
+
+/// The cells of a tag (`true` = black): the full tag pattern including its border, row 0 at the
+/// top, in the canonical orientation (as libapriltag's `apriltag_to_image` draws it). `None` for
+/// an id the family does not have.
+pub fn tag_cells(family: TagFamily, id: u32) -> Option<Vec<Vec<bool>>> {
+    with_family(family, |_, cells| cells(id)).flatten()
+}
+
+/// Black/white cells of one tag, row 0 at the top (`true` = black).
+pub type TagCells = Vec<Vec<bool>>;
+
+/// The cells of several tags of one family at once (reads the family once).
+pub fn tags_cells(family: TagFamily, ids: &[u32]) -> Option<(FamilyLayout, Vec<Option<TagCells>>)> {
+    with_family(family, |l, cells| {
+        (l.clone(), ids.iter().map(|&i| cells(i)).collect())
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn table_rows_follow_the_enum_and_names_are_unique() {
+        for (i, f) in TagFamily::ALL.iter().enumerate() {
+            assert_eq!(FAMILIES[i].family, *f);
+            assert_eq!(TagFamily::from_name(f.name()), Some(*f));
+        }
+    }
+}
