@@ -60,8 +60,8 @@ fn main() {
         }
         let out = last.expect("one run");
         let t = median(times);
-        let truth = dvlcal::calib::model::Params::from_calibration(&ds.truth);
-        let rot = dvlcal::lie::so3::log(&(out.params.r_dvl_cam * truth.r_dvl_cam.transpose()))
+        let truth = ds.truth;
+        let rot = dvlcal::lie::so3::log(&(out.params.r_dvl_cam() * truth.r_dvl_cam().transpose()))
             .norm()
             .to_degrees();
         println!(
@@ -70,8 +70,8 @@ fn main() {
             ds.poses.len(),
             1e6 * t / ds.dvl.len() as f64,
             prev.map_or("-".to_string(), |p| format!("{:.1}", t / p)),
-            1e3 * (out.params.lever_arm - truth.lever_arm).norm(),
-            1e3 * (out.params.time_offset - truth.time_offset).abs(),
+            1e3 * (out.params.lever_arm_cam_m() - truth.lever_arm_cam_m()).norm(),
+            1e3 * (out.params.time_offset_s - truth.time_offset_s).abs(),
         );
         prev = Some(t);
     }

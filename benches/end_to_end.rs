@@ -14,7 +14,7 @@ use std::time::Instant;
 
 use nalgebra::SMatrix;
 
-use dvlcal::calib::model::{NPARAM, Params, difference};
+use dvlcal::calib::model::{NPARAM, difference};
 use dvlcal::calib::{CalibOptions, calibrate};
 use dvlcal::sim::dataset::{MotionKind, SimConfig, simulate};
 use dvlcal::sim::image_dataset::{
@@ -209,7 +209,7 @@ fn summarise(
     start: Instant,
 ) -> Run {
     let calib_s = start.elapsed().as_secs_f64();
-    let truth = Params::from_calibration(truth);
+    let truth = *truth;
     let err = difference(&o.params, &truth);
     let std = SMatrix::<f64, NPARAM, 1>::from_fn(|k, _| o.covariance[(k, k)].max(0.0).sqrt());
     let nees = o

@@ -21,12 +21,12 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
 use dvlcal::calib::closed_form::{ClosedFormRow, closed_form};
-use dvlcal::calib::model::Params;
 use dvlcal::calib::{CalibOptions, Method, calibrate};
 use dvlcal::lie::so3;
 use dvlcal::sim::rng::Rng;
 use dvlcal::sim::{MotionKind, SimConfig, SimDataset, simulate};
 use dvlcal::trajectory::Knot;
+use dvlcal::types::CalibrationParams;
 use nalgebra::{Matrix6, Vector3};
 
 const DVL_SIGMA: f64 = 0.01;
@@ -118,8 +118,8 @@ fn fmt(r: &Rmse, scale: f64) -> String {
 }
 
 /// Left-perturbation rotation error `log(R_est R_true^T)` (radians).
-fn rot_err(est: &Params, truth: &Params) -> Vector3<f64> {
-    so3::log(&(est.r_dvl_cam * truth.r_dvl_cam.transpose()))
+fn rot_err(est: &CalibrationParams, truth: &CalibrationParams) -> Vector3<f64> {
+    so3::log(&(est.r_dvl_cam() * truth.r_dvl_cam().transpose()))
 }
 
 fn sim(n: usize, seed: u64, motion: MotionKind, offset: f64) -> SimDataset {
@@ -146,7 +146,7 @@ struct Sim1Run {
 
 fn sim1_run(n: usize, seed: u64, sd: f64) -> Sim1Run {
     let ds = sim(n, seed, MotionKind::CalmThenRotate, 0.0);
-    let truth = Params::from_calibration(&ds.truth);
+    let truth = ds.truth;
     let cov = Matrix6::identity() * (sd * sd);
     let mut rng = Rng::stream(seed, 1001);
     let rows: Vec<ClosedFormRow> = ds
@@ -166,8 +166,8 @@ fn sim1_run(n: usize, seed: u64, sd: f64) -> Sim1Run {
             .params;
         [
             rot_err(&p, &truth).norm().to_degrees().powi(2),
-            (p.lever_arm - truth.lever_arm).norm_squared(),
-            (p.scale - truth.scale).powi(2),
+            (p.lever_arm_cam_m() - truth.lever_arm_cam_m()).norm_squared(),
+            (p.velocity_scale - truth.velocity_scale).powi(2),
         ]
     };
     Sim1Run {
@@ -243,7 +243,7 @@ struct Sim2Run {
     crb: Option<[f64; 8]>,
 }
 
-fn cal_run(ds: &SimDataset, truth: &Params, method: Method) -> Option<CalRun> {
+fn cal_run(ds: &SimDataset, truth: &CalibrationParams, method: Method) -> Option<CalRun> {
     let opts = CalibOptions {
         method,
         ..CalibOptions::default()
@@ -251,7 +251,7 @@ fn cal_run(ds: &SimDataset, truth: &Params, method: Method) -> Option<CalRun> {
     let out = calibrate(&ds.poses, &ds.dvl, &opts).ok()?;
     let p = &out.params;
     let r = rot_err(p, truth);
-    let l = p.lever_arm - truth.lever_arm;
+    let l = p.lever_arm_cam_m() - truth.lever_arm_cam_m();
     let e = [
         r.x * r.x,
         r.y * r.y,
@@ -259,8 +259,8 @@ fn cal_run(ds: &SimDataset, truth: &Params, method: Method) -> Option<CalRun> {
         l.x * l.x,
         l.y * l.y,
         l.z * l.z,
-        (p.scale - truth.scale).powi(2),
-        (p.time_offset - truth.time_offset).powi(2),
+        (p.velocity_scale - truth.velocity_scale).powi(2),
+        (p.time_offset_s - truth.time_offset_s).powi(2),
     ];
     Some(CalRun {
         e,
@@ -268,7 +268,7 @@ fn cal_run(ds: &SimDataset, truth: &Params, method: Method) -> Option<CalRun> {
     })
 }
 
-fn crb_diag(ds: &SimDataset, truth: &Params) -> Option<[f64; 8]> {
+fn crb_diag(ds: &SimDataset, truth: &CalibrationParams) -> Option<[f64; 8]> {
     let opts = CalibOptions::default();
     let knots: Vec<Knot> = ds
         .truth_poses
@@ -285,18 +285,18 @@ fn crb_diag(ds: &SimDataset, truth: &Params) -> Option<[f64; 8]> {
 
 fn sim2_run(n: usize, seed: u64, motion: MotionKind, with_crb: bool) -> Sim2Run {
     let ds = sim(n, seed, motion, 0.07);
-    let truth = Params::from_calibration(&ds.truth);
+    let truth = ds.truth;
     let mut rng = Rng::stream(seed, 1002);
     let dir = |rng: &mut Rng| {
         let v: Vector3<f64> = rng.normal_vec3();
         v / v.norm()
     };
-    let guess = Params {
-        r_dvl_cam: so3::exp(&(dir(&mut rng) * 5f64.to_radians())) * truth.r_dvl_cam,
-        lever_arm: truth.lever_arm + dir(&mut rng) * 0.05,
-        scale: 1.0,
-        time_offset: 0.0,
-    };
+    let guess = CalibrationParams::from_r_dvl_cam(
+        so3::exp(&(dir(&mut rng) * 5f64.to_radians())) * truth.r_dvl_cam(),
+        truth.lever_arm_cam_m() + dir(&mut rng) * 0.05,
+        1.0,
+        0.0,
+    );
     Sim2Run {
         uic: cal_run(&ds, &truth, Method::Uic),
         bcd: cal_run(&ds, &truth, Method::Bcd(guess)),

@@ -29,8 +29,8 @@ pub struct DvlSample {
     pub valid: bool,
 }
 
-/// The quantities a calibration estimates.
-#[derive(Clone, Debug)]
+/// The quantities a calibration estimates, named as in the result file.
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CalibrationParams {
     /// `T_cam_dvl`: maps DVL-frame points into the camera frame. Its translation is the lever arm
     /// `p_cam_dvl` (the DVL origin in camera coordinates); its rotation is `R_cam_dvl`.
@@ -39,4 +39,34 @@ pub struct CalibrationParams {
     pub time_offset_s: f64,
     /// DVL velocity scale `kappa`: `v_dvl = kappa * R_dvl_cam * (v_cam + w_cam x p_cam_dvl)`.
     pub velocity_scale: f64,
+}
+
+impl CalibrationParams {
+    /// The parameters from the rotation `R_dvl_cam` (camera-frame vectors into the DVL frame),
+    /// the lever arm `p_cam_dvl` (the DVL origin in camera coordinates, m), the velocity scale and
+    /// the clock offset (s).
+    pub fn from_r_dvl_cam(
+        r_dvl_cam: Matrix3<f64>,
+        lever_arm_cam_m: Vector3<f64>,
+        velocity_scale: f64,
+        time_offset_s: f64,
+    ) -> CalibrationParams {
+        CalibrationParams {
+            t_cam_dvl: Se3::new(r_dvl_cam.transpose(), lever_arm_cam_m),
+            time_offset_s,
+            velocity_scale,
+        }
+    }
+
+    /// `R_dvl_cam`: rotates camera-frame vectors into the DVL frame (the transpose of
+    /// `t_cam_dvl`'s rotation).
+    pub fn r_dvl_cam(&self) -> Matrix3<f64> {
+        self.t_cam_dvl.rot.transpose()
+    }
+
+    /// The lever arm `p_cam_dvl`: the DVL origin in camera coordinates, m (`t_cam_dvl`'s
+    /// translation; `lever_arm_cam_m` in the result file).
+    pub fn lever_arm_cam_m(&self) -> Vector3<f64> {
+        self.t_cam_dvl.trans
+    }
 }

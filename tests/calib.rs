@@ -1,11 +1,12 @@
 //! Calibration on simulated data with known truth: accuracy against the reported uncertainty,
 //! observability verdicts, fallbacks and bad input.
 
-use dvlcal::calib::model::{NPARAM, Params, difference};
+use dvlcal::calib::model::{NPARAM, difference};
 use dvlcal::calib::offset::OffsetMethod;
 use dvlcal::calib::{CalibOptions, CalibrationOutcome, Method, calibrate};
 use dvlcal::lie::so3;
 use dvlcal::sim::dataset::{MotionKind, SimConfig, SimDataset, simulate};
+use dvlcal::types::CalibrationParams;
 use nalgebra::{SVector, Vector3};
 
 fn dataset(seed: u64, motion: MotionKind, duration: f64) -> SimDataset {
@@ -19,11 +20,11 @@ fn dataset(seed: u64, motion: MotionKind, duration: f64) -> SimDataset {
 }
 
 /// Error of an estimate in the parameterisation of the covariance.
-fn error(est: &Params, truth: &Params) -> SVector<f64, NPARAM> {
+fn error(est: &CalibrationParams, truth: &CalibrationParams) -> SVector<f64, NPARAM> {
     difference(est, truth)
 }
 
-fn nees(o: &CalibrationOutcome, truth: &Params) -> f64 {
+fn nees(o: &CalibrationOutcome, truth: &CalibrationParams) -> f64 {
     let e = error(&o.params, truth);
     let info = o.covariance.try_inverse().expect("invertible covariance");
     (e.transpose() * info * e)[0]
@@ -39,14 +40,14 @@ fn errors_are_consistent_with_reported_uncertainty_over_seeds() {
     let mut count = 0;
     for seed in seeds {
         let ds = dataset(seed, MotionKind::CalmThenRotate, 60.0);
-        let truth = Params::from_calibration(&ds.truth);
+        let truth = ds.truth;
         let o = calibrate(&ds.poses, &ds.dvl, &CalibOptions::default()).expect("calibration");
         let n = nees(&o, &truth);
         eprintln!(
             "seed {seed}: NEES {n:.2}; offset {:.4} (std {:.4}), lever {:?}",
-            o.params.time_offset,
+            o.params.time_offset_s,
             o.std.time_offset_s,
-            o.params.lever_arm.as_slice()
+            o.params.lever_arm_cam_m().as_slice()
         );
         assert!(
             o.verdicts.rotation.ok && o.verdicts.lever_arm.ok,
@@ -67,7 +68,7 @@ fn errors_are_consistent_with_reported_uncertainty_over_seeds() {
 #[test]
 fn weak_rotation_flags_the_lever_arm_but_keeps_the_rest() {
     let ds = dataset(3, MotionKind::WeakRotation, 60.0);
-    let truth = Params::from_calibration(&ds.truth);
+    let truth = ds.truth;
     let o = calibrate(&ds.poses, &ds.dvl, &CalibOptions::default()).expect("calibration");
     assert!(
         !o.verdicts.lever_arm.ok,
@@ -93,7 +94,7 @@ fn weak_rotation_flags_the_lever_arm_but_keeps_the_rest() {
 #[test]
 fn motion_without_calm_segment_falls_back_and_says_so() {
     let ds = dataset(2, MotionKind::Sinusoid, 40.0);
-    let truth = Params::from_calibration(&ds.truth);
+    let truth = ds.truth;
     let o = calibrate(&ds.poses, &ds.dvl, &CalibOptions::default()).expect("calibration");
     let init = o.init.as_ref().expect("UIC has an init report");
     assert_eq!(init.offset.method, OffsetMethod::SpeedCorrelation);
@@ -106,14 +107,14 @@ fn motion_without_calm_segment_falls_back_and_says_so() {
 #[test]
 fn bcd_from_a_rough_guess_reaches_the_uic_answer() {
     let ds = dataset(4, MotionKind::CalmThenRotate, 60.0);
-    let truth = Params::from_calibration(&ds.truth);
+    let truth = ds.truth;
     let uic = calibrate(&ds.poses, &ds.dvl, &CalibOptions::default()).unwrap();
-    let guess = Params {
-        r_dvl_cam: so3::exp(&Vector3::new(0.05, -0.04, 0.03)) * truth.r_dvl_cam,
-        lever_arm: truth.lever_arm + Vector3::new(0.05, -0.05, 0.05),
-        scale: 1.0,
-        time_offset: 0.0,
-    };
+    let guess = CalibrationParams::from_r_dvl_cam(
+        so3::exp(&Vector3::new(0.05, -0.04, 0.03)) * truth.r_dvl_cam(),
+        truth.lever_arm_cam_m() + Vector3::new(0.05, -0.05, 0.05),
+        1.0,
+        0.0,
+    );
     let bcd = calibrate(
         &ds.poses,
         &ds.dvl,

@@ -23,11 +23,12 @@
 use std::time::Instant;
 
 use dvlcal::calib::closed_form::{ClosedFormRow, closed_form};
-use dvlcal::calib::model::{Params, predict};
+use dvlcal::calib::model::predict;
 use dvlcal::lie::{Se3, so3};
 use dvlcal::sim::rng::Rng;
 use dvlcal::trajectory::gp::{phi_scalar, q_scalar};
 use dvlcal::trajectory::{FitOptions, Trajectory};
+use dvlcal::types::CalibrationParams;
 use dvlcal::types::PoseMeasurement;
 use nalgebra::{DMatrix, Matrix3, Matrix6, Vector3, Vector6};
 
@@ -244,12 +245,12 @@ fn dense_and_block_tridiagonal_posteriors_agree() {
 #[test]
 fn closed_form_from_dense_and_sparse_twists_agrees() {
     let p = poses(60, 3);
-    let truth = Params {
-        r_dvl_cam: so3::exp(&Vector3::new(-1.5, 0.04, 0.03)),
-        lever_arm: Vector3::zeros(),
-        scale: 1.01,
-        time_offset: 0.0,
-    };
+    let truth = CalibrationParams::from_r_dvl_cam(
+        so3::exp(&Vector3::new(-1.5, 0.04, 0.03)),
+        Vector3::zeros(),
+        1.01,
+        0.0,
+    );
     let tq = query_times(&p, 50, 4);
     let mut rng = Rng::new(5);
     let v_dvl: Vec<Vector3<f64>> = tq
@@ -273,8 +274,8 @@ fn closed_form_from_dense_and_sparse_twists_agrees() {
     let s = closed_form(&rows(&sparse_twists(&p, &tq)), true).expect("sparse");
     // Pure translation does not excite the lever arm: both leave it unsolved.
     assert!(!d.lever_arm_solved && !s.lever_arm_solved);
-    let rot = so3::log(&(d.params.r_dvl_cam * s.params.r_dvl_cam.transpose())).norm();
-    let scale = (d.params.scale - s.params.scale).abs();
+    let rot = so3::log(&(d.params.r_dvl_cam() * s.params.r_dvl_cam().transpose())).norm();
+    let scale = (d.params.velocity_scale - s.params.velocity_scale).abs();
     println!("closed form dense vs sparse: rotation {rot:.2e} rad, scale {scale:.2e}");
     assert!(
         rot < TOL_CALIB && scale < TOL_CALIB,

@@ -9,7 +9,6 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::OnceLock;
 
-use dvlcal::calib::model::Params;
 use dvlcal::calib::offset::DvlObs;
 use dvlcal::calib::{CalibOptions, CalibrationOutcome, Method, calibrate};
 use dvlcal::io::dvl::DvlLogStats;
@@ -188,7 +187,7 @@ fn long_logs_give_a_small_report() {
 #[test]
 fn plots_without_data_say_why() {
     let r = run();
-    let guess = Params::from_calibration(&r.ds.truth);
+    let guess = r.ds.truth;
     let opts = CalibOptions {
         method: Method::Bcd(guess),
         ..CalibOptions::default()

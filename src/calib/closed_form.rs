@@ -9,9 +9,9 @@
 
 use nalgebra::{Matrix3, Matrix6, SMatrix, Vector3, Vector6};
 
-use super::model::Params;
 use crate::error::{Error, Result};
 use crate::lie::vee;
+use crate::types::CalibrationParams;
 
 /// One row of the stacked problem.
 #[derive(Clone, Debug)]
@@ -28,7 +28,7 @@ pub struct ClosedFormRow {
 #[derive(Clone, Debug)]
 pub struct ClosedForm {
     /// Rotation, lever arm and scale; the time offset is left at zero (set by the caller).
-    pub params: Params,
+    pub params: CalibrationParams,
     /// Whether the angular-velocity part of the normal matrix was too weak to solve for the lever
     /// arm (it is then zero and must not be trusted).
     pub lever_arm_solved: bool,
@@ -121,12 +121,7 @@ pub fn closed_form(rows: &[ClosedFormRow], bias_corrected: bool) -> Result<Close
         Vector3::zeros()
     };
     Ok(ClosedForm {
-        params: Params {
-            r_dvl_cam: r,
-            lever_arm,
-            scale,
-            time_offset: 0.0,
-        },
+        params: CalibrationParams::from_r_dvl_cam(r, lever_arm, scale, 0.0),
         lever_arm_solved,
         min_rotation_excitation: excitation.max(0.0),
     })
@@ -141,12 +136,12 @@ mod tests {
 
     #[test]
     fn exact_data_gives_exact_parameters() {
-        let truth = Params {
-            r_dvl_cam: so3::exp(&Vector3::new(-1.5, 0.05, 0.02)),
-            lever_arm: Vector3::new(0.05, 0.25, -0.1),
-            scale: 1.01,
-            time_offset: 0.0,
-        };
+        let truth = CalibrationParams::from_r_dvl_cam(
+            so3::exp(&Vector3::new(-1.5, 0.05, 0.02)),
+            Vector3::new(0.05, 0.25, -0.1),
+            1.01,
+            0.0,
+        );
         let mut rng = Rng::new(3);
         let rows: Vec<ClosedFormRow> = (0..50)
             .map(|_| {
@@ -160,21 +155,21 @@ mod tests {
             .collect();
         let cf = closed_form(&rows, true).unwrap();
         assert!(cf.lever_arm_solved);
-        assert!((cf.params.r_dvl_cam - truth.r_dvl_cam).abs().max() < 1e-12);
-        assert!((cf.params.lever_arm - truth.lever_arm).norm() < 1e-12);
-        assert!((cf.params.scale - truth.scale).abs() < 1e-12);
+        assert!((cf.params.r_dvl_cam() - truth.r_dvl_cam()).abs().max() < 1e-12);
+        assert!((cf.params.lever_arm_cam_m() - truth.lever_arm_cam_m()).norm() < 1e-12);
+        assert!((cf.params.velocity_scale - truth.velocity_scale).abs() < 1e-12);
     }
 
     #[test]
     fn bias_correction_removes_attenuation() {
         // Noisy regressors shrink an uncorrected least-squares estimate towards zero; with the
         // covariance subtracted the scale is recovered on average.
-        let truth = Params {
-            r_dvl_cam: Matrix3::identity(),
-            lever_arm: Vector3::new(0.1, -0.2, 0.3),
-            scale: 1.0,
-            time_offset: 0.0,
-        };
+        let truth = CalibrationParams::from_r_dvl_cam(
+            Matrix3::identity(),
+            Vector3::new(0.1, -0.2, 0.3),
+            1.0,
+            0.0,
+        );
         let mut rng = Rng::new(11);
         let sd = 0.1;
         let cov = Matrix6::identity() * sd * sd;
@@ -192,26 +187,26 @@ mod tests {
         let fixed = closed_form(&rows, true).unwrap();
         // Attenuation factor 0.09 / (0.09 + 0.01) = 0.9 without the correction.
         assert!(
-            (biased.params.scale - 0.9).abs() < 0.02,
+            (biased.params.velocity_scale - 0.9).abs() < 0.02,
             "{}",
-            biased.params.scale
+            biased.params.velocity_scale
         );
         assert!(
-            (fixed.params.scale - 1.0).abs() < 0.02,
+            (fixed.params.velocity_scale - 1.0).abs() < 0.02,
             "{}",
-            fixed.params.scale
+            fixed.params.velocity_scale
         );
-        assert!((fixed.params.lever_arm - truth.lever_arm).norm() < 0.03);
+        assert!((fixed.params.lever_arm_cam_m() - truth.lever_arm_cam_m()).norm() < 0.03);
     }
 
     #[test]
     fn no_rotation_leaves_lever_arm_unsolved() {
-        let truth = Params {
-            r_dvl_cam: so3::exp(&Vector3::new(0.3, 0.2, 0.1)),
-            lever_arm: Vector3::new(0.1, 0.0, 0.0),
-            scale: 1.0,
-            time_offset: 0.0,
-        };
+        let truth = CalibrationParams::from_r_dvl_cam(
+            so3::exp(&Vector3::new(0.3, 0.2, 0.1)),
+            Vector3::new(0.1, 0.0, 0.0),
+            1.0,
+            0.0,
+        );
         let mut rng = Rng::new(5);
         let rows: Vec<ClosedFormRow> = (0..30)
             .map(|_| {
@@ -226,6 +221,6 @@ mod tests {
             .collect();
         let cf = closed_form(&rows, true).unwrap();
         assert!(!cf.lever_arm_solved);
-        assert!((cf.params.r_dvl_cam - truth.r_dvl_cam).abs().max() < 1e-10);
+        assert!((cf.params.r_dvl_cam() - truth.r_dvl_cam()).abs().max() < 1e-10);
     }
 }

@@ -18,9 +18,10 @@ use nalgebra::{Matrix3, Vector3};
 
 use crate::error::{Error, Result};
 use crate::trajectory::{FitOptions, FitReport, Knot, Trajectory};
+use crate::types::CalibrationParams;
 use crate::types::{DvlSample, PoseMeasurement};
 use closed_form::{ClosedForm, ClosedFormRow, closed_form};
-use model::{NPARAM, Params, predict};
+use model::{NPARAM, predict};
 use offset::{DvlObs, OffsetMethod, OffsetOptions, OffsetResult, estimate_offset};
 use refine::{FreeParams, ParamMat, calibration_update};
 use state::{JointProblem, joint_covariance, joint_step, state_update};
@@ -31,11 +32,11 @@ pub enum Method {
     /// UIC: initialisation from the data alone, then refinement.
     Uic,
     /// Block-coordinate refinement from a user guess.
-    Bcd(Params),
+    Bcd(CalibrationParams),
     /// The user's extrinsics kept fixed; with `estimate_offset` the clock offset (and scale)
     /// is estimated with the extrinsics held, otherwise the guess is only evaluated.
     Fixed {
-        guess: Params,
+        guess: CalibrationParams,
         estimate_offset: bool,
     },
 }
@@ -125,7 +126,7 @@ pub struct InitReport {
     pub offset: OffsetResult,
     pub closed_form: ClosedForm,
     /// Parameters after initialisation (closed form with the searched offset).
-    pub params: Params,
+    pub params: CalibrationParams,
 }
 
 /// One block-coordinate iteration.
@@ -133,7 +134,7 @@ pub struct InitReport {
 pub struct IterationRecord {
     /// DVL cost (sum of squared residuals weighted by the DVL noise) after the iteration.
     pub cost: f64,
-    pub params: Params,
+    pub params: CalibrationParams,
 }
 
 /// Measures of the motion's excitation.
@@ -161,7 +162,7 @@ pub struct Counts {
 /// Everything a calibration run produced.
 #[derive(Clone, Debug)]
 pub struct CalibrationOutcome {
-    pub params: Params,
+    pub params: CalibrationParams,
     pub covariance: ParamMat,
     pub std: ParamStd,
     pub verdicts: Verdicts,
@@ -177,7 +178,7 @@ pub struct CalibrationOutcome {
     pub trajectory: FitReport,
     pub warnings: Vec<String>,
     /// Where the refinement started: the initialisation's parameters, or the user's guess.
-    pub start: Params,
+    pub start: CalibrationParams,
     /// The final camera trajectory (refitted with the DVL factors).
     pub fitted: Trajectory,
     /// The valid DVL observations (camera epoch, DVL clock) and the indices among them that
@@ -252,8 +253,8 @@ pub fn calibrate(
             .into_iter()
             .collect::<Result<_>>()?;
             let cf = closed_form(&rows, opts.bias_corrected)?;
-            let params = Params {
-                time_offset: off.offset,
+            let params = CalibrationParams {
+                time_offset_s: off.offset,
                 ..cf.params
             };
             counts.calm = off.calm.len();
@@ -291,14 +292,14 @@ pub fn calibrate(
 
     // Samples kept for every offset the refinement may reach.
     let margin = (opts.offset.range.1 - opts.offset.range.0).abs().min(0.5);
-    let idx = usable(&traj, &obs, start.time_offset, margin);
+    let idx = usable(&traj, &obs, start.time_offset_s, margin);
     counts.dvl_used = idx.len();
     counts.dvl_outside_span = obs.len() - idx.len();
     if idx.len() < 10 {
         return Err(Error::Input(format!(
             "only {} DVL samples fall inside the camera time span at offset {:.3} s",
             idx.len(),
-            start.time_offset
+            start.time_offset_s
         )));
     }
 
@@ -360,14 +361,14 @@ pub fn calibrate(
         let mut sq = Vector3::zeros();
         let (mut sv, mut sw, mut sl) = (0.0, 0.0, 0.0);
         for &i in &idx[r] {
-            let q = traj.state(obs[i].t + params.time_offset)?;
+            let q = traj.state(obs[i].t + params.time_offset_s)?;
             let r = obs[i].v - predict(&params, &q.twist);
             sq += r.component_mul(&r);
             let v = q.twist.fixed_rows::<3>(0).into_owned();
             let w = q.twist.fixed_rows::<3>(3).into_owned();
             sv += v.norm_squared();
             sw += w.norm_squared();
-            sl += w.cross(&params.lever_arm).norm_squared();
+            sl += w.cross(&params.lever_arm_cam_m()).norm_squared();
         }
         Ok((sq, sv, sw, sl))
     });
@@ -515,7 +516,7 @@ pub fn cramer_rao(
     poses: &[PoseMeasurement],
     dvl: &[DvlSample],
     truth_knots: &[Knot],
-    truth: &Params,
+    truth: &CalibrationParams,
     opts: &CalibOptions,
 ) -> Result<ParamMat> {
     if truth_knots.len() != poses.len() {
@@ -528,7 +529,7 @@ pub fn cramer_rao(
     let obs = observations(dvl, opts);
     let fitted = Trajectory::fit(poses, &opts.fit)?;
     let traj = fitted.with_knots(truth_knots.to_vec(), None);
-    let idx = usable(&traj, &obs, truth.time_offset, 0.0);
+    let idx = usable(&traj, &obs, truth.time_offset_s, 0.0);
     let jp = JointProblem::new(poses, &traj, &obs, &idx)?;
     Ok(joint_covariance(&jp, &traj, truth, &FreeParams::ALL.mask())?.0)
 }

@@ -3,64 +3,35 @@
 //! `v_dvl = kappa * R_dvl_cam * (v_cam + w_cam x p_cam_dvl) + n`, evaluated with the camera twist at
 //! the camera-clock time `t_dvl + time_offset_s`.
 
-use nalgebra::{Matrix3, SMatrix, Vector3, Vector6};
+use nalgebra::{SMatrix, Vector3, Vector6};
 
-use crate::lie::{Se3, hat, so3};
+use crate::lie::{hat, so3};
 use crate::types::CalibrationParams;
-
-/// Calibration parameters in the form the estimator works with.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Params {
-    /// `R_dvl_cam`: rotates camera-frame vectors into the DVL frame.
-    pub r_dvl_cam: Matrix3<f64>,
-    /// `p_cam_dvl`: the DVL origin in camera coordinates, metres.
-    pub lever_arm: Vector3<f64>,
-    /// `kappa`.
-    pub scale: f64,
-    /// `t_cam = t_dvl + time_offset`.
-    pub time_offset: f64,
-}
 
 /// Number of estimated parameters: rotation (3), lever arm (3), scale, time offset.
 pub const NPARAM: usize = 8;
 
-impl Params {
-    pub fn from_calibration(c: &CalibrationParams) -> Params {
-        Params {
-            r_dvl_cam: c.t_cam_dvl.rot.transpose(),
-            lever_arm: c.t_cam_dvl.trans,
-            scale: c.velocity_scale,
-            time_offset: c.time_offset_s,
-        }
-    }
-
-    pub fn to_calibration(&self) -> CalibrationParams {
-        CalibrationParams {
-            t_cam_dvl: Se3::new(self.r_dvl_cam.transpose(), self.lever_arm),
-            time_offset_s: self.time_offset,
-            velocity_scale: self.scale,
-        }
-    }
-
-    /// Applies an update `[dphi; dp; dkappa; ddelta]`; the rotation is perturbed on the left,
-    /// `R <- exp(dphi) R` (a rotation of the DVL frame).
-    pub fn updated(&self, d: &SMatrix<f64, NPARAM, 1>) -> Params {
+impl CalibrationParams {
+    /// Applies an update `[dphi; dp; dkappa; ddelta]` in the estimator's coordinates (those of
+    /// [`difference`] and of the covariance); the rotation is perturbed on the left,
+    /// `R_dvl_cam <- exp(dphi) R_dvl_cam` (a rotation of the DVL frame).
+    pub fn updated(&self, d: &SMatrix<f64, NPARAM, 1>) -> CalibrationParams {
         let dphi = Vector3::new(d[0], d[1], d[2]);
-        let r = so3::exp(&dphi) * self.r_dvl_cam;
-        Params {
-            r_dvl_cam: so3::matrix_from_quaternion(&so3::quaternion_from_matrix(&r)),
-            lever_arm: self.lever_arm + Vector3::new(d[3], d[4], d[5]),
-            scale: self.scale + d[6],
-            time_offset: self.time_offset + d[7],
-        }
+        let r = so3::exp(&dphi) * self.r_dvl_cam();
+        CalibrationParams::from_r_dvl_cam(
+            so3::matrix_from_quaternion(&so3::quaternion_from_matrix(&r)),
+            self.lever_arm_cam_m() + Vector3::new(d[3], d[4], d[5]),
+            self.velocity_scale + d[6],
+            self.time_offset_s + d[7],
+        )
     }
 }
 
-/// `self - other` in the coordinates of [`Params::updated`] and of the covariance:
+/// `self - other` in the coordinates of [`CalibrationParams::updated`] and of the covariance:
 /// `[log(R_self R_other^T); p_self - p_other; kappa_self - kappa_other; delta_self - delta_other]`.
-pub fn difference(a: &Params, b: &Params) -> SMatrix<f64, NPARAM, 1> {
-    let r = so3::log(&(a.r_dvl_cam * b.r_dvl_cam.transpose()));
-    let p = a.lever_arm - b.lever_arm;
+pub fn difference(a: &CalibrationParams, b: &CalibrationParams) -> SMatrix<f64, NPARAM, 1> {
+    let r = so3::log(&(a.r_dvl_cam() * b.r_dvl_cam().transpose()));
+    let p = a.lever_arm_cam_m() - b.lever_arm_cam_m();
     SMatrix::<f64, NPARAM, 1>::from_column_slice(&[
         r.x,
         r.y,
@@ -68,50 +39,53 @@ pub fn difference(a: &Params, b: &Params) -> SMatrix<f64, NPARAM, 1> {
         p.x,
         p.y,
         p.z,
-        a.scale - b.scale,
-        a.time_offset - b.time_offset,
+        a.velocity_scale - b.velocity_scale,
+        a.time_offset_s - b.time_offset_s,
     ])
 }
 
 /// Predicted DVL velocity from the camera twist `[v; w]`.
-pub fn predict(p: &Params, twist: &Vector6<f64>) -> Vector3<f64> {
+pub fn predict(p: &CalibrationParams, twist: &Vector6<f64>) -> Vector3<f64> {
     let v = twist.fixed_rows::<3>(0).into_owned();
     let w = twist.fixed_rows::<3>(3).into_owned();
-    p.r_dvl_cam * (v + w.cross(&p.lever_arm)) * p.scale
+    p.r_dvl_cam() * (v + w.cross(&p.lever_arm_cam_m())) * p.velocity_scale
 }
 
 /// Derivative of the prediction with respect to the twist `[v; w]` (3x6):
 /// `kappa R [I, -p^]`.
-pub fn d_predict_d_twist(p: &Params) -> SMatrix<f64, 3, 6> {
-    let kr = p.r_dvl_cam * p.scale;
+pub fn d_predict_d_twist(p: &CalibrationParams) -> SMatrix<f64, 3, 6> {
+    let kr = p.r_dvl_cam() * p.velocity_scale;
     let mut j = SMatrix::<f64, 3, 6>::zeros();
     j.fixed_view_mut::<3, 3>(0, 0).copy_from(&kr);
     j.fixed_view_mut::<3, 3>(0, 3)
-        .copy_from(&(-(kr * hat(&p.lever_arm))));
+        .copy_from(&(-(kr * hat(&p.lever_arm_cam_m()))));
     j
 }
 
 /// Derivative of the prediction with respect to the parameters `[dphi; dp; dkappa; ddelta]`
 /// (3x8), given the twist and its rate at the sample's camera time.
 pub fn d_predict_d_params(
-    p: &Params,
+    p: &CalibrationParams,
     twist: &Vector6<f64>,
     rate: &Vector6<f64>,
 ) -> SMatrix<f64, 3, NPARAM> {
     let v = twist.fixed_rows::<3>(0).into_owned();
     let w = twist.fixed_rows::<3>(3).into_owned();
-    let u = v + w.cross(&p.lever_arm);
-    let ru = p.r_dvl_cam * u;
+    let u = v + w.cross(&p.lever_arm_cam_m());
+    let ru = p.r_dvl_cam() * u;
     let mut j = SMatrix::<f64, 3, NPARAM>::zeros();
     // exp(dphi) R u ~= R u + dphi x (R u) = R u - (R u)^ dphi
     j.fixed_view_mut::<3, 3>(0, 0)
-        .copy_from(&(-hat(&ru) * p.scale));
+        .copy_from(&(-hat(&ru) * p.velocity_scale));
     j.fixed_view_mut::<3, 3>(0, 3)
-        .copy_from(&(p.r_dvl_cam * hat(&w) * p.scale));
+        .copy_from(&(p.r_dvl_cam() * hat(&w) * p.velocity_scale));
     j.set_column(6, &ru);
     let dv = rate.fixed_rows::<3>(0).into_owned();
     let dw = rate.fixed_rows::<3>(3).into_owned();
-    j.set_column(7, &(p.r_dvl_cam * (dv + dw.cross(&p.lever_arm)) * p.scale));
+    j.set_column(
+        7,
+        &(p.r_dvl_cam() * (dv + dw.cross(&p.lever_arm_cam_m())) * p.velocity_scale),
+    );
     j
 }
 
@@ -121,16 +95,17 @@ mod tests {
 
     #[test]
     fn parameter_jacobian_matches_numeric_differentiation() {
-        let p = Params {
-            r_dvl_cam: so3::exp(&Vector3::new(1.2, -0.3, 0.4)),
-            lever_arm: Vector3::new(0.05, 0.25, -0.1),
-            scale: 1.02,
-            time_offset: 0.07,
-        };
+        let p = CalibrationParams::from_r_dvl_cam(
+            so3::exp(&Vector3::new(1.2, -0.3, 0.4)),
+            Vector3::new(0.05, 0.25, -0.1),
+            1.02,
+            0.07,
+        );
         // A twist that varies linearly in time: twist(t) = t0 + rate * t.
         let tw = Vector6::new(0.3, -0.2, 0.1, 0.5, -0.8, 0.3);
         let rate = Vector6::new(0.1, 0.05, -0.2, 0.3, 0.2, -0.1);
-        let f = |q: &Params| predict(q, &(tw + rate * (q.time_offset - p.time_offset)));
+        let f =
+            |q: &CalibrationParams| predict(q, &(tw + rate * (q.time_offset_s - p.time_offset_s)));
         let j = d_predict_d_params(&p, &tw, &rate);
         let h = 1e-6;
         for i in 0..NPARAM {

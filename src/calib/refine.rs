@@ -3,10 +3,11 @@
 
 use nalgebra::{SMatrix, SVector};
 
-use super::model::{NPARAM, Params, d_predict_d_params, difference, predict};
+use super::model::{NPARAM, d_predict_d_params, difference, predict};
 use super::offset::DvlObs;
 use crate::error::{Error, Result};
 use crate::trajectory::Trajectory;
+use crate::types::CalibrationParams;
 
 pub type ParamVec = SVector<f64, NPARAM>;
 pub type ParamMat = SMatrix<f64, NPARAM, NPARAM>;
@@ -52,7 +53,7 @@ pub fn linearize(
     traj: &Trajectory,
     obs: &[DvlObs],
     idx: &[usize],
-    p: &Params,
+    p: &CalibrationParams,
 ) -> Result<Linearized> {
     let pieces = crate::parallel::map_pieces(idx.len(), LINEARIZE_PIECE, |r| {
         let mut hessian = ParamMat::zeros();
@@ -60,7 +61,7 @@ pub fn linearize(
         let mut cost = 0.0;
         for &i in &idx[r] {
             let o = &obs[i];
-            let s = traj.state(o.t + p.time_offset)?;
+            let s = traj.state(o.t + p.time_offset_s)?;
             let r = o.v - predict(p, &s.twist);
             let j = d_predict_d_params(p, &s.twist, &s.rate);
             let w = o.cov.try_inverse().ok_or_else(|| {
@@ -91,7 +92,7 @@ pub fn linearize(
 /// Outcome of a calibration update.
 #[derive(Clone, Debug)]
 pub struct UpdateResult {
-    pub params: Params,
+    pub params: CalibrationParams,
     pub cost: f64,
     pub iterations: usize,
     /// Information matrix of the DVL term at `params` (trajectory held fixed).
@@ -103,7 +104,7 @@ pub fn calibration_update(
     traj: &Trajectory,
     obs: &[DvlObs],
     idx: &[usize],
-    start: &Params,
+    start: &CalibrationParams,
     free: FreeParams,
     max_iterations: usize,
 ) -> Result<UpdateResult> {
@@ -167,7 +168,12 @@ pub fn calibration_update(
 
 /// Largest parameter change between `a` and `b` in units of the standard deviations implied by
 /// `hessian` (free parameters only; rotation as the left perturbation of `R_dvl_cam`).
-pub fn change_in_std(a: &Params, b: &Params, hessian: &ParamMat, free: &[bool; NPARAM]) -> f64 {
+pub fn change_in_std(
+    a: &CalibrationParams,
+    b: &CalibrationParams,
+    hessian: &ParamMat,
+    free: &[bool; NPARAM],
+) -> f64 {
     let d = difference(b, a);
     let mut h = *hessian;
     pin_fixed(&mut h, free);

@@ -9,7 +9,7 @@ use std::sync::Mutex;
 
 use nalgebra::{Matrix3, Matrix6, SMatrix, Vector6};
 
-use super::model::{NPARAM, Params, d_predict_d_params, d_predict_d_twist, predict};
+use super::model::{NPARAM, d_predict_d_params, d_predict_d_twist, predict};
 use super::offset::DvlObs;
 use super::refine::{ParamMat, ParamVec, pin_fixed};
 use crate::error::{Error, Result};
@@ -21,6 +21,7 @@ use crate::trajectory::solver::{
     gauss_newton, measurement_information, step,
 };
 use crate::trajectory::{Knot, KnotView, Trajectory};
+use crate::types::CalibrationParams;
 use crate::types::PoseMeasurement;
 
 /// What the joint problem needs besides the knot states, set up once per calibration: the pose
@@ -106,7 +107,7 @@ type CrossBlock = SMatrix<f64, 18, NPARAM>;
 /// (the clock offset fixes that), ready to be linearised at any knot states.
 struct DvlFactors<'a> {
     jp: &'a JointProblem<'a>,
-    params: Params,
+    params: CalibrationParams,
     /// Derivative of the prediction with respect to the twist.
     dh: SMatrix<f64, 3, 6>,
     /// Samples of interval `k`: `order[start[k]..start[k + 1]]` (positions in `jp.idx`, in
@@ -152,7 +153,7 @@ struct JointChunk<'s> {
 impl<'a> DvlFactors<'a> {
     /// The DVL factors of `jp` at the calibration `params`; fails when a sample's camera time
     /// falls outside the trajectory.
-    fn new(jp: &'a JointProblem<'a>, params: &Params) -> Result<Self> {
+    fn new(jp: &'a JointProblem<'a>, params: &CalibrationParams) -> Result<Self> {
         let view = KnotView {
             times: &jp.times,
             knots: &[],
@@ -161,7 +162,7 @@ impl<'a> DvlFactors<'a> {
         let interval: Vec<usize> = jp
             .idx
             .iter()
-            .map(|&i| view.locate(jp.obs[i].t + params.time_offset))
+            .map(|&i| view.locate(jp.obs[i].t + params.time_offset_s))
             .collect::<Result<_>>()?;
         // Counting sort by interval, stable in the order of `idx`.
         let mut start = vec![0usize; n + 1];
@@ -221,7 +222,7 @@ impl<'a> DvlFactors<'a> {
             let i = self.jp.idx[pos];
             let (o, w) = (&self.jp.obs[i], &self.jp.dvl_info[i]);
             let (state, j1, j2) =
-                view.projected_twist_jacobian_in(k, o.t + p.time_offset, ls, &self.dh);
+                view.projected_twist_jacobian_in(k, o.t + p.time_offset_s, ls, &self.dh);
             let r = o.v - predict(p, &state.twist);
             let (wj1, wj2) = (w * j1, w * j2);
             out.d1 += j1.transpose() * wj1;
@@ -250,7 +251,7 @@ impl<'a> DvlFactors<'a> {
         for &pos in self.samples(k) {
             let i = self.jp.idx[pos];
             let (o, w) = (&self.jp.obs[i], &self.jp.dvl_info[i]);
-            let s = view.state_in(k, o.t + p.time_offset, gamma2);
+            let s = view.state_in(k, o.t + p.time_offset_s, gamma2);
             let r = o.v - predict(p, &s.twist);
             cost += (r.transpose() * w * r)[0];
         }
@@ -404,7 +405,7 @@ impl NormalEquations for DvlFactors<'_> {
 pub fn state_update(
     jp: &JointProblem,
     traj: &Trajectory,
-    p: &Params,
+    p: &CalibrationParams,
     max_iterations: usize,
 ) -> Result<(Trajectory, f64)> {
     let problem = DvlFactors::new(jp, p)?;
@@ -433,7 +434,7 @@ struct JointSystem {
 fn joint_system(
     jp: &JointProblem,
     traj: &Trajectory,
-    p: &Params,
+    p: &CalibrationParams,
     free: &[bool; NPARAM],
 ) -> Result<JointSystem> {
     let n = traj.knots().len();
@@ -462,7 +463,7 @@ fn joint_system(
 pub fn joint_covariance(
     jp: &JointProblem,
     traj: &Trajectory,
-    p: &Params,
+    p: &CalibrationParams,
     free: &[bool; NPARAM],
 ) -> Result<(ParamMat, f64)> {
     let js = joint_system(jp, traj, p, free)?;
@@ -485,7 +486,7 @@ pub fn joint_covariance(
 /// Outcome of a joint step.
 pub struct JointStep {
     pub trajectory: Trajectory,
-    pub params: Params,
+    pub params: CalibrationParams,
     /// Joint cost after the step.
     pub cost: f64,
 }
@@ -500,7 +501,7 @@ pub struct JointStep {
 pub fn joint_step(
     jp: &JointProblem,
     traj: &Trajectory,
-    p: &Params,
+    p: &CalibrationParams,
     free: &[bool; NPARAM],
 ) -> Result<Option<JointStep>> {
     let js = joint_system(jp, traj, p, free)?;

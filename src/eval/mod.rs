@@ -95,9 +95,8 @@ pub fn calibration_error(
     estimate: &crate::io::calib_yaml::CalibrationFile,
     truth: &crate::types::CalibrationParams,
 ) -> Result<CalibrationError> {
-    use crate::calib::model::{Params, difference};
-    let est = Params::from_calibration(&estimate.to_params()?);
-    let error = difference(&est, &Params::from_calibration(truth));
+    use crate::calib::model::difference;
+    let error = difference(&estimate.to_params()?, truth);
     let std = estimate.std.as_ref().map(|s| {
         nalgebra::SVector::<f64, { crate::calib::model::NPARAM }>::from_column_slice(&[
             s.rotation_deg[0].to_radians(),

@@ -68,13 +68,13 @@ impl Derived {
                 skipped += 1;
                 continue;
             };
-            let t_cam = obs.t + p.time_offset;
+            let t_cam = obs.t + p.time_offset_s;
             let Ok(q) = traj.state(t_cam) else {
                 skipped += 1;
                 continue;
             };
             let before = traj
-                .state(obs.t + p0.time_offset)
+                .state(obs.t + p0.time_offset_s)
                 .ok()
                 .map(|q0| predict(p0, &q0.twist));
             let v = q.twist.fixed_rows::<3>(0).into_owned();
@@ -86,7 +86,7 @@ impl Derived {
                 before,
                 after: predict(p, &q.twist),
                 speed: v.norm(),
-                lever: w.cross(&p.lever_arm).norm(),
+                lever: w.cross(&p.lever_arm_cam_m()).norm(),
             });
         }
         if samples.is_empty() {

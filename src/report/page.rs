@@ -246,8 +246,8 @@ fn join_words(w: &[&str]) -> String {
 
 fn results(s: &mut String, o: &CalibrationOutcome) {
     section(s, "results", "Results");
-    let c = o.params.to_calibration();
-    let c0 = o.start.to_calibration();
+    let c = o.params;
+    let c0 = o.start;
     let st = &o.std;
     let ext = estimated(&o.method, true);
     let tim = estimated(&o.method, false);
@@ -265,23 +265,23 @@ fn results(s: &mut String, o: &CalibrationOutcome) {
         ),
         (
             "lever arm p_cam_dvl (m, camera frame)",
-            vec3(&o.params.lever_arm, 1.0, 4),
+            vec3(&o.params.lever_arm_cam_m(), 1.0, 4),
             format!("{} mm", vec3(&st.lever_arm_m, 1e3, 2)),
-            vec3(&o.start.lever_arm, 1.0, 4),
+            vec3(&o.start.lever_arm_cam_m(), 1.0, 4),
             verdict_cell(&o.verdicts.lever_arm, ext),
         ),
         (
             "clock offset time_offset_s (t_cam = t_dvl + offset)",
-            format!("{:.5} s", o.params.time_offset),
+            format!("{:.5} s", o.params.time_offset_s),
             format!("{:.2} ms", 1e3 * st.time_offset_s),
-            format!("{:.5} s", o.start.time_offset),
+            format!("{:.5} s", o.start.time_offset_s),
             verdict_cell(&o.verdicts.time_offset, tim),
         ),
         (
             "velocity scale",
-            format!("{:.5}", o.params.scale),
+            format!("{:.5}", o.params.velocity_scale),
             format!("{:.5}", st.velocity_scale),
-            format!("{:.5}", o.start.scale),
+            format!("{:.5}", o.start.velocity_scale),
             verdict_cell(&o.verdicts.velocity_scale, tim),
         ),
     ];
@@ -692,8 +692,8 @@ fn clock_offset(s: &mut String, o: &CalibrationOutcome) {
         }
         if id == "offset-fine" || init.is_none() {
             plot = plot.marker(
-                o.params.time_offset,
-                &format!("final {:.4} s", o.params.time_offset),
+                o.params.time_offset_s,
+                &format!("final {:.4} s", o.params.time_offset_s),
                 NOISE,
             );
         }
@@ -720,13 +720,13 @@ fn clock_offset(s: &mut String, o: &CalibrationOutcome) {
             },
             i.offset.offset,
             i.offset.scale,
-            o.params.time_offset,
+            o.params.time_offset_s,
             1e3 * o.std.time_offset_s
         ),
         None => format!(
             "This method starts from the given clock offset {:.4} s without a search; final value \
              {:.4} s.",
-            o.start.time_offset, o.params.time_offset
+            o.start.time_offset_s, o.params.time_offset_s
         ),
     };
     put!(s, "<p>{}</p></section>\n", escape(&words));
@@ -776,9 +776,9 @@ fn refinement(s: &mut String, o: &CalibrationOutcome) {
              <td class=\"num\">{:.5}</td><td class=\"num\">{}</td></tr>",
             k + 1,
             it.cost,
-            it.params.time_offset,
-            it.params.scale,
-            escape(&vec3(&it.params.lever_arm, 1.0, 4))
+            it.params.time_offset_s,
+            it.params.velocity_scale,
+            escape(&vec3(&it.params.lever_arm_cam_m(), 1.0, 4))
         );
     }
     s.push_str("</table></div></div>");

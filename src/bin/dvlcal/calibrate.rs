@@ -10,7 +10,6 @@ use crate::dataset::{DatasetArgs, load, print_found, resolve};
 use crate::detect::worker_pool;
 use crate::dvl_info::DvlInputArgs;
 
-use dvlcal::calib::model::Params;
 use dvlcal::calib::offset::OffsetMethod;
 use dvlcal::calib::{CalibOptions, CalibrationOutcome, Method, Verdict, calibrate};
 use dvlcal::io::calib_yaml::{
@@ -20,6 +19,7 @@ use dvlcal::io::calib_yaml::{
 use dvlcal::io::dvl::DvlLog;
 use dvlcal::io::exports::{FrameNames, kalibr_dvl_block, ros_static_transform};
 use dvlcal::io::write_atomic;
+use dvlcal::types::CalibrationParams;
 use nalgebra::Matrix4;
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -92,7 +92,7 @@ fn method_name(m: &Method) -> &'static str {
 
 /// The result file of an outcome, with the DVL log's own counts.
 pub fn result_file(o: &CalibrationOutcome, log: &DvlLog) -> CalibrationFile {
-    let mut f = CalibrationFile::from_params(&o.params.to_calibration());
+    let mut f = CalibrationFile::from_params(&o.params);
     let v = |x: &nalgebra::Vector3<f64>| [x.x, x.y, x.z];
     f.std = Some(CalibrationStd {
         rotation_deg: v(&o.std.rotation_deg),
@@ -183,7 +183,7 @@ pub fn result_file(o: &CalibrationOutcome, log: &DvlLog) -> CalibrationFile {
 /// The calibration options of the command line; `guess` is the parsed `--init`.
 pub fn options(
     method: MethodArg,
-    guess: Option<Params>,
+    guess: Option<CalibrationParams>,
     estimate_offset: bool,
     dvl_sigma: Option<f64>,
     offset_range: &[f64],
@@ -233,7 +233,7 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
         print_found(&files);
     }
     let guess = match &a.init {
-        Some(p) => Some(Params::from_calibration(&read_calib_yaml(p)?.to_params()?)),
+        Some(p) => Some(read_calib_yaml(p)?.to_params()?),
         None => None,
     };
     let opts = options(
@@ -264,7 +264,7 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
     let elapsed = start.elapsed().as_secs_f64();
     let file = result_file(&o, &data.log);
     write_calib_yaml(&a.out, &file)?;
-    let calib = o.params.to_calibration();
+    let calib = o.params;
     let tf = sibling(&a.out, "tf.txt");
     write_atomic(
         &tf,
@@ -332,7 +332,7 @@ fn print_summary(o: &CalibrationOutcome, log: &DvlLog, f: &CalibrationFile, secs
         s.rotation_deg.z,
         ok(&o.verdicts.rotation)
     );
-    let p = o.params.lever_arm;
+    let p = o.params.lever_arm_cam_m();
     println!(
         "lever arm p_cam_dvl [{:.4}, {:.4}, {:.4}] m  std [{:.4}, {:.4}, {:.4}] m  {}",
         p.x,
@@ -345,13 +345,13 @@ fn print_summary(o: &CalibrationOutcome, log: &DvlLog, f: &CalibrationFile, secs
     );
     println!(
         "clock     time_offset_s {:.5} s  std {:.5} s  {}",
-        o.params.time_offset,
+        o.params.time_offset_s,
         s.time_offset_s,
         ok(&o.verdicts.time_offset)
     );
     println!(
         "scale     velocity_scale {:.5}  std {:.5}  {}",
-        o.params.scale,
+        o.params.velocity_scale,
         s.velocity_scale,
         ok(&o.verdicts.velocity_scale)
     );

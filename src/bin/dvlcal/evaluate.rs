@@ -8,7 +8,6 @@ use std::path::PathBuf;
 use anyhow::{Context, Result, bail};
 use clap::Args;
 
-use dvlcal::calib::model::Params;
 use dvlcal::calib::{CalibOptions, Method, calibrate};
 use dvlcal::eval::odometry::{Odometry, OdometryOptions, dvl_odometry};
 use dvlcal::io::calib_yaml::read_calib_yaml;
@@ -125,7 +124,7 @@ pub fn run(a: EvaluateArgs) -> Result<()> {
 
     if cross {
         let guess = match &a.guess {
-            Some(p) => Some(Params::from_calibration(&read_calib_yaml(p)?.to_params()?)),
+            Some(p) => Some(read_calib_yaml(p)?.to_params()?),
             None => None,
         };
         let mut baselines = vec![Baseline {
@@ -174,7 +173,7 @@ pub fn run(a: EvaluateArgs) -> Result<()> {
                 let o = workers
                     .install(|| calibrate(&li.poses, &li.log.samples, &opts))
                     .with_context(|| format!("{} on {}", b.name, li.files.root.display()))?;
-                let c = o.params.to_calibration();
+                let c = o.params;
                 eprintln!(
                     "{} on {}: offset {:.4} s, scale {:.4}, lever arm [{:.3}, {:.3}, {:.3}] m",
                     b.name,

@@ -134,8 +134,6 @@ pub struct DvlReadOptions {
     pub time_source: DvlTimeSource,
     /// Stop at the first malformed line with an error naming `file:line`.
     pub strict: bool,
-    /// Standard deviation (m/s, per axis) replacing the covariance of every report.
-    pub sigma_override: Option<f64>,
     /// Bag topic to read; `None`: `/dvl/json_data` if present, else the driver's `DVL` topic.
     pub topic: Option<String>,
     /// Epoch of the sample times; `None`: the whole second of the earliest sample.
@@ -274,13 +272,6 @@ pub struct DvlLog {
 /// velocity report; the time source asked for is absent; or, in strict mode, the first
 /// malformed line (named `file:line`).
 pub fn read_dvl_log(path: &Path, opts: &DvlReadOptions) -> Result<DvlLog> {
-    if let Some(s) = opts.sigma_override {
-        if !(s.is_finite() && s > 0.0) {
-            return Err(Error::Input(format!(
-                "DVL sigma override must be a positive finite number, got {s}"
-            )));
-        }
-    }
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     if detect::is_mcap(&bytes) {
         return Err(Error::Input(format!(
@@ -468,10 +459,7 @@ impl Accumulator {
             if !r.valid && !opts.include_invalid {
                 continue;
             }
-            let cov = match opts.sigma_override {
-                Some(s) => Some(Matrix3::identity() * (s * s)),
-                None => r.cov.map(|c| Matrix3::from_row_slice(&c)),
-            };
+            let cov = r.cov.map(|c| Matrix3::from_row_slice(&c));
             samples.push((
                 *line,
                 DvlSample {
