@@ -44,6 +44,10 @@ pub struct CalibrateArgs {
     pub vision: crate::detect::VisionTuning,
     #[command(flatten)]
     pub dvl_input: DvlInputArgs,
+    /// Standard deviation of each DVL velocity component, m/s, replacing the reports'
+    /// covariance in the calibration.
+    #[arg(long = "dvl-sigma", value_name = "M_PER_S")]
+    pub dvl_sigma: Option<f64>,
     /// Stop at the first malformed DVL line instead of skipping and counting it.
     #[arg(long)]
     pub strict: bool,
@@ -240,7 +244,7 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
         a.method,
         guess,
         a.estimate_offset,
-        a.dvl_input.dvl_sigma,
+        a.dvl_sigma,
         &a.offset_range,
         a.biased,
     )?;

@@ -19,10 +19,6 @@ pub struct DvlInputArgs {
     /// (time_of_transmission) or host (receive time: bag record time or record-dvl's host_time_us).
     #[arg(long = "dvl-time", value_name = "T", default_value = "validity")]
     pub dvl_time: DvlTimeSource,
-    /// Standard deviation of each DVL velocity component, m/s, replacing the reports'
-    /// covariance.
-    #[arg(long = "dvl-sigma", value_name = "M_PER_S")]
-    pub dvl_sigma: Option<f64>,
     /// Topic to read from a ROS bag (default: /dvl/json_data, else the driver's DVL topic).
     #[arg(long = "dvl-topic", value_name = "TOPIC")]
     pub dvl_topic: Option<String>,
@@ -35,7 +31,6 @@ impl DvlInputArgs {
             format: self.dvl_format,
             time_source: self.dvl_time,
             strict,
-            sigma_override: self.dvl_sigma,
             topic: self.dvl_topic.clone(),
             epoch: None,
             include_invalid: false,

@@ -52,6 +52,10 @@ pub struct EvaluateArgs {
     pub vision: VisionTuning,
     #[command(flatten)]
     pub dvl_input: DvlInputArgs,
+    /// Standard deviation of each DVL velocity component, m/s, replacing the reports'
+    /// covariance in the calibration.
+    #[arg(long = "dvl-sigma", value_name = "M_PER_S")]
+    pub dvl_sigma: Option<f64>,
 }
 
 /// The name of a dataset in tables: its folder's last component.
@@ -155,7 +159,7 @@ pub fn run(a: EvaluateArgs) -> Result<()> {
             MethodArg::Uic,
             None,
             false,
-            a.dvl_input.dvl_sigma,
+            a.dvl_sigma,
             &a.offset_range,
             false,
         )?;
