@@ -17,8 +17,8 @@ use dvlcal::sim::render::RenderSettings;
 use dvlcal::vision::board::Board;
 use dvlcal::vision::camera::Camchain;
 use dvlcal::vision::detect::{Detector, DetectorSettings, load_gray};
+use dvlcal::vision::frames::detect_frames;
 use dvlcal::vision::images::scan_images;
-use dvlcal::vision::pipeline::detect_frames;
 use dvlcal::vision::pnp::PnpOptions;
 
 const DECIMATE: f32 = 2.0;

@@ -16,17 +16,15 @@ use nalgebra::SMatrix;
 
 use dvlcal::calib::model::{NPARAM, difference};
 use dvlcal::calib::{CalibOptions, calibrate};
+use dvlcal::pipeline::{
+    ImageRequest, SimulateRequest, VisionOptions, poses_from_images, write_simulated_dataset,
+};
 use dvlcal::sim::dataset::{MotionKind, SimConfig, simulate};
 use dvlcal::sim::image_dataset::{
     DEFAULT_BOARD_DISTANCE_M, FrameSpec, ImageSimSettings, board_facing, default_board,
-    default_stereo_camchain, write_image_dataset,
+    default_stereo_camchain,
 };
 use dvlcal::sim::rng::Rng;
-use dvlcal::types::PoseMeasurement;
-use dvlcal::vision::detect::DetectorSettings;
-use dvlcal::vision::images::scan_images;
-use dvlcal::vision::pipeline::detect_frames;
-use dvlcal::vision::pnp::PnpOptions;
 
 const NAMES: [&str; NPARAM] = [
     "rot x (deg)",
@@ -69,22 +67,10 @@ fn one(seed: u64, duration: f64, dir: &std::path::Path, images: bool, pose_sigma
         pose_sigma_rot_rad: pose_sigma,
         ..SimConfig::default()
     };
-    let ds = simulate(&cfg).expect("simulation");
-    let board = default_board();
-    let chain = default_stereo_camchain();
-    let t_world_board = board_facing(&ds.truth_poses[0].pose, &board, DEFAULT_BOARD_DISTANCE_M);
-    let t_board_world = t_world_board.inverse();
-    let frames: Vec<FrameSpec> = ds
-        .true_poses_in(&t_board_world)
-        .iter()
-        .map(|p| FrameSpec {
-            t_ns: ds.unix_ns(p.t),
-            t_board_cam0: p.pose,
-        })
-        .collect();
     if !images {
         // The same motion with the simulator's own pose noise (default 2 mm, 2 mrad), no images: tells
         // the vision's share of the errors from the motion's.
+        let ds = simulate(&cfg).expect("simulation");
         let start = Instant::now();
         let o = calibrate(&ds.poses, &ds.dvl, &CalibOptions::default()).expect("calibrate");
         return summarise(
@@ -97,47 +83,59 @@ fn one(seed: u64, duration: f64, dir: &std::path::Path, images: bool, pose_sigma
             start,
         );
     }
+    // The recording as `dvlcal simulate --images` writes it, and its poses as `dvlcal calibrate`
+    // gets them.
     let _ = std::fs::remove_dir_all(dir);
-    let settings = ImageSimSettings {
-        seed,
-        ..ImageSimSettings::default()
+    let req = SimulateRequest {
+        config: cfg,
+        images: Some(ImageRequest {
+            board: default_board(),
+            chain: default_stereo_camchain(),
+            board_distance_m: DEFAULT_BOARD_DISTANCE_M,
+            settings: ImageSimSettings {
+                seed,
+                ..ImageSimSettings::default()
+            },
+        }),
+        note: format!("end_to_end bench, seed {seed}"),
     };
     let start = Instant::now();
-    write_image_dataset(dir, &board, &chain, &frames, &settings, &|_, _| {}).expect("render");
+    let rec = write_simulated_dataset(dir, &req, &|_, _| {}).expect("render");
     let render_s = start.elapsed().as_secs_f64();
+    let ds = rec.dataset;
 
     let start = Instant::now();
-    let (stereo, _) = scan_images(dir, 2, 2_000_000).expect("scan");
-    let det = DetectorSettings {
-        family: board.family,
-        decimate: 2.0,
-        threads: 1,
-        ..DetectorSettings::default()
-    };
-    let (results, _) = detect_frames(&stereo, &board, &chain, &det, &PnpOptions::default(), false)
-        .expect("detect");
+    let run = poses_from_images(
+        dir,
+        &dir.join("camchain.yaml"),
+        &dir.join("target.yaml"),
+        &VisionOptions::default(),
+    )
+    .expect("detect");
     let detect_s = start.elapsed().as_secs_f64();
-    // Camera times on the simulation's epoch, so that the DVL samples line up.
-    let poses: Vec<PoseMeasurement> = results
-        .iter()
-        .filter_map(|r| {
-            r.pose.as_ref().map(|p| PoseMeasurement {
-                t: (r.frame.t_ns - ds.epoch.sec * 1_000_000_000) as f64 * 1e-9,
-                pose: p.t_board_cam0,
-                cov: Some(p.cov),
-            })
-        })
-        .collect();
+    // The DVL samples are the simulation's own, on its epoch; the poses' epoch is the first
+    // frame's whole second, the same one.
+    assert_eq!(run.epoch, ds.epoch, "pose and DVL epochs differ");
     if std::env::var_os("DVLCAL_POSE_DIAG").is_some() {
-        pose_diagnostics(&results, &frames);
+        let board = default_board();
+        let t_world_board = board_facing(&ds.truth_poses[0].pose, &board, DEFAULT_BOARD_DISTANCE_M);
+        let frames: Vec<FrameSpec> = ds
+            .true_poses_in(&t_world_board.inverse())
+            .iter()
+            .map(|p| FrameSpec {
+                t_ns: ds.unix_ns(p.t),
+                t_board_cam0: p.pose,
+            })
+            .collect();
+        pose_diagnostics(&run.results, &frames);
     }
     let start = Instant::now();
-    let o = calibrate(&poses, &ds.dvl, &CalibOptions::default()).expect("calibrate");
+    let o = calibrate(&run.poses, &ds.dvl, &CalibOptions::default()).expect("calibrate");
     summarise(
         &o,
         &ds.truth,
-        results.len(),
-        poses.len(),
+        run.results.len(),
+        run.poses.len(),
         render_s,
         detect_s,
         start,
@@ -146,7 +144,7 @@ fn one(seed: u64, duration: f64, dir: &std::path::Path, images: bool, pose_sigma
 
 /// The PnP poses against the rendered truth: mean NEES, mean error (bias) per component, and the
 /// lag-1 autocorrelation of the whitened errors (0 for errors independent between frames).
-fn pose_diagnostics(results: &[dvlcal::vision::pipeline::FrameResult], frames: &[FrameSpec]) {
+fn pose_diagnostics(results: &[dvlcal::vision::frames::FrameResult], frames: &[FrameSpec]) {
     let mut ws: Vec<nalgebra::Vector6<f64>> = Vec::new();
     let mut es: Vec<nalgebra::Vector6<f64>> = Vec::new();
     for (r, f) in results.iter().zip(frames) {

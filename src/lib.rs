@@ -16,6 +16,7 @@ pub mod eval;
 pub mod io;
 pub mod lie;
 mod parallel;
+pub mod pipeline;
 pub mod report;
 pub mod sim;
 pub mod time;

@@ -103,14 +103,26 @@ fn odometry_restarts_across_gaps_and_counts_them() {
     assert!(r.gaps >= 35 && r.gaps <= 45, "{} gaps", r.gaps);
     assert_eq!(*r.segment.last().unwrap(), r.gaps);
     // No DVL at all over the poses: an error, not a number.
-    let e = dvl_odometry(&poses, &dvl[..1], &ds.truth, &OdometryOptions::default())
-        .unwrap_err()
-        .to_string();
-    assert!(e.contains("no camera interval"), "{e}");
-    let e = dvl_odometry(&poses[..1], &dvl, &ds.truth, &OdometryOptions::default())
-        .unwrap_err()
-        .to_string();
-    assert!(e.contains("at least two camera poses"), "{e}");
+    let e = dvl_odometry(&poses, &dvl[..1], &ds.truth, &OdometryOptions::default()).unwrap_err();
+    assert!(matches!(e, dvlcal::Error::NoTimeOverlap(_)), "{e:?}");
+    assert!(e.to_string().contains("no camera interval"), "{e}");
+    let e = dvl_odometry(&poses[..1], &dvl, &ds.truth, &OdometryOptions::default()).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            dvlcal::Error::TooFewSamples {
+                found: 1,
+                needed: 2,
+                ..
+            }
+        ),
+        "{e:?}"
+    );
+    assert!(
+        e.to_string()
+            .contains("camera poses for the odometry check"),
+        "{e}"
+    );
 }
 
 fn dvlcal(args: &[&str]) -> std::process::Output {

@@ -11,8 +11,8 @@ use dvlcal::sim::render::RenderSettings;
 use dvlcal::vision::board::Board;
 use dvlcal::vision::camera::Camchain;
 use dvlcal::vision::detect::DetectorSettings;
+use dvlcal::vision::frames::{FrameStatus, detect_frames, detect_poses};
 use dvlcal::vision::images::{Layout, scan_images};
-use dvlcal::vision::pipeline::{FrameStatus, detect_frames, detect_poses};
 use dvlcal::vision::pnp::PnpOptions;
 use vision_seq::*;
 

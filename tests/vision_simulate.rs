@@ -13,8 +13,8 @@ use dvlcal::sim::image_dataset::{
 use dvlcal::vision::board::Board;
 use dvlcal::vision::camera::Camchain;
 use dvlcal::vision::detect::{Detector, DetectorSettings, load_gray};
+use dvlcal::vision::frames::detect_poses;
 use dvlcal::vision::images::scan_images;
-use dvlcal::vision::pipeline::detect_poses;
 use dvlcal::vision::pnp::PnpOptions;
 
 struct TempDir(PathBuf);

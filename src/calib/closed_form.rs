@@ -51,10 +51,11 @@ pub fn project_to_rotation(m: &Matrix3<f64>) -> Result<Matrix3<f64>> {
 /// Solves the stacked problem; `bias_corrected` subtracts the twist-covariance bias.
 pub fn closed_form(rows: &[ClosedFormRow], bias_corrected: bool) -> Result<ClosedForm> {
     if rows.len() < 4 {
-        return Err(Error::Input(format!(
-            "the closed-form extrinsics need at least 4 DVL samples inside the camera span, got {}",
-            rows.len()
-        )));
+        return Err(Error::TooFewSamples {
+            what: "DVL samples inside the camera span for the closed-form extrinsics".into(),
+            found: rows.len(),
+            needed: 4,
+        });
     }
     let s = Matrix6::from_diagonal(&Vector6::new(1.0, 1.0, 1.0, -1.0, -1.0, -1.0));
     let mut a = Matrix6::zeros();

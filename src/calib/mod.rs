@@ -93,6 +93,25 @@ impl Default for CalibOptions {
     }
 }
 
+impl CalibOptions {
+    /// Checks every setting before anything is computed; the error names the option.
+    pub fn validate(&self) -> Result<()> {
+        self.offset.validate()?;
+        if let Some(s) = self.dvl_sigma
+            && !(s.is_finite() && s > 0.0)
+        {
+            return Err(Error::option("--dvl-sigma", "must be positive"));
+        }
+        if !(self.default_dvl_sigma.is_finite() && self.default_dvl_sigma > 0.0) {
+            return Err(Error::option(
+                "default_dvl_sigma",
+                "must be a positive number of m/s",
+            ));
+        }
+        Ok(())
+    }
+}
+
 /// Verdict on one parameter.
 #[derive(Clone, Debug)]
 pub struct Verdict {
@@ -220,6 +239,7 @@ pub fn calibrate(
     dvl: &[DvlSample],
     opts: &CalibOptions,
 ) -> Result<CalibrationOutcome> {
+    opts.validate()?;
     let obs = observations(dvl, opts);
     let mut counts = Counts {
         poses: poses.len(),
@@ -228,10 +248,11 @@ pub fn calibrate(
         ..Counts::default()
     };
     if obs.len() < 10 {
-        return Err(Error::Input(format!(
-            "{} valid DVL velocity reports: at least 10 are needed",
-            obs.len()
-        )));
+        return Err(Error::TooFewSamples {
+            what: "valid DVL velocity reports".into(),
+            found: obs.len(),
+            needed: 10,
+        });
     }
     let traj = Trajectory::fit(poses, &opts.fit)?;
     let mut warnings = Vec::new();
@@ -296,7 +317,7 @@ pub fn calibrate(
     counts.dvl_used = idx.len();
     counts.dvl_outside_span = obs.len() - idx.len();
     if idx.len() < 10 {
-        return Err(Error::Input(format!(
+        return Err(Error::NoTimeOverlap(format!(
             "only {} DVL samples fall inside the camera time span at offset {:.3} s",
             idx.len(),
             start.time_offset_s

@@ -57,6 +57,26 @@ impl Default for OffsetOptions {
     }
 }
 
+impl OffsetOptions {
+    /// Checks the search settings; the error names the option.
+    pub fn validate(&self) -> Result<()> {
+        let (lo, hi) = self.range;
+        if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+            return Err(Error::option(
+                "--offset-range",
+                "takes two increasing values: min,max",
+            ));
+        }
+        if !(self.coarse_step.is_finite() && self.coarse_step > 0.0) {
+            return Err(Error::option(
+                "offset coarse_step",
+                "must be a positive number of seconds",
+            ));
+        }
+        Ok(())
+    }
+}
+
 /// How the offset was obtained.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum OffsetMethod {
@@ -186,14 +206,12 @@ pub fn estimate_offset(
     obs: &[DvlObs],
     opts: &OffsetOptions,
 ) -> Result<OffsetResult> {
+    opts.validate()?;
     let (lo, hi) = opts.range;
-    if lo.partial_cmp(&hi) != Some(std::cmp::Ordering::Less) {
-        return Err(Error::Input(format!("empty offset range [{lo}, {hi}]")));
-    }
     let all = inside(traj, obs, lo, hi);
     if all.len() < 10 {
         let (a, b) = traj.span();
-        return Err(Error::Input(format!(
+        return Err(Error::NoTimeOverlap(format!(
             "only {} DVL samples fall inside the camera time span [{a:.3}, {b:.3}] for every offset in \
              [{lo}, {hi}] s: the logs do not overlap in time (check the clocks or widen the offset range)",
             all.len()

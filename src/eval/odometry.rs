@@ -41,6 +41,19 @@ impl Default for OdometryOptions {
     }
 }
 
+impl OdometryOptions {
+    /// Checks the settings; the error names the option.
+    pub fn validate(&self) -> Result<()> {
+        if !(self.rpe_delta_s.is_finite() && self.rpe_delta_s > 0.0) {
+            return Err(Error::option("--rpe-delta", "must be positive"));
+        }
+        if !(self.max_gap_s.is_finite() && self.max_gap_s > 0.0) {
+            return Err(Error::option("--max-gap", "must be positive"));
+        }
+        Ok(())
+    }
+}
+
 /// The result of the odometry check.
 #[derive(Clone, Debug)]
 pub struct Odometry {
@@ -132,11 +145,13 @@ pub fn dvl_odometry(
     calib: &CalibrationParams,
     opts: &OdometryOptions,
 ) -> Result<Odometry> {
+    opts.validate()?;
     if poses.len() < 2 {
-        return Err(Error::Input(format!(
-            "the odometry check needs at least two camera poses, got {}",
-            poses.len()
-        )));
+        return Err(Error::TooFewSamples {
+            what: "camera poses for the odometry check".into(),
+            found: poses.len(),
+            needed: 2,
+        });
     }
     if !(calib.velocity_scale.is_finite() && calib.velocity_scale > 0.0) {
         return Err(Error::Input(format!(
@@ -164,7 +179,7 @@ pub fn dvl_odometry(
     let poses: Vec<&PoseMeasurement> = all.iter().filter(|p| p.t >= first && p.t <= last).collect();
     let outside_dvl_span = all.len() - poses.len();
     if poses.len() < 2 {
-        return Err(Error::Input(format!(
+        return Err(Error::NoTimeOverlap(format!(
             "no camera interval is covered by DVL reports ({} valid reports, {} of {} poses in              their time span; check the clock offset and that both logs overlap in time)",
             dvl_used,
             poses.len(),
@@ -206,7 +221,7 @@ pub fn dvl_odometry(
         segment.push(seg);
     }
     if covered == 0 {
-        return Err(Error::Input(format!(
+        return Err(Error::NoTimeOverlap(format!(
             "no camera interval is covered by DVL reports ({} valid reports; check the clock \
              offset and that both logs overlap in time)",
             dvl_used

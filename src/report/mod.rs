@@ -19,8 +19,8 @@ use crate::error::Result;
 use crate::io::dvl::DvlLogStats;
 use crate::time::Epoch;
 use crate::types::PoseMeasurement;
-use crate::vision::pipeline::FrameResult;
-use crate::vision::pipeline::FrameStatus;
+use crate::vision::frames::FrameResult;
+use crate::vision::frames::FrameStatus;
 
 /// The id of every plot of the report, in page order. Plots without data (no clock-offset search
 /// for `--method bcd`, no image statistics for `--poses` runs) are still present, marked

@@ -4,9 +4,11 @@
 //! - [`motion`]: continuous camera motions with exact poses, twists and twist rates.
 //! - [`dataset`]: noisy camera poses and DVL velocities simulated from a motion and a known
 //!   calibration.
+//! - [`a50`]: simulated DVL samples as the A50's json_v3 reports.
 //! - [`render`]: camera images of a board, rendered from libapriltag's own tag patterns.
 //! - [`image_dataset`]: the stereo images of a simulated recording, written as a dataset folder.
 
+pub mod a50;
 pub mod dataset;
 pub mod image_dataset;
 pub mod motion;

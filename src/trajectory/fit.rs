@@ -108,10 +108,11 @@ pub struct TwistJacobian {
 /// Checks the inputs every fit needs.
 fn check_poses(poses: &[PoseMeasurement]) -> Result<()> {
     if poses.len() < 3 {
-        return Err(Error::Input(format!(
-            "a trajectory needs at least 3 poses, got {}",
-            poses.len()
-        )));
+        return Err(Error::TooFewSamples {
+            what: "camera poses for a trajectory".into(),
+            found: poses.len(),
+            needed: 3,
+        });
     }
     for (i, w) in poses.windows(2).enumerate() {
         if w[1].t.partial_cmp(&w[0].t) != Some(std::cmp::Ordering::Greater) {

@@ -5,7 +5,7 @@ pub mod board_svg;
 pub mod camera;
 pub mod detect;
 pub mod family;
+pub mod frames;
 pub mod images;
-pub mod pipeline;
 pub mod pnp;
 pub mod refine;

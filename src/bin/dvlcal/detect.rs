@@ -1,23 +1,14 @@
 //! `dvlcal detect`: camera poses `T_world_cam0` (board frame as world) from folders of stereo
 //! images of an AprilTag board, with per-frame statistics and covariances.
 
-use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
-use std::time::Instant;
+use std::path::PathBuf;
 
-use anyhow::{Context, Result, bail};
+use anyhow::Result;
 use clap::Args;
 
 use dvlcal::io::tum::write_tum;
 use dvlcal::io::write_atomic;
-use dvlcal::time::Epoch;
-use dvlcal::types::PoseMeasurement;
-use dvlcal::vision::board::Board;
-use dvlcal::vision::camera::Camchain;
-use dvlcal::vision::detect::DetectorSettings;
-use dvlcal::vision::images::{Layout, ScanStats, raw_time, scan_images};
-use dvlcal::vision::pipeline::{DetectStats, FrameResult, detect_frames};
-use dvlcal::vision::pnp::PnpOptions;
+use dvlcal::pipeline::{VisionOptions, frames_csv_path, poses_from_images};
 
 /// Detection and PnP settings shared by `detect` and `calibrate --images`.
 #[derive(Args, Debug, Clone)]
@@ -43,6 +34,20 @@ pub struct VisionTuning {
     pub no_progress: bool,
 }
 
+impl VisionTuning {
+    /// The library's options for these arguments.
+    pub fn options(&self) -> VisionOptions {
+        VisionOptions {
+            threads: self.threads,
+            decimate: self.decimate,
+            pair_tolerance_ms: self.pair_tolerance_ms,
+            min_corners: self.min_corners,
+            pixel_sigma: self.pixel_sigma,
+            progress: !self.no_progress,
+        }
+    }
+}
+
 #[derive(Args, Debug)]
 pub struct DetectArgs {
     /// Image folder: DIR/cam0/<t_ns>.png (+ DIR/cam1/...) or EuRoC's DIR/mav0/camN/data.csv.
@@ -63,208 +68,13 @@ pub struct DetectArgs {
     pub tuning: VisionTuning,
 }
 
-/// A thread pool of `threads` workers (default: all cores).
-pub fn worker_pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
-    let n = threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
-    if n == 0 {
-        bail!("--threads must be at least 1");
-    }
-    rayon::ThreadPoolBuilder::new()
-        .num_threads(n)
-        .build()
-        .context("starting the worker threads")
-}
-
-/// Everything a run of the pipeline produced.
-pub struct VisionRun {
-    /// The camera chain the poses were solved with.
-    pub chain: Camchain,
-    pub epoch: Epoch,
-    /// One per posed frame, in time order, with covariances.
-    pub poses: Vec<PoseMeasurement>,
-    pub results: Vec<FrameResult>,
-    pub scan: ScanStats,
-    pub stats: DetectStats,
-    pub seconds: f64,
-}
-
-/// Scans the folder, detects and solves every frame; prints warnings and image problems to
-/// stderr. Fails when no frame gets a pose.
-pub fn run_pipeline(
-    images: &Path,
-    camchain: &Path,
-    target: &Path,
-    t: &VisionTuning,
-) -> Result<VisionRun> {
-    let chain = Camchain::load(camchain)?;
-    let board = Board::load(target)?;
-    if !(t.pair_tolerance_ms.is_finite() && t.pair_tolerance_ms >= 0.0) {
-        bail!("--pair-tolerance-ms must be a non-negative number");
-    }
-    if t.min_corners < 4 {
-        bail!("--min-corners must be at least 4");
-    }
-    if let Some(s) = t.pixel_sigma
-        && !(s.is_finite() && s > 0.0)
-    {
-        bail!("--pixel-sigma must be positive");
-    }
-    let tol_ns = (t.pair_tolerance_ms * 1e6).round() as i64;
-    let (frames, scan) = scan_images(images, chain.cams.len(), tol_ns)?;
-    for w in &scan.warnings {
-        eprintln!("warning: {w}");
-    }
-    let det = DetectorSettings {
-        family: board.family,
-        decimate: t.decimate,
-        threads: 1,
-        ..DetectorSettings::default()
-    };
-    let opts = PnpOptions {
-        min_corners: t.min_corners,
-        sigma_px: t.pixel_sigma,
-        ..PnpOptions::default()
-    };
-    let pool = worker_pool(t.threads)?;
-    let start = Instant::now();
-    let (results, stats) =
-        pool.install(|| detect_frames(&frames, &board, &chain, &det, &opts, !t.no_progress))?;
-    let seconds = start.elapsed().as_secs_f64();
-    const SHOWN: usize = 10;
-    for p in stats.problems.iter().take(SHOWN) {
-        eprintln!("skipped: {p}");
-    }
-    if stats.problems.len() > SHOWN {
-        eprintln!(
-            "skipped: ... and {} more images",
-            stats.problems.len() - SHOWN
-        );
-    }
-    let epoch = Epoch::at(raw_time(frames.first().map_or(0, |f| f.t_ns)));
-    let poses: Vec<PoseMeasurement> = results
-        .iter()
-        .filter_map(|r| {
-            r.pose.as_ref().map(|p| PoseMeasurement {
-                t: epoch.rel(raw_time(r.frame.t_ns)),
-                pose: p.t_board_cam0,
-                cov: Some(p.cov),
-            })
-        })
-        .collect();
-    let run = VisionRun {
-        chain,
-        epoch,
-        poses,
-        results,
-        scan,
-        stats,
-        seconds,
-    };
-    print_summary(images, &run);
-    if run.poses.is_empty() {
-        bail!(
-            "{}: no frame gave a pose ({} frames)",
-            images.display(),
-            run.stats.frames
-        );
-    }
-    Ok(run)
-}
-
-fn print_summary(dir: &Path, r: &VisionRun) {
-    let sc = &r.scan;
-    let st = &r.stats;
-    let layout = match sc.layout {
-        Layout::Kalibr => "camN/<t_ns> layout",
-        Layout::Euroc => "EuRoC layout",
-    };
-    let per_cam: Vec<String> = sc
-        .images
-        .iter()
-        .enumerate()
-        .map(|(c, n)| format!("cam{c} {n}"))
-        .collect();
-    println!(
-        "images {} ({layout}): {} images; {} frames, {} with every camera, {} cam0 alone, \
-         {} unpaired images of other cameras dropped, {} other files ignored",
-        dir.display(),
-        per_cam.join(", "),
-        st.frames,
-        sc.complete,
-        sc.unpaired_cam0,
-        sc.unpaired_other,
-        sc.ignored
-    );
-    println!(
-        "poses {} of {} frames; {:.1} tags detected per frame, {} used, {} rejected as outliers, \
-         {} not on the board; reprojection RMS {:.3} px; {:.2} s ({:.1} frames/s)",
-        st.poses,
-        st.frames,
-        st.tags_per_frame(),
-        st.tags_used,
-        st.tags_rejected,
-        st.tags_unknown,
-        st.rms_px,
-        r.seconds,
-        st.frames as f64 / r.seconds.max(1e-9)
-    );
-    println!(
-        "skipped frames: {} too few corners, {} no solution, {} no usable image \
-         ({} unreadable images, {} of the wrong size)",
-        st.too_few_corners, st.no_solution, st.no_image, st.unreadable, st.wrong_size
-    );
-}
-
-/// The per-frame CSV written beside the TUM file: one row per pose, same order.
-pub fn frames_csv(run: &VisionRun) -> String {
-    let mut s = String::from(
-        "# one row per pose of the TUM file: time (s), tag observations used (a tag in both \
-         cameras counts twice), corners used, reprojection RMS (px), observations rejected, \
-         pixel sigma used for the covariance, then the 21 upper-triangle values (row by row) of \
-         the 6x6 covariance of the right perturbation [rho; phi] of T_world_cam0 (m, rad)\n",
-    );
-    s.push_str("t,tags,corners,rms_px,rejected,sigma_px");
-    for i in 0..6 {
-        for j in i..6 {
-            let _ = write!(s, ",c{i}{j}");
-        }
-    }
-    s.push('\n');
-    for r in &run.results {
-        let Some(p) = &r.pose else { continue };
-        let t = run.epoch.rel(raw_time(r.frame.t_ns));
-        let _ = write!(
-            s,
-            "{},{},{},{},{},{}",
-            run.epoch.format_abs(t, 9),
-            p.tags_used,
-            p.corners_used,
-            p.rms_px,
-            p.tags_rejected,
-            p.sigma_px
-        );
-        for i in 0..6 {
-            for j in i..6 {
-                let _ = write!(s, ",{:e}", p.cov[(i, j)]);
-            }
-        }
-        s.push('\n');
-    }
-    s
-}
-
-/// `OUT.frames.csv` beside `OUT`.
-pub fn frames_path(out: &Path) -> PathBuf {
-    let mut name = out.as_os_str().to_owned();
-    name.push(".frames.csv");
-    PathBuf::from(name)
-}
-
 pub fn run(a: DetectArgs) -> Result<()> {
-    let run = run_pipeline(&a.images, &a.camchain, &a.target, &a.tuning)?;
+    let run = poses_from_images(&a.images, &a.camchain, &a.target, &a.tuning.options())?;
+    crate::dataset::print_vision(&run);
+    run.require_poses()?;
     write_tum(&a.out, run.epoch, &run.poses)?;
-    let frames = frames_path(&a.out);
-    write_atomic(&frames, frames_csv(&run).as_bytes())?;
+    let frames = frames_csv_path(&a.out);
+    write_atomic(&frames, run.frames_csv().as_bytes())?;
     println!("wrote {} and {}", a.out.display(), frames.display());
     Ok(())
 }

@@ -9,7 +9,6 @@ mod dvl_info;
 mod eval;
 mod evaluate;
 mod fit;
-mod html_report;
 mod record_dvl;
 mod simulate;
 mod tags;

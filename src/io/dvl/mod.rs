@@ -20,6 +20,7 @@ pub mod json;
 pub mod record;
 pub mod report;
 pub mod serial;
+mod summary;
 
 use std::collections::{BTreeMap, HashMap};
 use std::fmt;

@@ -1,0 +1,325 @@
+//! A calibration of a loaded dataset and everything written from it: the result file, the ROS and
+//! Kalibr exports, the HTML report, and the summary printed at the end.
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use nalgebra::{Matrix4, Vector3};
+
+use crate::calib::offset::OffsetMethod;
+use crate::calib::{CalibOptions, CalibrationOutcome, Method, Verdict, calibrate};
+use crate::error::{Error, Result};
+use crate::io::calib_yaml::{
+    CalibrationFile, CalibrationInfo, CalibrationStd, Observability, ObservabilityFlags,
+    write_calib_yaml,
+};
+use crate::io::dvl::DvlLog;
+use crate::io::exports::{FrameNames, kalibr_dvl_block, ros_static_transform};
+use crate::io::write_atomic;
+use crate::report::{ReportInput, frame_stats, render_html};
+
+use super::dataset::Dataset;
+
+/// A finished calibration of a dataset: the outcome, the result file made from it, and the wall
+/// time of the calibration itself.
+#[derive(Clone, Debug)]
+pub struct CalibrationRun {
+    /// What the estimator produced.
+    pub outcome: CalibrationOutcome,
+    /// The result file's content (estimates, standard deviations, verdicts, counts, warnings).
+    pub file: CalibrationFile,
+    /// Seconds spent in [`calibrate`] (the dataset was read before).
+    pub elapsed_s: f64,
+}
+
+/// Calibrates `data` with `opts` on a pool of `threads` workers (`None`: all cores; the result
+/// is the same for any number), and builds the result file.
+pub fn calibrate_dataset(
+    data: &Dataset,
+    opts: &CalibOptions,
+    threads: Option<usize>,
+) -> Result<CalibrationRun> {
+    let workers = super::worker_pool(threads)?;
+    let start = Instant::now();
+    let outcome = workers.install(|| calibrate(&data.poses, &data.log.samples, opts))?;
+    let elapsed_s = start.elapsed().as_secs_f64();
+    let file = result_file(&outcome, &data.log);
+    Ok(CalibrationRun {
+        outcome,
+        file,
+        elapsed_s,
+    })
+}
+
+fn flag(v: &Verdict) -> Observability {
+    if v.ok {
+        Observability::Ok
+    } else {
+        Observability::Weak
+    }
+}
+
+/// The method in words, as the result file and the summary name it.
+pub fn method_name(m: &Method) -> &'static str {
+    match m {
+        Method::Uic => "uic",
+        Method::Bcd(_) => "bcd",
+        Method::Fixed {
+            estimate_offset: true,
+            ..
+        } => "fixed extrinsics, estimated clock offset",
+        Method::Fixed { .. } => "fixed extrinsics",
+    }
+}
+
+/// The result file of an outcome, with the DVL log's own counts.
+pub fn result_file(o: &CalibrationOutcome, log: &DvlLog) -> CalibrationFile {
+    let mut f = CalibrationFile::from_params(&o.params);
+    let v = |x: &Vector3<f64>| [x.x, x.y, x.z];
+    f.std = Some(CalibrationStd {
+        rotation_deg: v(&o.std.rotation_deg),
+        lever_arm_m: v(&o.std.lever_arm_m),
+        time_offset_s: o.std.time_offset_s,
+        velocity_scale: o.std.velocity_scale,
+    });
+    f.observability = Some(ObservabilityFlags {
+        rotation: flag(&o.verdicts.rotation),
+        lever_arm: flag(&o.verdicts.lever_arm),
+        time_offset: flag(&o.verdicts.time_offset),
+        velocity_scale: flag(&o.verdicts.velocity_scale),
+    });
+    let mut extra = BTreeMap::new();
+    let mut put = |k: &str, val: serde_yaml::Value| {
+        extra.insert(k.to_owned(), val);
+    };
+    put("poses", o.counts.poses.into());
+    let st = &log.stats;
+    put("dvl_log", st.path.display().to_string().into());
+    put("dvl_time_source", st.time_source_used.clone().into());
+    put("dvl_velocity_reports", st.velocity_reports.into());
+    put("dvl_invalid", st.invalid.into());
+    put("dvl_duplicates", st.duplicates.into());
+    put("dvl_rejected_lines", st.rejected_lines.into());
+    put("dvl_samples", o.counts.dvl_samples.into());
+    put("dvl_used", o.counts.dvl_used.into());
+    put("dvl_outside_camera_span", o.counts.dvl_outside_span.into());
+    put(
+        "dvl_residual_rms_mps",
+        vec![o.residual_rms.x, o.residual_rms.y, o.residual_rms.z].into(),
+    );
+    put("dvl_normalized_cost", o.normalized_cost.into());
+    put(
+        "cost_per_iteration",
+        o.iterations
+            .iter()
+            .map(|i| i.cost)
+            .collect::<Vec<_>>()
+            .into(),
+    );
+    put(
+        "rms_angular_speed_radps",
+        o.excitation.rms_angular_speed.into(),
+    );
+    put("rms_speed_mps", o.excitation.rms_speed.into());
+    put(
+        "lever_arm_velocity_ratio",
+        o.excitation.lever_arm_ratio.into(),
+    );
+    put(
+        "trajectory_qc",
+        o.trajectory.qc.iter().copied().collect::<Vec<_>>().into(),
+    );
+    if let Some(init) = &o.init {
+        put(
+            "clock_offset_init",
+            match init.offset.method {
+                OffsetMethod::CalmSubset => "calm subset",
+                OffsetMethod::SpeedCorrelation => "speed correlation (no calm segment)",
+            }
+            .into(),
+        );
+        put("calm_samples", o.counts.calm.into());
+    }
+    let mut warnings = st.warnings.clone();
+    warnings.extend(o.warnings.iter().cloned());
+    for (name, vd) in [
+        ("rotation", &o.verdicts.rotation),
+        ("lever arm", &o.verdicts.lever_arm),
+        ("time offset", &o.verdicts.time_offset),
+        ("velocity scale", &o.verdicts.velocity_scale),
+    ] {
+        if !vd.ok {
+            warnings.push(format!("{name} is weakly observable: {}", vd.reason));
+        }
+    }
+    f.info = Some(CalibrationInfo {
+        method: Some(method_name(&o.method).into()),
+        iterations: Some(o.iterations.len() as u64),
+        warnings,
+        notes: Vec::new(),
+        extra,
+    });
+    f
+}
+
+/// `RESULT-<suffix>` beside `RESULT` (its extension dropped).
+pub fn sibling(out: &Path, suffix: &str) -> PathBuf {
+    let stem = out
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "calibration".into());
+    out.with_file_name(format!("{stem}-{suffix}"))
+}
+
+/// The files [`write_results`] wrote.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ResultPaths {
+    /// The result YAML.
+    pub result: PathBuf,
+    /// `RESULT-tf.txt`: ROS 1 and ROS 2 static transform commands.
+    pub tf: PathBuf,
+    /// `RESULT-camchain-dvl.yaml`: the Kalibr-style `T_cam_dvl` block per camera.
+    pub camchain_block: PathBuf,
+}
+
+/// Writes the result YAML to `out` (its folder created) and the ROS and Kalibr exports beside
+/// it, each atomically. With images the Kalibr block is given for every camera of the chain;
+/// with poses, for cam0.
+pub fn write_results(out: &Path, run: &CalibrationRun, data: &Dataset) -> Result<ResultPaths> {
+    if let Some(d) = out.parent()
+        && !d.as_os_str().is_empty()
+    {
+        std::fs::create_dir_all(d).map_err(|e| Error::io(d, e))?;
+    }
+    write_calib_yaml(out, &run.file)?;
+    let calib = &run.outcome.params;
+    let tf = sibling(out, "tf.txt");
+    write_atomic(
+        &tf,
+        ros_static_transform(calib, &FrameNames::default()).as_bytes(),
+    )?;
+    let t_cn_c0: Vec<Matrix4<f64>> = match &data.vision {
+        Some(run) => run.chain.t_cn_c0.iter().map(|t| t.to_matrix()).collect(),
+        None => vec![Matrix4::identity()],
+    };
+    let block = sibling(out, "camchain-dvl.yaml");
+    write_atomic(&block, kalibr_dvl_block(calib, &t_cn_c0).as_bytes())?;
+    Ok(ResultPaths {
+        result: out.to_path_buf(),
+        tf,
+        camchain_block: block,
+    })
+}
+
+/// Renders the HTML report of a run and writes it atomically to `path`. `result` is the result
+/// YAML already written (its text is shown in the report when it can be read).
+pub fn write_report(
+    path: &Path,
+    run: &CalibrationRun,
+    data: &Dataset,
+    result: &Path,
+) -> Result<()> {
+    let frames = data
+        .vision
+        .as_ref()
+        .map(|v| frame_stats(&v.results, &v.epoch));
+    let dataset = format!(
+        "camera poses: {}; DVL log: {}",
+        data.camera_source.display(),
+        data.log.stats.path.display()
+    );
+    // The result file was just written; a report without it is still useful.
+    let yaml = std::fs::read_to_string(result).ok();
+    let name = result.display().to_string();
+    let input = ReportInput {
+        dataset: &dataset,
+        dvl_stats: Some(&data.log.stats),
+        frames: frames.as_deref(),
+        result_name: Some(&name),
+        result_yaml: yaml.as_deref(),
+        elapsed_s: Some(run.elapsed_s),
+        ..ReportInput::new(&run.outcome, &data.poses)
+    };
+    let html = render_html(&input)?;
+    write_atomic(path, html.as_bytes())
+}
+
+impl CalibrationRun {
+    /// The summary `dvlcal calibrate` prints: counts, each parameter with its standard deviation
+    /// and verdict, the residuals, and every warning.
+    pub fn summary(&self, log: &DvlLog) -> String {
+        let o = &self.outcome;
+        let ok = |v: &Verdict| if v.ok { "ok" } else { "WEAK" };
+        let s = &o.std;
+        let st = &log.stats;
+        let mut out = String::new();
+        let _ = writeln!(
+            out,
+            "method {}; {} poses; DVL: {} velocity reports, {} invalid, {} duplicates, {} malformed lines; \
+             {} used, {} outside the camera span; {:.2} s",
+            method_name(&o.method),
+            o.counts.poses,
+            st.velocity_reports,
+            st.invalid,
+            st.duplicates,
+            st.rejected_lines,
+            o.counts.dvl_used,
+            o.counts.dvl_outside_span,
+            self.elapsed_s
+        );
+        let q = self.file.quaternion_cam_dvl_xyzw;
+        let _ = writeln!(
+            out,
+            "rotation  q_cam_dvl (xyzw) [{:.5}, {:.5}, {:.5}, {:.5}]  std [{:.3}, {:.3}, {:.3}] deg  {}",
+            q[0],
+            q[1],
+            q[2],
+            q[3],
+            s.rotation_deg.x,
+            s.rotation_deg.y,
+            s.rotation_deg.z,
+            ok(&o.verdicts.rotation)
+        );
+        let p = o.params.lever_arm_cam_m();
+        let _ = writeln!(
+            out,
+            "lever arm p_cam_dvl [{:.4}, {:.4}, {:.4}] m  std [{:.4}, {:.4}, {:.4}] m  {}",
+            p.x,
+            p.y,
+            p.z,
+            s.lever_arm_m.x,
+            s.lever_arm_m.y,
+            s.lever_arm_m.z,
+            ok(&o.verdicts.lever_arm)
+        );
+        let _ = writeln!(
+            out,
+            "clock     time_offset_s {:.5} s  std {:.5} s  {}",
+            o.params.time_offset_s,
+            s.time_offset_s,
+            ok(&o.verdicts.time_offset)
+        );
+        let _ = writeln!(
+            out,
+            "scale     velocity_scale {:.5}  std {:.5}  {}",
+            o.params.velocity_scale,
+            s.velocity_scale,
+            ok(&o.verdicts.velocity_scale)
+        );
+        let _ = writeln!(
+            out,
+            "residuals {:.4} {:.4} {:.4} m/s RMS; normalized cost {:.2}; {} iterations",
+            o.residual_rms.x,
+            o.residual_rms.y,
+            o.residual_rms.z,
+            o.normalized_cost,
+            o.iterations.len()
+        );
+        for w in self.file.info.iter().flat_map(|i| i.warnings.iter()) {
+            let _ = writeln!(out, "warning: {w}");
+        }
+        out
+    }
+}

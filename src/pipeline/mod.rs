@@ -1,0 +1,46 @@
+//! The whole calibration as a library: what the `dvlcal` program runs, for other programs.
+//!
+//! The stages below string the modules together with plain option structs (no command-line
+//! types); each option struct checks itself with `validate()`, and each step returns typed
+//! values the next step takes:
+//!
+//! 1. [`dataset_files`] finds the parts of a dataset folder (or takes them one by one), and
+//!    [`Dataset::load`] reads them: camera poses from a pose file or from images
+//!    ([`poses_from_images`]: detection and stereo PnP), and the DVL log on the same epoch.
+//! 2. [`calibrate_dataset`] runs the estimator ([`crate::calib::calibrate`]) and builds the
+//!    result file; [`write_results`] and [`write_report`] write it, its exports and the report.
+//! 3. [`odometry_table`] and [`cross_validate`] check calibrations on data.
+//! 4. [`write_simulated_dataset`] writes a dataset folder with known truth.
+//!
+//! Long steps take a worker-thread count; results never depend on it.
+
+mod calibration;
+mod dataset;
+mod evaluate;
+mod simulate;
+mod vision;
+
+pub use calibration::{
+    CalibrationRun, ResultPaths, calibrate_dataset, method_name, result_file, sibling,
+    write_report, write_results,
+};
+pub use dataset::{Dataset, dataset_files, describe_files};
+pub use evaluate::{
+    Baseline, CrossValidation, baselines, cross_validate, odometry_check, odometry_table,
+};
+pub use simulate::{ImageRequest, SimulateRequest, SimulatedRecording, write_simulated_dataset};
+pub use vision::{VisionOptions, VisionRun, frames_csv_path, posed_frames, poses_from_images};
+
+use crate::error::{Error, Result};
+
+/// A pool of `threads` worker threads (`None`: one per core).
+pub fn worker_pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
+    let n = threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    if n == 0 {
+        return Err(Error::option("--threads", "must be at least 1"));
+    }
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(n)
+        .build()
+        .map_err(|e| Error::Input(format!("starting the worker threads: {e}")))
+}

@@ -1,0 +1,204 @@
+//! A simulated recording written as a dataset folder that [`super::Dataset::load`] reads, with
+//! its truth beside it.
+//!
+//! The data: `dvl.jsonl` (A50 json_v3.1 lines) and `poses.txt` (noisy camera poses, TUM); with
+//! images, the stereo images of a board along the motion instead of the poses: `cam0/<ns>.png`,
+//! `cam1/<ns>.png` (absolute Unix nanoseconds of the camera pose times), `camchain.yaml`,
+//! `target.yaml`.
+//!
+//! The truth, in `truth/` (which dataset discovery never reads): `calibration.yaml`, `poses.txt`
+//! (true `T_world_cam`), `twist.csv` (true camera twists at the pose times), `dvl_twist.csv` (at
+//! the DVL samples' camera times); with images `poses_board.txt` (`T_board_cam0`),
+//! `board_in_world.txt` (`T_world_board`) and `poses_noisy.txt` (the poses a pose-only run would
+//! have had).
+
+use std::path::{Path, PathBuf};
+
+use nalgebra::Vector3;
+
+use crate::error::{Error, Result};
+use crate::io::calib_yaml::{CalibrationFile, CalibrationInfo, write_calib_yaml};
+use crate::io::dvl::a50::write_a50_jsonl;
+use crate::io::tum::write_tum;
+use crate::io::twist_csv::{TwistRow, write_twist_csv};
+use crate::io::write_atomic;
+use crate::lie::Se3;
+use crate::sim::a50::a50_reports;
+use crate::sim::dataset::{SimConfig, SimDataset, simulate};
+use crate::sim::image_dataset::{
+    FrameSpec, ImageSimSettings, ImageSimStats, board_facing, write_image_dataset,
+};
+use crate::sim::motion::MotionState;
+use crate::vision::board::Board;
+use crate::vision::camera::Camchain;
+
+/// The distance every simulated A50 beam reports, m.
+const ALTITUDE_M: f64 = 1.5;
+
+/// The images of a simulated recording.
+#[derive(Clone, Debug)]
+pub struct ImageRequest {
+    /// The board in view.
+    pub board: Board,
+    /// The cameras.
+    pub chain: Camchain,
+    /// Distance from the starting camera to the board's centre, m (`--board-distance`).
+    pub board_distance_m: f64,
+    /// Image formation, threads and file format.
+    pub settings: ImageSimSettings,
+}
+
+impl ImageRequest {
+    /// Checks the values; the error names the option.
+    pub fn validate(&self) -> Result<()> {
+        if !(self.board_distance_m.is_finite() && self.board_distance_m > 0.0) {
+            return Err(Error::option(
+                "--board-distance",
+                format!("must be positive, got {}", self.board_distance_m),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// What to simulate.
+#[derive(Clone, Debug)]
+pub struct SimulateRequest {
+    /// The motion, rates, noise levels, truth and seed.
+    pub config: SimConfig,
+    /// Render stereo images of a board instead of writing the noisy poses as the camera data.
+    pub images: Option<ImageRequest>,
+    /// How the dataset was made, in a line (recorded in `truth/calibration.yaml`).
+    pub note: String,
+}
+
+/// What [`write_simulated_dataset`] wrote.
+#[derive(Clone, Debug)]
+pub struct SimulatedRecording {
+    /// The simulation itself (truth, noisy poses, DVL samples).
+    pub dataset: SimDataset,
+    /// The image part, when images were rendered.
+    pub images: Option<ImageSimStats>,
+}
+
+fn truth_rows(states: &[MotionState], times: impl Iterator<Item = f64>) -> Vec<TwistRow> {
+    states
+        .iter()
+        .zip(times)
+        .map(|(s, t)| TwistRow {
+            t,
+            v: s.twist.fixed_rows::<3>(0).into_owned(),
+            w: s.twist.fixed_rows::<3>(3).into_owned(),
+            std_v: Vector3::zeros(),
+            std_w: Vector3::zeros(),
+            dv: s.twist_rate.fixed_rows::<3>(0).into_owned(),
+            dw: s.twist_rate.fixed_rows::<3>(3).into_owned(),
+        })
+        .collect()
+}
+
+fn create_dir(dir: &Path) -> Result<()> {
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))
+}
+
+/// Simulates `req.config` and writes the dataset folder `out` (created) with its truth.
+/// `progress(done, total)` is told about rendered frames.
+pub fn write_simulated_dataset(
+    out: &Path,
+    req: &SimulateRequest,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<SimulatedRecording> {
+    if let Some(im) = &req.images {
+        im.validate()?;
+    }
+    let ds = simulate(&req.config)?;
+    create_dir(out)?;
+    let truth_dir = out.join("truth");
+    create_dir(&truth_dir)?;
+    let data = |name: &str| out.join(name);
+    let truth = |name: &str| truth_dir.join(name);
+    let noisy = if req.images.is_some() {
+        truth("poses_noisy.txt")
+    } else {
+        data("poses.txt")
+    };
+    write_tum(&noisy, ds.epoch, &ds.poses)?;
+    let truth_poses = ds.true_poses_in(&Se3::identity());
+    write_tum(&truth("poses.txt"), ds.epoch, &truth_poses)?;
+    write_twist_csv(
+        &truth("twist.csv"),
+        ds.epoch,
+        &truth_rows(&ds.truth_poses, ds.poses.iter().map(|p| p.t)),
+    )?;
+    let offset = ds.truth.time_offset_s;
+    write_twist_csv(
+        &truth("dvl_twist.csv"),
+        ds.epoch,
+        &truth_rows(&ds.dvl_truth, ds.dvl.iter().map(|s| s.t + offset)),
+    )?;
+    write_a50_jsonl(
+        &data("dvl.jsonl"),
+        &a50_reports(&ds.dvl, ds.epoch, ALTITUDE_M),
+    )?;
+    let mut file = CalibrationFile::from_params(&ds.truth);
+    file.info = Some(CalibrationInfo {
+        method: Some("simulation truth".into()),
+        notes: vec![req.note.clone()],
+        ..CalibrationInfo::default()
+    });
+    write_calib_yaml(&truth("calibration.yaml"), &file)?;
+    let images = match &req.images {
+        Some(im) => Some(write_images(out, &ds, im, progress)?),
+        None => None,
+    };
+    Ok(SimulatedRecording {
+        dataset: ds,
+        images,
+    })
+}
+
+/// The image part of the dataset: the board faces the starting camera (`T_world_board`), each
+/// camera pose time gets one stereo frame rendered from the true pose.
+fn write_images(
+    out: &Path,
+    ds: &SimDataset,
+    im: &ImageRequest,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<ImageSimStats> {
+    let first = ds
+        .truth_poses
+        .first()
+        .ok_or_else(|| Error::Input("the simulation produced no camera pose".into()))?;
+    let t_world_board = board_facing(&first.pose, &im.board, im.board_distance_m);
+    let board_poses = ds.true_poses_in(&t_world_board.inverse());
+    let frames: Vec<FrameSpec> = board_poses
+        .iter()
+        .map(|p| FrameSpec {
+            t_ns: ds.unix_ns(p.t),
+            t_board_cam0: p.pose,
+        })
+        .collect();
+    let truth = |name: &str| -> PathBuf { out.join("truth").join(name) };
+    write_tum(&truth("poses_board.txt"), ds.epoch, &board_poses)?;
+    write_atomic(
+        &truth("board_in_world.txt"),
+        board_in_world_text(&t_world_board).as_bytes(),
+    )?;
+    write_atomic(
+        &out.join("camchain.yaml"),
+        im.chain.to_kalibr_yaml().as_bytes(),
+    )?;
+    write_atomic(&out.join("target.yaml"), im.board.to_yaml().as_bytes())?;
+    write_image_dataset(out, &im.board, &im.chain, &frames, &im.settings, progress)
+}
+
+fn board_in_world_text(t: &Se3) -> String {
+    let q = t.quaternion_xyzw();
+    format!(
+        "# T_world_board: the board's pose in the world frame of truth/poses.txt (tx ty tz qx qy \
+         qz qw)\n\
+         # truth/poses_board.txt = T_world_board^-1 * truth/poses.txt\n\
+         {:.9} {:.9} {:.9} {:.9} {:.9} {:.9} {:.9}\n",
+        t.trans.x, t.trans.y, t.trans.z, q[0], q[1], q[2], q[3]
+    )
+}

@@ -1,0 +1,262 @@
+//! Camera poses from a folder of stereo images: scan, detect, solve, and the per-frame table.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use crate::error::{Error, Result};
+use crate::time::Epoch;
+use crate::types::PoseMeasurement;
+use crate::vision::board::Board;
+use crate::vision::camera::Camchain;
+use crate::vision::detect::DetectorSettings;
+use crate::vision::frames::{DetectStats, FrameResult, detect_frames};
+use crate::vision::images::{Layout, ScanStats, raw_time, scan_images};
+use crate::vision::pnp::PnpOptions;
+
+/// Detection and PnP settings (the options `dvlcal detect` and `dvlcal calibrate` share).
+#[derive(Clone, Debug, PartialEq)]
+pub struct VisionOptions {
+    /// Worker threads, one image pair per thread at a time (`--threads`; `None`: all cores).
+    pub threads: Option<usize>,
+    /// Decimation of the image for quad detection; corners are refined at full resolution
+    /// (`--decimate`).
+    pub decimate: f32,
+    /// Largest time difference between paired cam0 / cam1 images, ms (`--pair-tolerance-ms`).
+    pub pair_tolerance_ms: f64,
+    /// Frames with fewer board corners (all cameras) get no pose (`--min-corners`).
+    pub min_corners: usize,
+    /// Corner noise (px) for the pose covariances; `None`: estimated per frame from the
+    /// residuals (`--pixel-sigma`).
+    pub pixel_sigma: Option<f64>,
+    /// Show a progress bar on a terminal.
+    pub progress: bool,
+}
+
+impl Default for VisionOptions {
+    fn default() -> Self {
+        VisionOptions {
+            threads: None,
+            decimate: 2.0,
+            pair_tolerance_ms: 2.0,
+            min_corners: 8,
+            pixel_sigma: None,
+            progress: false,
+        }
+    }
+}
+
+impl VisionOptions {
+    /// Checks the values the pipeline owns (the detector checks its own, `--decimate`); the
+    /// error names the option.
+    pub fn validate(&self) -> Result<()> {
+        if self.threads == Some(0) {
+            return Err(Error::option("--threads", "must be at least 1"));
+        }
+        if !(self.pair_tolerance_ms.is_finite() && self.pair_tolerance_ms >= 0.0) {
+            return Err(Error::option(
+                "--pair-tolerance-ms",
+                "must be a non-negative number",
+            ));
+        }
+        if self.min_corners < 4 {
+            return Err(Error::option("--min-corners", "must be at least 4"));
+        }
+        if let Some(s) = self.pixel_sigma
+            && !(s.is_finite() && s > 0.0)
+        {
+            return Err(Error::option("--pixel-sigma", "must be positive"));
+        }
+        Ok(())
+    }
+}
+
+/// Everything a run of the image pipeline produced.
+#[derive(Debug)]
+pub struct VisionRun {
+    /// The image folder.
+    pub images: PathBuf,
+    /// The camera chain the poses were solved with.
+    pub chain: Camchain,
+    /// The epoch of the pose times: the whole second of the first frame.
+    pub epoch: Epoch,
+    /// One per posed frame, in time order, with covariances (`T_board_cam0` on the camera
+    /// clock).
+    pub poses: Vec<PoseMeasurement>,
+    /// One per frame, posed or not.
+    pub results: Vec<FrameResult>,
+    /// What the folder scan found (with its warnings).
+    pub scan: ScanStats,
+    /// Detection and PnP counts (with the images that could not be used).
+    pub stats: DetectStats,
+    /// Wall time of detection and PnP, s.
+    pub seconds: f64,
+}
+
+/// Scans `images`, detects the board's tags and solves every frame on a pool of
+/// `opts.threads` workers. Skipped images and frames are counted in the run; a run in which no
+/// frame got a pose is returned too (to report on), and [`VisionRun::require_poses`] turns it into
+/// an error.
+pub fn poses_from_images(
+    images: &Path,
+    camchain: &Path,
+    target: &Path,
+    opts: &VisionOptions,
+) -> Result<VisionRun> {
+    opts.validate()?;
+    let chain = Camchain::load(camchain)?;
+    let board = Board::load(target)?;
+    let tol_ns = (opts.pair_tolerance_ms * 1e6).round() as i64;
+    let (frames, scan) = scan_images(images, chain.cams.len(), tol_ns)?;
+    let det = DetectorSettings {
+        family: board.family,
+        decimate: opts.decimate,
+        threads: 1,
+        ..DetectorSettings::default()
+    };
+    let pnp = PnpOptions {
+        min_corners: opts.min_corners,
+        sigma_px: opts.pixel_sigma,
+        ..PnpOptions::default()
+    };
+    let pool = super::worker_pool(opts.threads)?;
+    let start = Instant::now();
+    let (results, stats) =
+        pool.install(|| detect_frames(&frames, &board, &chain, &det, &pnp, opts.progress))?;
+    let seconds = start.elapsed().as_secs_f64();
+    let epoch = Epoch::at(raw_time(frames.first().map_or(0, |f| f.t_ns)));
+    let poses = posed_frames(&results, &epoch);
+    Ok(VisionRun {
+        images: images.to_path_buf(),
+        chain,
+        epoch,
+        poses,
+        results,
+        scan,
+        stats,
+        seconds,
+    })
+}
+
+/// The poses of the posed frames, with their times relative to `epoch`.
+pub fn posed_frames(results: &[FrameResult], epoch: &Epoch) -> Vec<PoseMeasurement> {
+    results
+        .iter()
+        .filter_map(|r| {
+            r.pose.as_ref().map(|p| PoseMeasurement {
+                t: epoch.rel(raw_time(r.frame.t_ns)),
+                pose: p.t_board_cam0,
+                cov: Some(p.cov),
+            })
+        })
+        .collect()
+}
+
+impl VisionRun {
+    /// An error naming the folder when no frame got a pose.
+    pub fn require_poses(&self) -> Result<()> {
+        if self.poses.is_empty() {
+            return Err(Error::dataset(
+                &self.images,
+                format!("no frame gave a pose ({} frames)", self.stats.frames),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Three lines on what was read, detected and skipped.
+    pub fn summary(&self) -> String {
+        let sc = &self.scan;
+        let st = &self.stats;
+        let layout = match sc.layout {
+            Layout::Kalibr => "camN/<t_ns> layout",
+            Layout::Euroc => "EuRoC layout",
+        };
+        let per_cam: Vec<String> = sc
+            .images
+            .iter()
+            .enumerate()
+            .map(|(c, n)| format!("cam{c} {n}"))
+            .collect();
+        let mut s = String::new();
+        let _ = writeln!(
+            s,
+            "images {} ({layout}): {} images; {} frames, {} with every camera, {} cam0 alone, \
+             {} unpaired images of other cameras dropped, {} other files ignored",
+            self.images.display(),
+            per_cam.join(", "),
+            st.frames,
+            sc.complete,
+            sc.unpaired_cam0,
+            sc.unpaired_other,
+            sc.ignored
+        );
+        let _ = writeln!(
+            s,
+            "poses {} of {} frames; {:.1} tags detected per frame, {} used, {} rejected as outliers, \
+             {} not on the board; reprojection RMS {:.3} px; {:.2} s ({:.1} frames/s)",
+            st.poses,
+            st.frames,
+            st.tags_per_frame(),
+            st.tags_used,
+            st.tags_rejected,
+            st.tags_unknown,
+            st.rms_px,
+            self.seconds,
+            st.frames as f64 / self.seconds.max(1e-9)
+        );
+        let _ = writeln!(
+            s,
+            "skipped frames: {} too few corners, {} no solution, {} no usable image \
+             ({} unreadable images, {} of the wrong size)",
+            st.too_few_corners, st.no_solution, st.no_image, st.unreadable, st.wrong_size
+        );
+        s
+    }
+
+    /// The per-frame table written beside a TUM file of the poses: one row per pose, same order
+    /// (see `docs/formats.md`).
+    pub fn frames_csv(&self) -> String {
+        let mut s = String::from(
+            "# one row per pose of the TUM file: time (s), tag observations used (a tag in both \
+             cameras counts twice), corners used, reprojection RMS (px), observations rejected, \
+             pixel sigma used for the covariance, then the 21 upper-triangle values (row by row) of \
+             the 6x6 covariance of the right perturbation [rho; phi] of T_world_cam0 (m, rad)\n",
+        );
+        s.push_str("t,tags,corners,rms_px,rejected,sigma_px");
+        for i in 0..6 {
+            for j in i..6 {
+                let _ = write!(s, ",c{i}{j}");
+            }
+        }
+        s.push('\n');
+        for r in &self.results {
+            let Some(p) = &r.pose else { continue };
+            let t = self.epoch.rel(raw_time(r.frame.t_ns));
+            let _ = write!(
+                s,
+                "{},{},{},{},{},{}",
+                self.epoch.format_abs(t, 9),
+                p.tags_used,
+                p.corners_used,
+                p.rms_px,
+                p.tags_rejected,
+                p.sigma_px
+            );
+            for i in 0..6 {
+                for j in i..6 {
+                    let _ = write!(s, ",{:e}", p.cov[(i, j)]);
+                }
+            }
+            s.push('\n');
+        }
+        s
+    }
+}
+
+/// `OUT.frames.csv` beside the TUM file `OUT`.
+pub fn frames_csv_path(out: &Path) -> PathBuf {
+    let mut name = out.as_os_str().to_owned();
+    name.push(".frames.csv");
+    PathBuf::from(name)
+}
