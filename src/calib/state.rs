@@ -546,3 +546,6 @@ pub fn joint_step(
     }
     Ok(None)
 }
+#[cfg(test)]
+#[path = "state_jacobian_tests.rs"]
+mod jacobian_tests;

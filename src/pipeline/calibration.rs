@@ -41,7 +41,7 @@ pub fn calibrate_dataset(
     opts: &CalibOptions,
     threads: Option<usize>,
 ) -> Result<CalibrationRun> {
-    let workers = super::worker_pool(threads)?;
+    let workers = crate::parallel::worker_pool(threads)?;
     let start = Instant::now();
     let outcome = workers.install(|| calibrate(&data.poses, &data.log.samples, opts))?;
     let elapsed_s = start.elapsed().as_secs_f64();

@@ -127,7 +127,7 @@ pub fn cross_validate(
             "cross-validation needs two or more datasets; give --calib FILE to check one".into(),
         ));
     }
-    let workers = super::worker_pool(threads)?;
+    let workers = crate::parallel::worker_pool(threads)?;
     let n = data.len();
     let mut results = Vec::with_capacity(baselines.len());
     for b in &baselines {

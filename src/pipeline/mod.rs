@@ -31,16 +31,4 @@ pub use evaluate::{
 pub use simulate::{ImageRequest, SimulateRequest, SimulatedRecording, write_simulated_dataset};
 pub use vision::{VisionOptions, VisionRun, frames_csv_path, posed_frames, poses_from_images};
 
-use crate::error::{Error, Result};
-
-/// A pool of `threads` worker threads (`None`: one per core).
-pub fn worker_pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
-    let n = threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
-    if n == 0 {
-        return Err(Error::option("--threads", "must be at least 1"));
-    }
-    rayon::ThreadPoolBuilder::new()
-        .num_threads(n)
-        .build()
-        .map_err(|e| Error::Input(format!("starting the worker threads: {e}")))
-}
+pub use crate::parallel::worker_pool;

@@ -119,7 +119,7 @@ pub fn poses_from_images(
         sigma_px: opts.pixel_sigma,
         ..PnpOptions::default()
     };
-    let pool = super::worker_pool(opts.threads)?;
+    let pool = crate::parallel::worker_pool(opts.threads)?;
     let start = Instant::now();
     let (results, stats) =
         pool.install(|| detect_frames(&frames, &board, &chain, &det, &pnp, opts.progress))?;

@@ -2,7 +2,7 @@
 
 use nalgebra::Vector3;
 
-use super::ReportInput;
+use super::input::ReportInput;
 use crate::calib::model::predict;
 use crate::error::{Error, Result};
 

@@ -11,16 +11,13 @@
 //! the DVL log's summary and the result file.
 
 mod data;
+mod input;
 mod page;
 pub mod svg;
 
-use crate::calib::CalibrationOutcome;
+pub use input::{FrameStat, ReportInput, frame_stats};
+
 use crate::error::Result;
-use crate::io::dvl::DvlLogStats;
-use crate::time::Epoch;
-use crate::types::PoseMeasurement;
-use crate::vision::frames::FrameResult;
-use crate::vision::frames::FrameStatus;
 
 /// The id of every plot of the report, in page order. Plots without data (no clock-offset search
 /// for `--method bcd`, no image statistics for `--poses` runs) are still present, marked
@@ -62,73 +59,6 @@ pub const SECTION_IDS: &[&str] = &[
     "dvl-log",
     "result-file",
 ];
-
-/// One image frame of a `--images` run.
-#[derive(Clone, Debug, PartialEq)]
-pub struct FrameStat {
-    /// Camera time, seconds relative to the dataset epoch.
-    pub t: f64,
-    /// Whether the frame got a pose.
-    pub posed: bool,
-    /// Tags detected over all of the frame's images.
-    pub tags_detected: usize,
-    /// Tag observations used by the pose (0 without a pose).
-    pub tags_used: usize,
-    /// Reprojection RMS of the pose, pixels.
-    pub rms_px: Option<f64>,
-}
-
-/// Per-frame statistics of the detection pipeline's results, on the epoch of the poses.
-pub fn frame_stats(results: &[FrameResult], epoch: &Epoch) -> Vec<FrameStat> {
-    results
-        .iter()
-        .map(|r| FrameStat {
-            t: epoch.rel(crate::vision::images::raw_time(r.frame.t_ns)),
-            posed: r.status == FrameStatus::Posed && r.pose.is_some(),
-            tags_detected: r.tags_detected.iter().sum(),
-            tags_used: r.pose.as_ref().map_or(0, |p| p.tags_used),
-            rms_px: r.pose.as_ref().map(|p| p.rms_px),
-        })
-        .collect()
-}
-
-/// Everything the report shows.
-#[derive(Clone, Debug)]
-pub struct ReportInput<'a> {
-    /// Page title.
-    pub title: &'a str,
-    /// What was calibrated, in words (e.g. the input file names).
-    pub dataset: &'a str,
-    pub outcome: &'a CalibrationOutcome,
-    /// The camera poses the calibration used.
-    pub poses: &'a [PoseMeasurement],
-    /// The DVL log's counts, when read from a file.
-    pub dvl_stats: Option<&'a DvlLogStats>,
-    /// Per-frame detection statistics, for runs from images.
-    pub frames: Option<&'a [FrameStat]>,
-    /// Name of the result file and its text.
-    pub result_name: Option<&'a str>,
-    pub result_yaml: Option<&'a str>,
-    /// Wall time of the calibration, seconds.
-    pub elapsed_s: Option<f64>,
-}
-
-impl<'a> ReportInput<'a> {
-    /// A report of `outcome` with nothing else known.
-    pub fn new(outcome: &'a CalibrationOutcome, poses: &'a [PoseMeasurement]) -> ReportInput<'a> {
-        ReportInput {
-            title: "DVL calibration report",
-            dataset: "",
-            outcome,
-            poses,
-            dvl_stats: None,
-            frames: None,
-            result_name: None,
-            result_yaml: None,
-            elapsed_s: None,
-        }
-    }
-}
 
 /// Renders the report as one HTML document.
 pub fn render_html(input: &ReportInput) -> Result<String> {

@@ -5,8 +5,8 @@ use std::fmt::Write as _;
 use nalgebra::Vector3;
 
 use super::data::{Derived, Sample};
+use super::input::{FrameStat, ReportInput};
 use super::svg::{Histogram, Plot, Series, escape};
-use super::{FrameStat, ReportInput};
 use crate::calib::offset::OffsetMethod;
 use crate::calib::{CalibrationOutcome, Method, Verdict};
 use crate::io::dvl::DvlLogStats;

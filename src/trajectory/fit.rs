@@ -454,3 +454,6 @@ impl KnotView<'_> {
         }
     }
 }
+#[cfg(test)]
+#[path = "fit_jacobian_tests.rs"]
+mod jacobian_tests;

@@ -8,8 +8,9 @@ use std::path::Path;
 
 use rosbag::{ChunkRecord, IndexRecord, MessageRecord, RosBag};
 
+use super::json;
+use super::log::{DvlLogStats, DvlReadOptions};
 use super::report::{Parsed, Reject, VelocityReport, content_hash};
-use super::{DvlLogStats, DvlReadOptions, json};
 use crate::error::{Error, Result};
 use crate::time::RawTime;
 

@@ -1,6 +1,6 @@
 //! Recognises the format of a DVL log from its first bytes and lines.
 
-use super::DvlFormat;
+use super::log::{DvlFormat, text_lines};
 
 /// The first bytes of a ROS1 bag.
 pub const ROSBAG_MAGIC: &[u8] = b"#ROSBAG V2.0\n";
@@ -22,7 +22,7 @@ pub fn detect_format(bytes: &[u8]) -> Option<DvlFormat> {
         return None;
     }
     let (mut json, mut serial) = (0usize, 0usize);
-    for (_, line) in super::text_lines(bytes).take(SAMPLE_LINES) {
+    for (_, line) in text_lines(bytes).take(SAMPLE_LINES) {
         let t = line.trim_ascii();
         if t.first() == Some(&b'{') {
             json += 1;

@@ -17,255 +17,28 @@ pub mod a50;
 pub mod bag;
 pub mod detect;
 pub mod json;
+mod log;
 pub mod record;
 pub mod report;
 pub mod serial;
 mod summary;
 
 use std::collections::{BTreeMap, HashMap};
-use std::fmt;
-use std::path::{Path, PathBuf};
-use std::str::FromStr;
+use std::path::Path;
 
 use nalgebra::{Matrix3, Vector3};
-use serde::Serialize;
 
 use crate::error::{Error, Result};
 use crate::time::{Epoch, RawTime};
 use crate::types::DvlSample;
 
 pub use detect::detect_format;
+pub use log::{
+    DvlFormat, DvlLog, DvlLogStats, DvlReadOptions, DvlTimeSource, MAX_LISTED, RejectedLine,
+    TimeProblem, text_lines,
+};
 pub use record::{RecordOptions, RecordStats, record_tcp};
 pub use report::{Parsed, Reject, VelocityReport};
-
-/// The container or encoding of a DVL log.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum DvlFormat {
-    /// One JSON object per line (TCP stream, UDP forward, `record-dvl` output).
-    JsonLines,
-    /// Serial protocol sentences (`wrz`, `wrx`, ...), one per line, CRC-8 checked.
-    Serial,
-    /// A ROS1 bag (`#ROSBAG V2.0`).
-    RosBag,
-}
-
-impl DvlFormat {
-    /// The name used on the command line and in summaries.
-    pub fn name(self) -> &'static str {
-        match self {
-            DvlFormat::JsonLines => "json",
-            DvlFormat::Serial => "serial",
-            DvlFormat::RosBag => "rosbag",
-        }
-    }
-}
-
-impl fmt::Display for DvlFormat {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-impl FromStr for DvlFormat {
-    type Err = String;
-    fn from_str(s: &str) -> std::result::Result<Self, String> {
-        match s.to_ascii_lowercase().as_str() {
-            "json" | "jsonl" | "json-lines" | "tcp" | "udp" => Ok(DvlFormat::JsonLines),
-            "serial" | "wrz" => Ok(DvlFormat::Serial),
-            "bag" | "rosbag" | "ros1" => Ok(DvlFormat::RosBag),
-            _ => Err(format!(
-                "unknown DVL log format '{s}' (expected json, serial or rosbag)"
-            )),
-        }
-    }
-}
-
-/// Which time stamp of a report becomes the sample time.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum DvlTimeSource {
-    /// `time_of_validity`: mid-ping, on the DVL clock (json_v3+, `wrz`, `wrs`). The default.
-    #[default]
-    Validity,
-    /// `time_of_transmission`: when the report left the DVL, on the DVL clock.
-    Transmission,
-    /// The host's receive time: the bag record time (or the `/dvl/data` header stamp) of a
-    /// ROS1 bag, or the `host_time_us` that `record-dvl` adds to each line.
-    Host,
-}
-
-impl DvlTimeSource {
-    /// The name used on the command line and in summaries.
-    pub fn name(self) -> &'static str {
-        match self {
-            DvlTimeSource::Validity => "validity",
-            DvlTimeSource::Transmission => "transmission",
-            DvlTimeSource::Host => "host",
-        }
-    }
-}
-
-impl fmt::Display for DvlTimeSource {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-impl FromStr for DvlTimeSource {
-    type Err = String;
-    fn from_str(s: &str) -> std::result::Result<Self, String> {
-        match s.to_ascii_lowercase().as_str() {
-            "validity" | "time_of_validity" | "tov" => Ok(DvlTimeSource::Validity),
-            "transmission" | "time_of_transmission" | "tot" => Ok(DvlTimeSource::Transmission),
-            "host" | "receive" | "bag" => Ok(DvlTimeSource::Host),
-            _ => Err(format!(
-                "unknown DVL time source '{s}' (expected validity, transmission or host)"
-            )),
-        }
-    }
-}
-
-/// How to read a DVL log.
-#[derive(Clone, Debug, Default)]
-pub struct DvlReadOptions {
-    /// Force a format; `None` detects it from the content.
-    pub format: Option<DvlFormat>,
-    /// The time stamp to use for each sample.
-    pub time_source: DvlTimeSource,
-    /// Stop at the first malformed line with an error naming `file:line`.
-    pub strict: bool,
-    /// Bag topic to read; `None`: `/dvl/json_data` if present, else the driver's `DVL` topic.
-    pub topic: Option<String>,
-    /// Epoch of the sample times; `None`: the whole second of the earliest sample.
-    pub epoch: Option<Epoch>,
-    /// Also hand on the reports the DVL marked invalid (with `valid: false`), for callers that
-    /// count them themselves. They are never velocities to fit.
-    pub include_invalid: bool,
-}
-
-/// How many rejected lines are kept with their reason in [`DvlLogStats::rejected`].
-pub const MAX_LISTED: usize = 20;
-
-/// A line (or bag message) that could not be used.
-#[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct RejectedLine {
-    /// 1-based line number (for bags: 1-based message number on the topic read).
-    pub line: usize,
-    /// Short category (`bad checksum`, `not valid JSON`, ...), the key of
-    /// [`DvlLogStats::rejected_by_reason`].
-    pub reason: String,
-    /// What exactly was wrong.
-    pub detail: String,
-}
-
-/// A time stamp that does not increase.
-#[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct TimeProblem {
-    /// 1-based line (or message) number of the later report.
-    pub line: usize,
-    /// Its time minus the previous sample's time, seconds (`<= 0`).
-    pub step_s: f64,
-}
-
-/// Everything counted while reading a DVL log.
-#[derive(Clone, Debug, Default, Serialize)]
-pub struct DvlLogStats {
-    /// The file read.
-    pub path: PathBuf,
-    /// The format read (detected or forced).
-    pub format: Option<DvlFormat>,
-    /// Per-report format labels (`json_v3`, `json_v3.1`, `serial wrz`, `rosbag /dvl/data`, ...)
-    /// with the number of reports of each.
-    pub formats_seen: BTreeMap<String, usize>,
-    /// For bags: the topic read and its message type.
-    pub topic: Option<String>,
-    /// The time source asked for.
-    pub time_source: DvlTimeSource,
-    /// What the sample times really are (e.g. `time_of_validity (DVL clock)`, or a time line
-    /// rebuilt from `time` increments for logs without absolute times).
-    pub time_source_used: String,
-    /// Non-empty lines (or bag messages on the topic) examined.
-    pub lines: usize,
-    /// Every well-formed bottom-track velocity report, invalid ones and duplicates included.
-    pub velocity_reports: usize,
-    /// Of those, the ones with `velocity_valid` (duplicates included).
-    pub valid: usize,
-    /// Of those, the ones without (`velocity_valid` false, `n` in serial); never used.
-    pub invalid: usize,
-    /// Velocity reports that repeat an earlier report exactly; used once.
-    pub duplicates: usize,
-    /// Water-tracking velocity reports (`velocity_water`, `wrs`); counted, not used.
-    pub water_velocity_reports: usize,
-    /// Well-formed reports of other types (dead reckoning, transducer reports, replies, ...).
-    pub other_reports: usize,
-    /// `other_reports` by type.
-    pub other_by_type: BTreeMap<String, usize>,
-    /// Lines that could not be used.
-    pub rejected_lines: usize,
-    /// `rejected_lines` by reason.
-    pub rejected_by_reason: BTreeMap<String, usize>,
-    /// The first [`MAX_LISTED`] rejected lines.
-    pub rejected: Vec<RejectedLine>,
-    /// Samples (valid, unique, in file order) whose time is earlier than the previous one's.
-    pub time_backwards: usize,
-    /// Samples whose time equals the previous one's.
-    pub time_repeats: usize,
-    /// The first [`MAX_LISTED`] of those.
-    pub time_problems: Vec<TimeProblem>,
-    /// Things a user should know (rebuilt time line, fallback time source, damaged bag, ...).
-    pub warnings: Vec<String>,
-    /// First and last sample time, seconds relative to the epoch.
-    pub first_time_s: Option<f64>,
-    pub last_time_s: Option<f64>,
-}
-
-impl DvlLogStats {
-    /// Mean sample rate of the samples handed on, Hz (`None` with fewer than two samples or a
-    /// zero span).
-    pub fn rate_hz(&self, n_samples: usize) -> Option<f64> {
-        match (self.first_time_s, self.last_time_s) {
-            (Some(a), Some(b)) if n_samples >= 2 && b > a => Some((n_samples - 1) as f64 / (b - a)),
-            _ => None,
-        }
-    }
-
-    fn reject(&mut self, path: &Path, strict: bool, line: usize, r: Reject) -> Result<()> {
-        if strict {
-            return Err(Error::parse(
-                path,
-                line,
-                format!("{}: {}", r.reason, r.detail),
-            ));
-        }
-        self.rejected_lines += 1;
-        *self
-            .rejected_by_reason
-            .entry(r.reason.to_string())
-            .or_default() += 1;
-        if self.rejected.len() < MAX_LISTED {
-            self.rejected.push(RejectedLine {
-                line,
-                reason: r.reason.to_string(),
-                detail: r.detail,
-            });
-        }
-        Ok(())
-    }
-}
-
-/// A DVL log read into samples.
-#[derive(Clone, Debug)]
-pub struct DvlLog {
-    /// The epoch sample times are relative to.
-    pub epoch: Epoch,
-    /// Valid, deduplicated samples in time order.
-    pub samples: Vec<DvlSample>,
-    /// The 1-based source line (bag: message number) of each sample.
-    pub lines: Vec<usize>,
-    /// Everything counted on the way.
-    pub stats: DvlLogStats,
-}
 
 /// Reads a DVL log of any accepted format into valid, deduplicated, time-ordered samples.
 ///
@@ -351,17 +124,6 @@ pub fn read_dvl_text(name: &Path, bytes: &[u8], opts: &DvlReadOptions) -> Result
         acc.push(name, opts.strict, &mut stats, line, parsed)?;
     }
     acc.finish(name, opts, stats)
-}
-
-/// The non-blank lines of a byte buffer with their 1-based numbers, `\r` line ends removed.
-pub fn text_lines(bytes: &[u8]) -> impl Iterator<Item = (usize, &[u8])> {
-    bytes
-        .split(|&b| b == b'\n')
-        .enumerate()
-        .filter_map(|(i, l)| {
-            let l = l.strip_suffix(b"\r").unwrap_or(l);
-            (!l.iter().all(|b| b.is_ascii_whitespace())).then_some((i + 1, l))
-        })
 }
 
 /// Counts one more `key` without allocating when it is already there.

@@ -4,7 +4,7 @@ use std::fmt::Write as _;
 
 use serde_json::json;
 
-use super::DvlLog;
+use super::log::DvlLog;
 
 /// Mean, standard deviation, minimum and maximum of a series.
 fn moments(x: impl Iterator<Item = f64> + Clone) -> serde_json::Value {

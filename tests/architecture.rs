@@ -1,0 +1,372 @@
+//! The library's structure, checked on every test run (docs/architecture.md):
+//! - every import points down the layers (foundation, stages, estimation, pipeline);
+//! - no import circles between the library's files;
+//! - the program uses the library's public interface only and stays thin.
+//!
+//! Imports are read from the source text: `crate::a::b` paths (in `use` lines or written out),
+//! `super::` paths, and a module's own references to its child modules (`child::item`). Test
+//! code (`#[cfg(test)]` items) is left out: tests may use anything.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+
+/// Layer of each top-level module; a module may import only from lower layers, or from its own
+/// top-level module.
+fn layer(top: &str) -> Option<u32> {
+    Some(match top {
+        "error" | "time" => 0,
+        "lie" | "parallel" => 1,
+        "types" => 2,
+        "io" | "vision" | "trajectory" => 3,
+        "calib" | "sim" => 4,
+        "eval" | "report" => 5,
+        "pipeline" => 6,
+        "" => 7, // the crate root re-exports
+        _ => return None,
+    })
+}
+
+fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
+    let mut entries: Vec<_> = std::fs::read_dir(dir)
+        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
+        .map(|e| e.expect("directory entry").path())
+        .collect();
+    entries.sort();
+    for p in entries {
+        if p.is_dir() {
+            rust_files(&p, out);
+        } else if p.extension().is_some_and(|e| e == "rs") {
+            out.push(p);
+        }
+    }
+}
+
+/// The module path of a library file: `src/calib/mod.rs` is `calib`, `src/calib/state.rs` is
+/// `calib::state`, `src/lib.rs` is the root (empty). Files included with `#[path]` from test
+/// modules have names ending in `_tests.rs` and are skipped.
+fn module_of(src: &Path, file: &Path) -> Option<String> {
+    let rel = file.strip_prefix(src).ok()?;
+    let mut parts: Vec<String> = rel
+        .with_extension("")
+        .iter()
+        .map(|c| c.to_string_lossy().into_owned())
+        .collect();
+    if parts.first().is_some_and(|p| p == "bin") {
+        return None;
+    }
+    if parts.last().is_some_and(|p| p.ends_with("_tests")) {
+        return None;
+    }
+    if parts.last().is_some_and(|p| p == "mod" || p == "lib") {
+        parts.pop();
+    }
+    Some(parts.join("::"))
+}
+
+/// The text of a file without comments and without `#[cfg(test)]` items.
+fn code_without_tests(text: &str) -> String {
+    let lines: Vec<&str> = text
+        .lines()
+        .map(|l| match l.find("//") {
+            Some(i) => &l[..i],
+            None => l,
+        })
+        .collect();
+    let mut out = String::new();
+    let mut i = 0;
+    while i < lines.len() {
+        if lines[i].trim() == "#[cfg(test)]" {
+            // Skip the attributes and the item that follows: a `mod x;` line, or a block up to
+            // its matching closing brace.
+            let mut depth = 0i32;
+            let mut opened = false;
+            i += 1;
+            while i < lines.len() {
+                let l = lines[i];
+                for ch in l.chars() {
+                    match ch {
+                        '{' => {
+                            depth += 1;
+                            opened = true;
+                        }
+                        '}' => depth -= 1,
+                        _ => {}
+                    }
+                }
+                i += 1;
+                if (opened && depth <= 0) || (!opened && l.trim_end().ends_with(';')) {
+                    break;
+                }
+            }
+            continue;
+        }
+        out.push_str(lines[i]);
+        out.push('\n');
+        i += 1;
+    }
+    out
+}
+
+/// Identifier paths that follow `prefix` (`crate::`, `super::`), with `{a, b::c}` groups
+/// expanded one level.
+fn paths_after(code: &str, prefix: &str) -> Vec<Vec<String>> {
+    let mut out = Vec::new();
+    let bytes = code.as_bytes();
+    let mut start = 0;
+    while let Some(pos) = code[start..].find(prefix) {
+        let at = start + pos;
+        start = at + prefix.len();
+        if at > 0 {
+            let c = bytes[at - 1] as char;
+            if c.is_alphanumeric() || c == '_' || c == ':' {
+                continue;
+            }
+        }
+        let rest = &code[at + prefix.len()..];
+        let end = rest
+            .find(|c: char| !(c.is_alphanumeric() || c == '_' || c == ':'))
+            .unwrap_or(rest.len());
+        let head = rest[..end].trim_end_matches(':');
+        let base: Vec<String> = head
+            .split("::")
+            .filter(|s| !s.is_empty())
+            .map(String::from)
+            .collect();
+        let after = &rest[end..];
+        if rest[..end].ends_with("::") && after.starts_with('{') {
+            let close = after.find('}').unwrap_or(after.len());
+            for item in after[1..close].split(',') {
+                let item = item.split(" as ").next().unwrap_or("").trim();
+                if item.is_empty() || item == "self" {
+                    out.push(base.clone());
+                    continue;
+                }
+                let mut p = base.clone();
+                p.extend(item.split("::").map(|s| s.trim().to_string()));
+                out.push(p);
+            }
+        }
+        out.push(base);
+    }
+    out
+}
+
+struct Graph {
+    /// Module -> modules it imports from.
+    edges: BTreeMap<String, BTreeSet<String>>,
+}
+
+fn library_graph() -> Graph {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let mut files = Vec::new();
+    rust_files(&src, &mut files);
+    let mut code = BTreeMap::new();
+    for f in &files {
+        if let Some(m) = module_of(&src, f) {
+            let text =
+                std::fs::read_to_string(f).unwrap_or_else(|e| panic!("{}: {e}", f.display()));
+            code.insert(m, code_without_tests(&text));
+        }
+    }
+    let modules: BTreeSet<String> = code.keys().cloned().collect();
+    // The longest prefix of `path` that names a module.
+    let resolve = |path: &[String]| -> Option<String> {
+        (1..=path.len())
+            .rev()
+            .map(|k| path[..k].join("::"))
+            .find(|m| modules.contains(m))
+    };
+    let mut edges: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+    for (m, text) in &code {
+        let e = edges.entry(m.clone()).or_default();
+        let parent: Vec<String> = if m.is_empty() {
+            Vec::new()
+        } else {
+            let mut p: Vec<String> = m.split("::").map(String::from).collect();
+            p.pop();
+            p
+        };
+        for p in paths_after(text, "crate::") {
+            if let Some(t) = resolve(&p) {
+                e.insert(t);
+            }
+        }
+        for p in paths_after(text, "super::") {
+            let mut full = parent.clone();
+            full.extend(p);
+            if let Some(t) = resolve(&full) {
+                e.insert(t);
+            }
+        }
+        // References to the module's own children (`child::item`, `pub use child::X`).
+        let own: Vec<String> = if m.is_empty() {
+            Vec::new()
+        } else {
+            m.split("::").map(String::from).collect()
+        };
+        for child in modules.iter().filter(|c| {
+            let depth = if m.is_empty() { 0 } else { own.len() };
+            let parts: Vec<&str> = c.split("::").collect();
+            parts.len() == depth + 1 && (m.is_empty() || c.starts_with(&format!("{m}::")))
+        }) {
+            let name = child.rsplit("::").next().unwrap_or(child);
+            if !paths_after(text, &format!("{name}::")).is_empty() {
+                e.insert(child.clone());
+            }
+        }
+        e.remove(m);
+    }
+    Graph { edges }
+}
+
+fn top(m: &str) -> &str {
+    m.split("::").next().unwrap_or("")
+}
+
+#[test]
+fn imports_point_down_the_layers() {
+    let g = library_graph();
+    let mut wrong = Vec::new();
+    for (a, targets) in &g.edges {
+        let la = layer(top(a)).unwrap_or_else(|| panic!("module {a} has no layer in this test"));
+        for b in targets {
+            if top(a) == top(b) {
+                continue;
+            }
+            let lb = layer(top(b)).unwrap_or_else(|| panic!("module {b} has no layer"));
+            // Within the foundation, lower layers first; elsewhere strictly downwards.
+            if lb >= la {
+                wrong.push(format!("{a} (layer {la}) imports {b} (layer {lb})"));
+            }
+        }
+    }
+    assert!(
+        wrong.is_empty(),
+        "imports against the layers:\n{}",
+        wrong.join("\n")
+    );
+}
+
+#[test]
+fn no_import_circles_between_files() {
+    let g = library_graph();
+    // Tarjan's strongly connected components.
+    struct State<'a> {
+        g: &'a Graph,
+        index: BTreeMap<&'a str, usize>,
+        low: BTreeMap<&'a str, usize>,
+        stack: Vec<&'a str>,
+        on: BTreeSet<&'a str>,
+        next: usize,
+        circles: Vec<Vec<String>>,
+    }
+    fn visit<'a>(s: &mut State<'a>, v: &'a str) {
+        s.index.insert(v, s.next);
+        s.low.insert(v, s.next);
+        s.next += 1;
+        s.stack.push(v);
+        s.on.insert(v);
+        if let Some(ws) = s.g.edges.get(v) {
+            for w in ws {
+                let w = w.as_str();
+                if !s.index.contains_key(w) {
+                    visit(s, w);
+                    let lw = s.low[w];
+                    let lv = s.low[v];
+                    s.low.insert(v, lv.min(lw));
+                } else if s.on.contains(w) {
+                    let iw = s.index[w];
+                    let lv = s.low[v];
+                    s.low.insert(v, lv.min(iw));
+                }
+            }
+        }
+        if s.low[v] == s.index[v] {
+            let mut comp = Vec::new();
+            while let Some(w) = s.stack.pop() {
+                s.on.remove(w);
+                comp.push(w.to_string());
+                if w == v {
+                    break;
+                }
+            }
+            if comp.len() > 1 {
+                comp.sort();
+                s.circles.push(comp);
+            }
+        }
+    }
+    let mut s = State {
+        g: &g,
+        index: BTreeMap::new(),
+        low: BTreeMap::new(),
+        stack: Vec::new(),
+        on: BTreeSet::new(),
+        next: 0,
+        circles: Vec::new(),
+    };
+    for v in g.edges.keys() {
+        if !s.index.contains_key(v.as_str()) {
+            visit(&mut s, v);
+        }
+    }
+    // The crate root declares every module and re-exports entry points; it is the top, not a
+    // member of a circle.
+    let circles: Vec<_> = s
+        .circles
+        .into_iter()
+        .filter(|c| !(c.len() == 2 && c.iter().any(|m| m.is_empty())))
+        .collect();
+    assert!(circles.is_empty(), "import circles: {circles:?}");
+}
+
+#[test]
+fn the_checker_sees_imports_and_circles() {
+    // The parsing above is what the two tests rely on: check it on known text.
+    let code = "use crate::io::dvl::{DvlLog, read_dvl_log};\nuse super::model::{self, NPARAM};\n\
+                let x = crate::lie::so3::exp(&v);\n#[cfg(test)]\nmod tests {\n use crate::sim::rng::Rng;\n}\n";
+    let stripped = code_without_tests(code);
+    assert!(!stripped.contains("sim::rng"));
+    let p = paths_after(&stripped, "crate::");
+    assert!(p.contains(&vec!["io".into(), "dvl".into(), "read_dvl_log".into()]));
+    assert!(p.contains(&vec!["lie".into(), "so3".into(), "exp".into()]));
+    let s = paths_after(&stripped, "super::");
+    assert!(s.contains(&vec!["model".into(), "NPARAM".into()]));
+    // The real graph has the edges it must have.
+    let g = library_graph();
+    assert!(
+        g.edges["calib"].contains("trajectory"),
+        "{:?}",
+        g.edges["calib"]
+    );
+    assert!(g.edges["calib::state"].contains("trajectory::solver"));
+    assert!(g.edges["pipeline::calibration"].contains("calib"));
+}
+
+#[test]
+fn the_program_is_thin_and_uses_the_public_interface() {
+    let bin = Path::new(env!("CARGO_MANIFEST_DIR")).join("src/bin/dvlcal");
+    let mut files = Vec::new();
+    rust_files(&bin, &mut files);
+    let mut lines = 0;
+    for f in &files {
+        let text = std::fs::read_to_string(f).unwrap_or_else(|e| panic!("{}: {e}", f.display()));
+        lines += text.lines().count();
+        // The program reaches the library only through `dvlcal::`; internal stages stay out.
+        for internal in [
+            "calib::state",
+            "calib::refine",
+            "trajectory::solver",
+            "trajectory::blocktri",
+        ] {
+            assert!(
+                !text.contains(internal),
+                "{} uses the library internal {internal}",
+                f.display()
+            );
+        }
+    }
+    // The program parses arguments, calls the pipeline and prints: it was 2368 lines when it
+    // still did the library's work. A new command adds its argument struct, not an estimator.
+    assert!(lines < 1400, "src/bin/dvlcal has {lines} lines");
+}
