@@ -233,7 +233,10 @@ fn usable(traj: &Trajectory, obs: &[DvlObs], offset: f64, margin: f64) -> Vec<us
         .collect()
 }
 
-/// Calibrates the DVL against the camera poses.
+/// Calibrates the DVL against the camera poses, in the stages of the module documentation: the
+/// trajectory fit, [`initialise`] (clock offset and closed form, or the user's guess), the
+/// block-coordinate refinement (`refine_jointly`), then the uncertainty, residuals, excitation
+/// and verdicts.
 pub fn calibrate(
     poses: &[PoseMeasurement],
     dvl: &[DvlSample],
@@ -254,14 +257,91 @@ pub fn calibrate(
             needed: 10,
         });
     }
+    // 1. The camera trajectory from the poses alone.
     let traj = Trajectory::fit(poses, &opts.fit)?;
     let mut warnings = Vec::new();
+    // 2-3. Where the refinement starts.
+    let (start, init) = initialise(&traj, &obs, opts, &mut warnings)?;
+    if let Some(i) = &init {
+        counts.calm = i.offset.calm.len();
+    }
+    let free = free_parameters(&opts.method);
 
-    let (start, init) = match &opts.method {
+    // Samples kept for every offset the refinement may reach.
+    let margin = (opts.offset.range.1 - opts.offset.range.0).abs().min(0.5);
+    let idx = usable(&traj, &obs, start.time_offset_s, margin);
+    counts.dvl_used = idx.len();
+    counts.dvl_outside_span = obs.len() - idx.len();
+    if idx.len() < 10 {
+        return Err(Error::NoTimeOverlap(format!(
+            "only {} DVL samples fall inside the camera time span at offset {:.3} s",
+            idx.len(),
+            start.time_offset_s
+        )));
+    }
+
+    // 4. Block-coordinate refinement of the parameters and the trajectory.
+    let mask = free.mask();
+    let jp = JointProblem::new(poses, &traj, &obs, &idx)?;
+    let mut traj = traj;
+    // The fit's covariance was for the initialisation; its storage serves the joint problem.
+    if let Some(storage) = traj.take_covariance_storage() {
+        jp.keep_storage(storage);
+    }
+    let refined = refine_jointly(
+        &jp,
+        traj,
+        &obs,
+        &idx,
+        start,
+        free,
+        opts.max_outer_iterations,
+    )?;
+    let (traj, params) = (refined.trajectory, refined.params);
+
+    // 5. Uncertainty, residuals, excitation and the verdicts.
+    let (covariance, normalized_cost) =
+        uncertainty(&jp, &traj, &obs, &idx, &params, &mask, &mut warnings)?;
+    let (residual_rms, excitation) = residuals_and_excitation(&traj, &obs, &idx, &params)?;
+    let std = param_std(&covariance);
+    let verdicts = verdicts(&std, &opts.weak, &excitation, init.as_ref(), &mask);
+    let trajectory = traj.report().clone();
+    Ok(CalibrationOutcome {
+        params,
+        covariance,
+        std,
+        verdicts,
+        method: opts.method.clone(),
+        init,
+        iterations: refined.iterations,
+        counts,
+        residual_rms,
+        normalized_cost,
+        excitation,
+        trajectory,
+        warnings,
+        start,
+        fitted: traj,
+        observations: obs,
+        used: idx,
+    })
+}
+
+/// Stages 2 and 3: the parameters the refinement starts from. For UIC the clock offset and
+/// scale from speed magnitudes ([`estimate_offset`]), then rotation, lever arm and scale in closed
+/// form at that offset ([`closed_form`]); for BCD and fixed extrinsics the user's guess. The
+/// offset search's notes go to `warnings`.
+pub fn initialise(
+    traj: &Trajectory,
+    obs: &[DvlObs],
+    opts: &CalibOptions,
+    warnings: &mut Vec<String>,
+) -> Result<(CalibrationParams, Option<InitReport>)> {
+    Ok(match &opts.method {
         Method::Uic => {
-            let off = estimate_offset(&traj, &obs, &opts.offset)?;
+            let off = estimate_offset(traj, obs, &opts.offset)?;
             warnings.extend(off.notes.iter().cloned());
-            let idx = usable(&traj, &obs, off.offset, 0.0);
+            let idx = usable(traj, obs, off.offset, 0.0);
             let rows: Vec<ClosedFormRow> = crate::parallel::map_indices(idx.len(), 2048, |j| {
                 let i = idx[j];
                 let q = traj.query(obs[i].t + off.offset)?;
@@ -278,7 +358,6 @@ pub fn calibrate(
                 time_offset_s: off.offset,
                 ..cf.params
             };
-            counts.calm = off.calm.len();
             (
                 params,
                 Some(InitReport {
@@ -290,9 +369,13 @@ pub fn calibrate(
         }
         Method::Bcd(g) => (*g, None),
         Method::Fixed { guess, .. } => (*guess, None),
-    };
+    })
+}
 
-    let free = match &opts.method {
+/// The parameters a method estimates: all of them, clock offset and scale only (fixed
+/// extrinsics with an estimated offset), or none (a fixed guess evaluated).
+fn free_parameters(method: &Method) -> FreeParams {
+    match method {
         Method::Fixed {
             estimate_offset: true,
             ..
@@ -309,40 +392,41 @@ pub fn calibrate(
             time_offset: false,
         },
         _ => FreeParams::ALL,
-    };
-
-    // Samples kept for every offset the refinement may reach.
-    let margin = (opts.offset.range.1 - opts.offset.range.0).abs().min(0.5);
-    let idx = usable(&traj, &obs, start.time_offset_s, margin);
-    counts.dvl_used = idx.len();
-    counts.dvl_outside_span = obs.len() - idx.len();
-    if idx.len() < 10 {
-        return Err(Error::NoTimeOverlap(format!(
-            "only {} DVL samples fall inside the camera time span at offset {:.3} s",
-            idx.len(),
-            start.time_offset_s
-        )));
     }
+}
 
+/// What the refinement ends with.
+struct Refined {
+    trajectory: Trajectory,
+    params: CalibrationParams,
+    iterations: Vec<IterationRecord>,
+}
+
+/// Stage 4: rounds of a calibration update with the trajectory fixed and a state update with the
+/// calibration fixed, until nothing changes (at most `rounds`); a Gauss-Newton step on the joint
+/// problem after each unsettled round.
+fn refine_jointly(
+    jp: &JointProblem,
+    mut traj: Trajectory,
+    obs: &[DvlObs],
+    idx: &[usize],
+    start: CalibrationParams,
+    free: FreeParams,
+    rounds: usize,
+) -> Result<Refined> {
     let mask = free.mask();
-    let jp = JointProblem::new(poses, &traj, &obs, &idx)?;
-    let mut traj = traj;
-    // The fit's covariance was for the initialisation; its storage serves the joint problem.
-    if let Some(storage) = traj.take_covariance_storage() {
-        jp.keep_storage(storage);
-    }
     let mut params = start;
     let mut iterations = Vec::new();
     let mut last_cost = f64::INFINITY;
-    let rounds = opts.max_outer_iterations.max(1);
+    let rounds = rounds.max(1);
     for round in 1..=rounds {
         // Calibration update with the trajectory fixed, then state update with it fixed.
-        let up = calibration_update(&traj, &obs, &idx, &params, free, 50)?;
+        let up = calibration_update(&traj, obs, idx, &params, free, 50)?;
         let change = refine::change_in_std(&params, &up.params, &up.hessian, &mask);
         params = up.params;
         // Warm-started from the previous state, one Gauss-Newton step per round: the rounds
         // themselves iterate it.
-        let (refit, cost) = state_update(&jp, &traj, &params, 1)?;
+        let (refit, cost) = state_update(jp, &traj, &params, 1)?;
         traj = refit;
         iterations.push(IterationRecord { cost, params });
         let rel = (last_cost - cost).abs() / cost.max(1e-300);
@@ -357,15 +441,33 @@ pub fn calibrate(
         // the joint problem takes both close to the fixed point the rounds are heading for; the
         // next round then starts there and confirms it.
         if round < rounds
-            && let Some(js) = joint_step(&jp, &traj, &params, &mask)?
+            && let Some(js) = joint_step(jp, &traj, &params, &mask)?
         {
             traj = js.trajectory;
             params = js.params;
         }
     }
+    Ok(Refined {
+        trajectory: traj,
+        params,
+        iterations,
+    })
+}
 
-    let (mut covariance, _) = joint_covariance(&jp, &traj, &params, &mask)?;
-    let dvl_cost: f64 = refine::linearize(&traj, &obs, &idx, &params)?.cost;
+/// Stage 5: the covariance of the free parameters from the joint problem's information, and
+/// the DVL cost per degree of freedom. When the residuals exceed the stated DVL noise by half
+/// or more, the covariance is inflated by that factor and a warning says so.
+fn uncertainty(
+    jp: &JointProblem,
+    traj: &Trajectory,
+    obs: &[DvlObs],
+    idx: &[usize],
+    params: &CalibrationParams,
+    mask: &[bool; NPARAM],
+    warnings: &mut Vec<String>,
+) -> Result<(ParamMat, f64)> {
+    let (mut covariance, _) = joint_covariance(jp, traj, params, mask)?;
+    let dvl_cost: f64 = refine::linearize(traj, obs, idx, params)?.cost;
     let dof = (3 * idx.len()).saturating_sub(NPARAM).max(1) as f64;
     let normalized_cost = dvl_cost / dof;
     if normalized_cost > 1.5 {
@@ -376,14 +478,23 @@ pub fn calibrate(
         ));
         covariance *= normalized_cost;
     }
+    Ok((covariance, normalized_cost))
+}
 
-    // Residual and excitation sums, per piece of samples and then over the pieces in order.
+/// The RMS DVL residual per axis and the motion's excitation over the samples used. Sums are
+/// formed per piece of samples and then over the pieces in order (thread-count independent).
+fn residuals_and_excitation(
+    traj: &Trajectory,
+    obs: &[DvlObs],
+    idx: &[usize],
+    params: &CalibrationParams,
+) -> Result<(Vector3<f64>, Excitation)> {
     let pieces = crate::parallel::map_pieces(idx.len(), 2048, |r| {
         let mut sq = Vector3::zeros();
         let (mut sv, mut sw, mut sl) = (0.0, 0.0, 0.0);
         for &i in &idx[r] {
             let q = traj.state(obs[i].t + params.time_offset_s)?;
-            let r = obs[i].v - predict(&params, &q.twist);
+            let r = obs[i].v - predict(params, &q.twist);
             sq += r.component_mul(&r);
             let v = q.twist.fixed_rows::<3>(0).into_owned();
             let w = q.twist.fixed_rows::<3>(3).into_owned();
@@ -408,28 +519,7 @@ pub fn calibrate(
         rms_angular_speed: (sw / n).sqrt(),
         lever_arm_ratio: (sl / sv.max(1e-300)).sqrt(),
     };
-    let std = param_std(&covariance);
-    let verdicts = verdicts(&std, &opts.weak, &excitation, init.as_ref(), &mask);
-    let trajectory = traj.report().clone();
-    Ok(CalibrationOutcome {
-        params,
-        covariance,
-        std,
-        verdicts,
-        method: opts.method.clone(),
-        init,
-        iterations,
-        counts,
-        residual_rms: (sq / n).map(f64::sqrt),
-        normalized_cost,
-        excitation,
-        trajectory,
-        warnings,
-        start,
-        fitted: traj,
-        observations: obs,
-        used: idx,
-    })
+    Ok(((sq / n).map(f64::sqrt), excitation))
 }
 
 fn param_std(c: &ParamMat) -> ParamStd {
