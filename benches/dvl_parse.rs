@@ -5,8 +5,8 @@
 use std::path::Path;
 use std::time::Instant;
 
+use dvlcal::io::dvl::a50::wrz_sentence;
 use dvlcal::io::dvl::a50::{parse_velocity_report, velocity_report_line};
-use dvlcal::io::dvl::serial::wrz_sentence;
 use dvlcal::io::dvl::{DvlReadOptions, read_dvl_log};
 
 /// The real logs, in the shared folder beside the repository.

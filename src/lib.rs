@@ -10,6 +10,8 @@
 //!
 //! Conventions (frames, time offsets, twist order) are in `docs/conventions.md`.
 
+#![warn(missing_docs)]
+
 pub mod calib;
 pub mod error;
 pub mod eval;

@@ -247,13 +247,11 @@ fn crlf_lf_and_mixed_report_types() {
         serial.push_str(&wrz_sentence(r));
     }
     serial.push_str("wru,0,0.070,1.10,-40,-95*9c\r\n");
-    serial.push_str(&dvlcal::io::dvl::serial::with_checksum(
+    serial.push_str(&dvlcal::io::dvl::a50::with_checksum(
         "wrp,49056.809,12.43,64.1,1.54,0.2,0.1,0.2,94.3,0",
     ));
-    serial.push_str(&dvlcal::io::dvl::serial::with_checksum(
-        "wrt,1.2,1.3,1.4,1.5",
-    ));
-    serial.push_str(&dvlcal::io::dvl::serial::with_checksum(
+    serial.push_str(&dvlcal::io::dvl::a50::with_checksum("wrt,1.2,1.3,1.4,1.5"));
+    serial.push_str(&dvlcal::io::dvl::a50::with_checksum(
         "wrs,0.1,0.2,0.3,y,0.001,1;0;0;0;1;0;0;0;1,1550142242831870,1550142246235337,100.5,0",
     ));
     let s = read_bytes("serial", serial.as_bytes(), &lenient());
@@ -377,13 +375,13 @@ fn corrupted_serial_copy_counts_are_exact() {
                 let body = s.split('*').next().unwrap();
                 let mut f: Vec<&str> = body.split(',').collect();
                 f[1] = "nan";
-                Some(dvlcal::io::dvl::serial::with_checksum(&f.join(",")))
+                Some(dvlcal::io::dvl::a50::with_checksum(&f.join(",")))
             }
             19 => {
                 let body = s.split('*').next().unwrap();
                 let mut f: Vec<&str> = body.split(',').collect();
                 f.pop();
-                Some(dvlcal::io::dvl::serial::with_checksum(&f.join(",")))
+                Some(dvlcal::io::dvl::a50::with_checksum(&f.join(",")))
             }
             21 => Some("\u{2}\u{3}noise without any sentence\r\n".to_string()),
             _ => None,

@@ -8,11 +8,11 @@ use std::path::Path;
 use std::sync::OnceLock;
 
 use dvl_common::*;
+use dvlcal::io::dvl::a50::crc8;
 use dvlcal::io::dvl::a50::{A50Transducer, A50VelocityReport, velocity_report_line};
-use dvlcal::io::dvl::report::crc8;
 use dvlcal::io::dvl::{
-    DvlReadOptions, Parsed, VelocityReport, detect_format, json, read_dvl_log, read_dvl_text,
-    serial,
+    DvlReadOptions, Parsed, VelocityReport, detect_format, parse_json_line, parse_serial_line,
+    read_dvl_log, read_dvl_text,
 };
 use proptest::prelude::*;
 
@@ -132,19 +132,19 @@ proptest! {
 
     #[test]
     fn json_parser_never_panics_on_random_bytes(b in prop::collection::vec(any::<u8>(), 0..300)) {
-        if let Ok(p) = json::parse_line(&b) { check_velocity(&p) }
+        if let Ok(p) = parse_json_line(&b) { check_velocity(&p) }
     }
 
     #[test]
     fn json_parser_never_panics_on_mutated_real_lines(k in 0usize..378, e in edits()) {
         let line = &real_lines()[k];
         let m = mutate(line.as_bytes(), &e);
-        if let Ok(p) = json::parse_line(&m) { check_velocity(&p) }
+        if let Ok(p) = parse_json_line(&m) { check_velocity(&p) }
     }
 
     #[test]
     fn serial_parser_never_panics_on_random_bytes(b in prop::collection::vec(any::<u8>(), 0..200)) {
-        if let Ok(p) = serial::parse_line(&b) { check_velocity(&p) }
+        if let Ok(p) = parse_serial_line(&b) { check_velocity(&p) }
     }
 
     #[test]
@@ -159,7 +159,7 @@ proptest! {
                 m.extend_from_slice(sum.as_bytes());
             }
         }
-        if let Ok(p) = serial::parse_line(&m) { check_velocity(&p) }
+        if let Ok(p) = parse_serial_line(&m) { check_velocity(&p) }
     }
 
     #[test]
@@ -167,16 +167,16 @@ proptest! {
         let s = &real_wrz()[k];
         let mut line = pre.clone();
         line.extend_from_slice(s.trim_end().as_bytes());
-        let clean = velocity(serial::parse_line(s.trim_end().as_bytes()));
-        let got = velocity(serial::parse_line(&line));
+        let clean = velocity(parse_serial_line(s.trim_end().as_bytes()));
+        let got = velocity(parse_serial_line(&line));
         prop_assert!(got.same_report(&clean));
     }
 
     #[test]
     fn valid_reports_read_the_same_in_json_and_serial(r in report()) {
-        let j = velocity(json::parse_line(velocity_report_line(&r).as_bytes()));
-        let s = velocity(serial::parse_line(wrz_sentence(&r).trim_end().as_bytes()));
-        let again = velocity(json::parse_line(velocity_report_line(&r).as_bytes()));
+        let j = velocity(parse_json_line(velocity_report_line(&r).as_bytes()));
+        let s = velocity(parse_serial_line(wrz_sentence(&r).trim_end().as_bytes()));
+        let again = velocity(parse_json_line(velocity_report_line(&r).as_bytes()));
         prop_assert_eq!(j.v, [r.vx, r.vy, r.vz]);
         prop_assert_eq!(j.valid, r.velocity_valid);
         prop_assert_eq!(j.time_of_validity_us, Some(r.time_of_validity));

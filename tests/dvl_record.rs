@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 
 use dvl_common::*;
 use dvlcal::io::dvl::{
-    DvlReadOptions, DvlTimeSource, RecordOptions, read_dvl_log, record::add_host_time, record_tcp,
+    DvlReadOptions, DvlTimeSource, RecordOptions, add_host_time, read_dvl_log, record_tcp,
 };
 
 #[test]

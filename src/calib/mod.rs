@@ -11,8 +11,8 @@
 pub mod closed_form;
 pub mod model;
 pub mod offset;
-pub mod refine;
-pub mod state;
+pub(crate) mod refine;
+pub(crate) mod state;
 
 use nalgebra::{Matrix3, Vector3};
 

@@ -41,7 +41,6 @@ pub struct Linearized {
     pub cost: f64,
     pub hessian: ParamMat,
     pub gradient: ParamVec,
-    pub used: usize,
 }
 
 /// Samples per unit of work of [`linearize`]. The sums are formed per piece and then over the
@@ -78,7 +77,6 @@ pub fn linearize(
         cost: 0.0,
         hessian: ParamMat::zeros(),
         gradient: ParamVec::zeros(),
-        used: idx.len(),
     };
     for piece in pieces {
         let (h, g, c): (ParamMat, ParamVec, f64) = piece?;
@@ -93,8 +91,6 @@ pub fn linearize(
 #[derive(Clone, Debug)]
 pub struct UpdateResult {
     pub params: CalibrationParams,
-    pub cost: f64,
-    pub iterations: usize,
     /// Information matrix of the DVL term at `params` (trajectory held fixed).
     pub hessian: ParamMat,
 }
@@ -145,8 +141,6 @@ pub fn calibration_update(
                 if rel < 1e-10 || step < 1e-10 {
                     return Ok(UpdateResult {
                         params: p,
-                        cost: lin.cost,
-                        iterations,
                         hessian: lin.hessian,
                     });
                 }
@@ -160,8 +154,6 @@ pub fn calibration_update(
     }
     Ok(UpdateResult {
         params: p,
-        cost: lin.cost,
-        iterations,
         hessian: lin.hessian,
     })
 }

@@ -487,8 +487,6 @@ pub fn joint_covariance(
 pub struct JointStep {
     pub trajectory: Trajectory,
     pub params: CalibrationParams,
-    /// Joint cost after the step.
-    pub cost: f64,
 }
 
 /// One Gauss-Newton step on the joint problem (trajectory and free calibration parameters
@@ -538,7 +536,6 @@ pub fn joint_step(
                 return Ok(Some(JointStep {
                     trajectory: traj.with_knots(knots, None),
                     params,
-                    cost,
                 }));
             }
         }

@@ -13,7 +13,7 @@
 mod data;
 mod input;
 mod page;
-pub mod svg;
+mod svg;
 
 pub use input::{FrameStat, ReportInput, frame_stats};
 

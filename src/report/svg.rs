@@ -738,8 +738,9 @@ impl Scale {
     }
 }
 
+#[cfg(test)]
 impl Plot {
-    /// The pixel mapping this plot would use (for tests and callers placing annotations).
+    /// The pixel mapping this plot would use (for the tests).
     pub fn pixel_scale(&self) -> Option<Scale> {
         let (xr, yr) = self.data_ranges()?;
         Some(self.fitted_scale(xr, yr))

@@ -321,10 +321,6 @@ impl BlockTridiagonal {
         self.diag.len()
     }
 
-    pub fn is_empty(&self) -> bool {
-        self.diag.is_empty()
-    }
-
     /// Block elimination from both ends (see [`Factored`]); fails when a Schur complement is not
     /// positive definite.
     ///
@@ -503,11 +499,6 @@ impl Factored {
         x
     }
 
-    /// The solution `x` of `A x = rhs` for another right-hand side (one block per knot).
-    pub fn solve_rhs(&self, rhs: &[V18]) -> Vec<V18> {
-        self.solve_many(rhs)
-    }
-
     /// The solutions of `A X = R` for `C` right-hand sides at once (one 18 x C block per knot).
     pub fn solve_many<const C: usize>(
         &self,
@@ -653,7 +644,7 @@ mod tests {
             let b = DMatrix::from_fn(18 * n, 1, |i, _| sys.rhs[i / 18][i % 18]);
             let f = sys.clone().factor().unwrap();
             let x = f.solve();
-            let x2 = f.solve_rhs(&sys.rhs);
+            let x2 = f.solve_many(&sys.rhs);
             for (a, b) in x.iter().zip(&x2) {
                 assert!((a - b).abs().max() < 1e-9 * (1.0 + a.abs().max()));
             }

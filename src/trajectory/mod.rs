@@ -1,9 +1,9 @@
 //! Continuous-time camera trajectory: Lie groups and the white-noise-on-jerk Gaussian process.
 
-pub mod blocktri;
+pub(crate) mod blocktri;
 pub mod fit;
 pub mod gp;
-pub mod hyper;
+pub(crate) mod hyper;
 pub(crate) mod solver;
 
 pub use fit::{FitOptions, FitReport, KnotView, Trajectory, TrajectoryState};

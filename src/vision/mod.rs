@@ -8,4 +8,4 @@ pub mod family;
 pub mod frames;
 pub mod images;
 pub mod pnp;
-pub mod refine;
+pub(crate) mod refine;

@@ -4,8 +4,8 @@
 
 use std::path::{Path, PathBuf};
 
+use dvlcal::io::dvl::a50::with_checksum;
 use dvlcal::io::dvl::a50::{A50VelocityReport, parse_velocity_report};
-use dvlcal::io::dvl::serial::with_checksum;
 
 /// The real logs, in the shared folder beside the repository.
 pub const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/a50-ros-driver");
@@ -43,7 +43,7 @@ fn yn(b: bool) -> &'static str {
 
 /// A report as a `wrz` sentence with its CRC-8 and CRLF, numbers in shortest round-trip form.
 pub fn wrz_sentence(r: &A50VelocityReport) -> String {
-    dvlcal::io::dvl::serial::wrz_sentence(r)
+    dvlcal::io::dvl::a50::wrz_sentence(r)
 }
 
 /// A report as a deprecated `wrx` sentence (no absolute time, no covariance).

@@ -1,12 +1,13 @@
 //! Writing the Water Linked A50's formats: json_v3 velocity reports exactly as the DVL sends them
-//! on its TCP JSON stream (port 16171; one JSON object per line, lines ended by CRLF), and the
-//! typed report they are made from. Reading every A50 format is [`super::read_dvl_log`]'s job.
+//! on its TCP JSON stream (port 16171; one JSON object per line, lines ended by CRLF), the same
+//! reports as serial `wrz` sentences with their CRC-8, and the typed report they are made from. Reading every A50 format is [`super::read_dvl_log`]'s job.
 
 use std::fmt::Write as _;
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
+pub use super::report::crc8;
 use crate::error::Result;
 
 /// One beam of a velocity report.
@@ -256,4 +257,34 @@ pub fn write_a50_jsonl(path: &Path, reports: &[A50VelocityReport]) -> Result<()>
 /// for bit.
 pub fn parse_velocity_report(line: &str) -> serde_json::Result<A50VelocityReport> {
     serde_json::from_str(line)
+}
+
+/// Renders a sentence body (`wrz,...`) with its checksum and CRLF, as the DVL sends it.
+pub fn with_checksum(body: &str) -> String {
+    format!("{body}*{:02x}\r\n", crc8(body.as_bytes()))
+}
+
+/// A velocity report as a `wrz` sentence (with checksum and CRLF), numbers in their shortest
+/// round-trip form: the serial rendering of the same report the JSON protocol carries.
+pub fn wrz_sentence(r: &A50VelocityReport) -> String {
+    let cov: Vec<String> = r
+        .covariance
+        .iter()
+        .flatten()
+        .map(|x| x.to_string())
+        .collect();
+    with_checksum(&format!(
+        "wrz,{},{},{},{},{},{},{},{},{},{},{}",
+        r.vx,
+        r.vy,
+        r.vz,
+        if r.velocity_valid { "y" } else { "n" },
+        r.altitude,
+        r.fom,
+        cov.join(";"),
+        r.time_of_validity,
+        r.time_of_transmission,
+        r.time,
+        r.status
+    ))
 }

@@ -14,13 +14,13 @@
 //! (strict mode).
 
 pub mod a50;
-pub mod bag;
-pub mod detect;
-pub mod json;
+pub(crate) mod bag;
+pub(crate) mod detect;
+pub(crate) mod json;
 mod log;
-pub mod record;
-pub mod report;
-pub mod serial;
+pub(crate) mod record;
+pub(crate) mod report;
+pub(crate) mod serial;
 mod summary;
 
 use std::collections::{BTreeMap, HashMap};
@@ -33,12 +33,14 @@ use crate::time::{Epoch, RawTime};
 use crate::types::DvlSample;
 
 pub use detect::detect_format;
+pub use json::parse_line as parse_json_line;
 pub use log::{
     DvlFormat, DvlLog, DvlLogStats, DvlReadOptions, DvlTimeSource, MAX_LISTED, RejectedLine,
     TimeProblem, text_lines,
 };
-pub use record::{RecordOptions, RecordStats, record_tcp};
+pub use record::{RecordOptions, RecordStats, add_host_time, record_tcp};
 pub use report::{Parsed, Reject, VelocityReport};
+pub use serial::parse_line as parse_serial_line;
 
 /// Reads a DVL log of any accepted format into valid, deduplicated, time-ordered samples.
 ///

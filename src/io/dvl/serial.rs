@@ -9,7 +9,6 @@
 //! `wrp`, `wrt` and other replies (counted as other reports).
 
 use super::report::{Parsed, Reject, VelocityReport, content_hash, crc8};
-use crate::io::dvl::a50::A50VelocityReport;
 
 /// Parses one line of a serial capture.
 pub fn parse_line(line: &[u8]) -> Result<Parsed, Reject> {
@@ -219,34 +218,4 @@ fn parse_body(body: &[u8]) -> Result<Parsed, Reject> {
             kind: clip(name),
         }),
     }
-}
-
-/// Renders a sentence body (`wrz,...`) with its checksum and CRLF, as the DVL sends it.
-pub fn with_checksum(body: &str) -> String {
-    format!("{body}*{:02x}\r\n", crc8(body.as_bytes()))
-}
-
-/// A velocity report as a `wrz` sentence (with checksum and CRLF), numbers in their shortest
-/// round-trip form: the serial rendering of the same report the JSON protocol carries.
-pub fn wrz_sentence(r: &A50VelocityReport) -> String {
-    let cov: Vec<String> = r
-        .covariance
-        .iter()
-        .flatten()
-        .map(|x| x.to_string())
-        .collect();
-    with_checksum(&format!(
-        "wrz,{},{},{},{},{},{},{},{},{},{},{}",
-        r.vx,
-        r.vy,
-        r.vz,
-        if r.velocity_valid { "y" } else { "n" },
-        r.altitude,
-        r.fom,
-        cov.join(";"),
-        r.time_of_validity,
-        r.time_of_transmission,
-        r.time,
-        r.status
-    ))
 }
