@@ -311,6 +311,7 @@ impl Default for Se3 {
 }
 
 impl Se3 {
+    /// The identity transform.
     pub fn identity() -> Se3 {
         Se3 {
             rot: Matrix3::identity(),
@@ -318,6 +319,8 @@ impl Se3 {
         }
     }
 
+    /// The transform with rotation `rot` (`R_a_b`) and translation `trans` (the origin of b in
+    /// frame a), taken as given.
     pub fn new(rot: Matrix3<f64>, trans: Vector3<f64>) -> Se3 {
         Se3 { rot, trans }
     }
@@ -352,6 +355,7 @@ impl Se3 {
         Vector6::new(rho.x, rho.y, rho.z, phi.x, phi.y, phi.z)
     }
 
+    /// The inverse transform: `T_b_a` from `T_a_b`.
     pub fn inverse(&self) -> Se3 {
         let rt = self.rot.transpose();
         Se3 {
@@ -375,6 +379,7 @@ impl Se3 {
         m
     }
 
+    /// The 4x4 homogeneous matrix `[[R, t], [0, 1]]`.
     pub fn to_matrix(&self) -> Matrix4<f64> {
         let mut m = Matrix4::identity();
         m.fixed_view_mut::<3, 3>(0, 0).copy_from(&self.rot);

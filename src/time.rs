@@ -15,7 +15,9 @@ pub struct Epoch {
 /// A time stamp parsed exactly from text: whole seconds and a fraction in [0, 1).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RawTime {
+    /// Whole seconds (the floor of the time stamp).
     pub sec: i64,
+    /// Fraction of a second, in [0, 1).
     pub frac: f64,
 }
 

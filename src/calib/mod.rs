@@ -2,17 +2,26 @@
 //!
 //! 1. Fit the camera trajectory (GP regression on the poses).
 //! 2. Clock offset and scale from speed magnitudes on calm samples ([`offset`]).
-//! 3. Rotation, lever arm and scale in closed form with bias elimination ([`closed_form`]).
-//! 4. Block-coordinate refinement: calibration update with the trajectory fixed ([`refine`]),
-//!    state update with the calibration fixed, until nothing changes; a Gauss-Newton step on the
-//!    joint problem after an unsettled round speeds up the alternation ([`state::joint_step`]).
+//! 3. Rotation, lever arm and scale in closed form with bias elimination ([`mod@closed_form`]).
+//! 4. Block-coordinate refinement: calibration update with the trajectory fixed (`refine`),
+//!    state update with the calibration fixed (`state`: the trajectory's solver with the DVL
+//!    factors added), until nothing changes; a Gauss-Newton step on the joint problem after an
+//!    unsettled round speeds up the alternation (`state::joint_step`).
 //! 5. Uncertainty from the information matrix of the final problem and a verdict per parameter.
+//!
+//! [`calibrate`] runs the stages in this order; [`initialise`] is stages 2 and 3 on their own.
 
 pub mod closed_form;
 pub mod model;
 pub mod offset;
 pub(crate) mod refine;
 pub(crate) mod state;
+
+/// Covariance or information of the parameters, in [`ParamVec`]'s order.
+pub use refine::ParamMat;
+/// The estimator's parameter vector: `[dphi; dp; dkappa; ddelta]` (rad about the DVL axes, m,
+/// scale, s), the coordinates of [`model::difference`] and of the covariance.
+pub use refine::ParamVec;
 
 use nalgebra::{Matrix3, Vector3};
 
@@ -23,7 +32,7 @@ use crate::types::{DvlSample, PoseMeasurement};
 use closed_form::{ClosedForm, ClosedFormRow, closed_form};
 use model::{NPARAM, predict};
 use offset::{DvlObs, OffsetMethod, OffsetOptions, OffsetResult, estimate_offset};
-use refine::{FreeParams, ParamMat, calibration_update};
+use refine::{FreeParams, calibration_update};
 use state::{JointProblem, joint_covariance, joint_step, state_update};
 
 /// How the calibration starts.
@@ -36,7 +45,10 @@ pub enum Method {
     /// The user's extrinsics kept fixed; with `estimate_offset` the clock offset (and scale)
     /// is estimated with the extrinsics held, otherwise the guess is only evaluated.
     Fixed {
+        /// The user's calibration; its rotation and lever arm are held fixed.
         guess: CalibrationParams,
+        /// Whether to estimate the clock offset and velocity scale (`false`: only evaluate the
+        /// guess).
         estimate_offset: bool,
     },
 }
@@ -44,9 +56,13 @@ pub enum Method {
 /// Standard deviations above which a parameter is reported as weakly observable.
 #[derive(Clone, Debug)]
 pub struct WeakThresholds {
+    /// Limit on the rotation standard deviation about each axis, degrees.
     pub rotation_deg: f64,
+    /// Limit on the lever-arm standard deviation along each axis, m.
     pub lever_arm_m: f64,
+    /// Limit on the clock-offset standard deviation, s.
     pub time_offset_s: f64,
+    /// Limit on the velocity-scale standard deviation (dimensionless).
     pub velocity_scale: f64,
 }
 
@@ -64,17 +80,22 @@ impl Default for WeakThresholds {
 /// Settings of a calibration.
 #[derive(Clone, Debug)]
 pub struct CalibOptions {
+    /// How the calibration starts: UIC, BCD from a guess, or fixed extrinsics.
     pub method: Method,
     /// Per-axis DVL noise (m/s) replacing the reports' own covariance.
     pub dvl_sigma: Option<f64>,
     /// DVL noise used for reports without a covariance.
     pub default_dvl_sigma: f64,
+    /// Settings of the clock-offset search; its range also sets the time margin of the DVL
+    /// samples kept.
     pub offset: OffsetOptions,
     /// Use the bias-eliminated closed form (the paper's estimator); `false` gives the biased one.
     pub bias_corrected: bool,
     /// Outer block-coordinate iterations.
     pub max_outer_iterations: usize,
+    /// Settings of the camera-trajectory fit.
     pub fit: FitOptions,
+    /// Standard deviations above which a parameter is reported as weak.
     pub weak: WeakThresholds,
 }
 
@@ -115,6 +136,7 @@ impl CalibOptions {
 /// Verdict on one parameter.
 #[derive(Clone, Debug)]
 pub struct Verdict {
+    /// Whether the parameter is well determined (or was held fixed).
     pub ok: bool,
     /// Why the parameter is weak (empty when ok).
     pub reason: String,
@@ -123,9 +145,13 @@ pub struct Verdict {
 /// Verdicts on all parameters.
 #[derive(Clone, Debug)]
 pub struct Verdicts {
+    /// Verdict on the DVL-camera rotation.
     pub rotation: Verdict,
+    /// Verdict on the lever arm `p_cam_dvl`.
     pub lever_arm: Verdict,
+    /// Verdict on the clock offset `time_offset_s`.
     pub time_offset: Verdict,
+    /// Verdict on the DVL velocity scale.
     pub velocity_scale: Verdict,
 }
 
@@ -134,15 +160,20 @@ pub struct Verdicts {
 pub struct ParamStd {
     /// About the DVL frame's x, y, z axes (left perturbation of `R_dvl_cam`), degrees.
     pub rotation_deg: Vector3<f64>,
+    /// Along the camera frame's x, y, z axes (of the lever arm `p_cam_dvl`), metres.
     pub lever_arm_m: Vector3<f64>,
+    /// Standard deviation of the clock offset (`t_cam = t_dvl + time_offset_s`), seconds.
     pub time_offset_s: f64,
+    /// Standard deviation of the velocity scale (dimensionless).
     pub velocity_scale: f64,
 }
 
 /// The initialisation stage of UIC.
 #[derive(Clone, Debug)]
 pub struct InitReport {
+    /// The clock offset and velocity scale from speed magnitudes.
     pub offset: OffsetResult,
+    /// Rotation, lever arm and scale in closed form at that offset.
     pub closed_form: ClosedForm,
     /// Parameters after initialisation (closed form with the searched offset).
     pub params: CalibrationParams,
@@ -151,8 +182,10 @@ pub struct InitReport {
 /// One block-coordinate iteration.
 #[derive(Clone, Debug)]
 pub struct IterationRecord {
-    /// DVL cost (sum of squared residuals weighted by the DVL noise) after the iteration.
+    /// The joint cost after the iteration: pose, GP prior and DVL terms, each a sum of squared
+    /// residuals weighted by its noise.
     pub cost: f64,
+    /// Parameters after the round's calibration update.
     pub params: CalibrationParams,
 }
 
@@ -161,6 +194,7 @@ pub struct IterationRecord {
 pub struct Excitation {
     /// RMS camera speed and angular speed over the DVL samples used.
     pub rms_speed: f64,
+    /// RMS camera angular speed over the DVL samples used, rad/s.
     pub rms_angular_speed: f64,
     /// RMS of `|w x p|` over RMS of `|v|` at the estimated lever arm: how much the lever arm
     /// shows in the DVL velocities.
@@ -170,31 +204,50 @@ pub struct Excitation {
 /// Counts of the data used.
 #[derive(Clone, Debug, Default)]
 pub struct Counts {
+    /// Camera poses given.
     pub poses: usize,
+    /// DVL reports given.
     pub dvl_samples: usize,
+    /// DVL reports left out as flagged invalid or with non-finite velocities.
     pub dvl_invalid: usize,
+    /// Valid DVL reports the refinement used.
     pub dvl_used: usize,
+    /// Valid DVL reports left out because their camera time falls outside the trajectory span
+    /// (with a margin for offset changes).
     pub dvl_outside_span: usize,
+    /// Calm (slowly rotating) samples the UIC offset search found; 0 for the other methods.
     pub calm: usize,
 }
 
 /// Everything a calibration run produced.
 #[derive(Clone, Debug)]
 pub struct CalibrationOutcome {
+    /// The estimated calibration.
     pub params: CalibrationParams,
+    /// Covariance of `params` in the estimator's coordinates `[dphi; dp; dkappa; ddelta]` (rad,
+    /// m, -, s; see [`model::difference`]); zero for held parameters.
     pub covariance: ParamMat,
+    /// Standard deviations from `covariance`.
     pub std: ParamStd,
+    /// Verdict on each parameter.
     pub verdicts: Verdicts,
+    /// The method of the run.
     pub method: Method,
+    /// The UIC initialisation stage (`None` for BCD and fixed extrinsics).
     pub init: Option<InitReport>,
+    /// One record per block-coordinate round.
     pub iterations: Vec<IterationRecord>,
+    /// Counts of the data used.
     pub counts: Counts,
     /// RMS of DVL residuals per axis, m/s.
     pub residual_rms: Vector3<f64>,
     /// Weighted residual sum over its degrees of freedom: about 1 when the DVL noise is right.
     pub normalized_cost: f64,
+    /// Measures of the motion's excitation over the DVL samples used.
     pub excitation: Excitation,
+    /// Report of the trajectory fit to the poses (hyperparameters, convergence, residuals).
     pub trajectory: FitReport,
+    /// Human-readable warnings of the run (offset-search notes, inflated standard deviations).
     pub warnings: Vec<String>,
     /// Where the refinement started: the initialisation's parameters, or the user's guess.
     pub start: CalibrationParams,
@@ -203,6 +256,7 @@ pub struct CalibrationOutcome {
     /// The valid DVL observations (camera epoch, DVL clock) and the indices among them that
     /// the refinement used.
     pub observations: Vec<DvlObs>,
+    /// Indices into `observations` of the samples the refinement used.
     pub used: Vec<usize>,
 }
 
@@ -329,7 +383,7 @@ pub fn calibrate(
 
 /// Stages 2 and 3: the parameters the refinement starts from. For UIC the clock offset and
 /// scale from speed magnitudes ([`estimate_offset`]), then rotation, lever arm and scale in closed
-/// form at that offset ([`closed_form`]); for BCD and fixed extrinsics the user's guess. The
+/// form at that offset ([`closed_form()`]); for BCD and fixed extrinsics the user's guess. The
 /// offset search's notes go to `warnings`.
 pub fn initialise(
     traj: &Trajectory,

@@ -21,7 +21,9 @@ use crate::trajectory::Trajectory;
 /// A DVL velocity on the DVL clock (seconds relative to the camera epoch).
 #[derive(Clone, Debug)]
 pub struct DvlObs {
+    /// DVL-clock time of validity, seconds (`t_cam = t + time_offset_s`).
     pub t: f64,
+    /// Measured velocity of the DVL origin in the DVL frame, m/s.
     pub v: Vector3<f64>,
     /// Noise covariance `Q_d`.
     pub cov: Matrix3<f64>,
@@ -89,8 +91,11 @@ pub enum OffsetMethod {
 /// Result of the offset search.
 #[derive(Clone, Debug)]
 pub struct OffsetResult {
+    /// Estimated clock offset, seconds (`t_cam = t_dvl + offset`).
     pub offset: f64,
+    /// Velocity scale `kappa` at that offset (dimensionless).
     pub scale: f64,
+    /// How the offset was obtained.
     pub method: OffsetMethod,
     /// Indices (into the observations) of the calm samples at the chosen offset.
     pub calm: Vec<usize>,

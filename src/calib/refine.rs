@@ -9,7 +9,9 @@ use crate::error::{Error, Result};
 use crate::trajectory::Trajectory;
 use crate::types::CalibrationParams;
 
+/// A vector in the parameters' coordinates.
 pub type ParamVec = SVector<f64, NPARAM>;
+/// A matrix in the parameters' coordinates.
 pub type ParamMat = SMatrix<f64, NPARAM, NPARAM>;
 
 /// Which parameters the update may change (`true` = free).

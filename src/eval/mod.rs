@@ -10,8 +10,11 @@ use crate::error::{Error, Result};
 /// for truth) and the time.
 #[derive(Clone, Debug)]
 pub struct TwistSample {
+    /// Time of the sample, seconds relative to the epoch.
     pub t: f64,
+    /// Body twist `[v; w]`, m/s and rad/s.
     pub twist: Vector6<f64>,
+    /// Standard deviation of each twist component (zero for truth).
     pub std: Vector6<f64>,
 }
 
@@ -24,6 +27,7 @@ pub struct TwistErrors {
     pub rms: Vector6<f64>,
     /// RMS of the linear-velocity error norm (m/s) and of the angular-velocity error norm (rad/s).
     pub rms_v: f64,
+    /// RMS of the angular-velocity error norm, rad/s.
     pub rms_w: f64,
     /// Mean of `(error / std)^2` per component: 1 when the reported deviations are honest.
     pub mean_normalized_sq: Vector6<f64>,
@@ -78,7 +82,9 @@ pub fn twist_errors(estimate: &[TwistSample], truth: &[TwistSample]) -> Result<T
 /// offset (s)), with the file's standard deviations in the same order when it has them.
 #[derive(Clone, Debug)]
 pub struct CalibrationError {
+    /// Estimate minus reference in the estimator's coordinates (rad, m, -, s).
     pub error: nalgebra::SVector<f64, { crate::calib::model::NPARAM }>,
+    /// The file's standard deviations in the same order and units, when it has them.
     pub std: Option<nalgebra::SVector<f64, { crate::calib::model::NPARAM }>>,
 }
 

@@ -59,11 +59,16 @@ impl OdometryOptions {
 pub struct Odometry {
     /// Camera times (s), the dead-reckoned camera positions and the measured ones.
     pub t: Vec<f64>,
+    /// Dead-reckoned camera positions in the world frame, m.
     pub estimated: Vec<Vector3<f64>>,
+    /// Measured camera positions (translation of `T_world_cam`), m.
     pub measured: Vec<Vector3<f64>>,
     /// Segment number of every pose (0 for the first stretch, +1 at each restart).
     pub segment: Vec<usize>,
+    /// Absolute trajectory error: RMS of the position errors over all poses checked, m.
     pub ate_m: f64,
+    /// Relative pose error: RMS of the displacement errors over `rpe_delta_s`, m (NaN without
+    /// pairs).
     pub rpe_m: f64,
     /// RPE pairs used.
     pub rpe_pairs: usize,
@@ -73,6 +78,7 @@ pub struct Odometry {
     pub outside_dvl_span: usize,
     /// Valid DVL reports used, and reports left out (flagged invalid or non-finite).
     pub dvl_used: usize,
+    /// DVL reports left out (flagged invalid or non-finite).
     pub dvl_skipped: usize,
     /// Length of the camera path, metres.
     pub path_length_m: f64,

@@ -23,11 +23,14 @@ pub const RIGID_TOL: f64 = 1e-6;
 /// Standard deviations of the estimated quantities.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct CalibrationStd {
-    /// Rotation of `T_cam_dvl`, degrees, about the camera axes.
+    /// Rotation, degrees, about the DVL frame's x, y, z axes (a left perturbation of
+    /// `R_dvl_cam`, the estimator's coordinates).
     pub rotation_deg: [f64; 3],
     /// Lever arm, metres, camera frame.
     pub lever_arm_m: [f64; 3],
+    /// Standard deviation of the clock offset `time_offset_s`, s.
     pub time_offset_s: f64,
+    /// Standard deviation of the DVL velocity scale factor (dimensionless).
     pub velocity_scale: f64,
 }
 
@@ -35,16 +38,22 @@ pub struct CalibrationStd {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Observability {
+    /// The quantity's standard deviation is within its limit (or the quantity was held fixed).
     Ok,
+    /// The quantity's standard deviation exceeds its limit: the data constrained it poorly.
     Weak,
 }
 
 /// Observability of each estimated quantity.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ObservabilityFlags {
+    /// Observability of the rotation of `T_cam_dvl`.
     pub rotation: Observability,
+    /// Observability of the lever arm (translation of `T_cam_dvl`).
     pub lever_arm: Observability,
+    /// Observability of the clock offset `time_offset_s`.
     pub time_offset: Observability,
+    /// Observability of the DVL velocity scale factor.
     pub velocity_scale: Observability,
 }
 
@@ -85,10 +94,13 @@ pub struct CalibrationFile {
     pub time_offset_s: f64,
     /// DVL velocity scale factor.
     pub velocity_scale: f64,
+    /// Standard deviations of the estimated quantities (optional `std` section).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub std: Option<CalibrationStd>,
+    /// Whether the data constrained each quantity well (optional `observability` section).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub observability: Option<ObservabilityFlags>,
+    /// How the result was obtained (optional `info` section).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub info: Option<CalibrationInfo>,
 }

@@ -21,12 +21,17 @@ use crate::io::dvl::{DvlFormat, json, serial, text_lines};
 /// What was found in (or given for) a dataset.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct DatasetFiles {
+    /// The dataset folder that was searched.
     pub root: PathBuf,
     /// The folder holding `cam0/` (or `mav0/`): the dataset folder itself.
     pub images: Option<PathBuf>,
+    /// The Kalibr camchain YAML.
     pub camchain: Option<PathBuf>,
+    /// The board (target) YAML.
     pub target: Option<PathBuf>,
+    /// The DVL log.
     pub dvl: Option<PathBuf>,
+    /// The TUM pose file, used instead of images.
     pub poses: Option<PathBuf>,
     /// Files looked at and not used, with the reason (for the summary).
     pub ignored: Vec<(PathBuf, String)>,
@@ -36,10 +41,15 @@ pub struct DatasetFiles {
 /// is not searched for.
 #[derive(Clone, Debug, Default)]
 pub struct DatasetOverrides {
+    /// The images folder (holding `cam0/` or `mav0/`); wins over `poses`.
     pub images: Option<PathBuf>,
+    /// The Kalibr camchain YAML.
     pub camchain: Option<PathBuf>,
+    /// The board (target) YAML.
     pub target: Option<PathBuf>,
+    /// The DVL log.
     pub dvl: Option<PathBuf>,
+    /// The TUM pose file, used instead of images.
     pub poses: Option<PathBuf>,
 }
 

@@ -16,7 +16,9 @@ use crate::types::CalibrationParams;
 /// Frame names used in the exports.
 #[derive(Clone, Debug)]
 pub struct FrameNames {
+    /// Name of the camera frame, the parent of the transform (default `cam0`).
     pub camera: String,
+    /// Name of the DVL frame, the child of the transform (default `dvl`).
     pub dvl: String,
 }
 

@@ -43,6 +43,7 @@ pub struct ReportInput<'a> {
     pub title: &'a str,
     /// What was calibrated, in words (e.g. the input file names).
     pub dataset: &'a str,
+    /// The calibration run reported on.
     pub outcome: &'a CalibrationOutcome,
     /// The camera poses the calibration used.
     pub poses: &'a [PoseMeasurement],
@@ -52,6 +53,7 @@ pub struct ReportInput<'a> {
     pub frames: Option<&'a [FrameStat]>,
     /// Name of the result file and its text.
     pub result_name: Option<&'a str>,
+    /// The result file's YAML text.
     pub result_yaml: Option<&'a str>,
     /// Wall time of the calibration, seconds.
     pub elapsed_s: Option<f64>,

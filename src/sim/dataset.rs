@@ -47,9 +47,13 @@ pub enum MotionKind {
 /// Everything that defines a simulated dataset.
 #[derive(Clone, Debug)]
 pub struct SimConfig {
+    /// Length of the recording on the camera clock, seconds (poses cover `[0, duration_s]`).
     pub duration_s: f64,
+    /// Seed of the random streams (motion, pose noise, DVL jitter, DVL noise).
     pub seed: u64,
+    /// Camera pose rate, Hz (poses at `k / camera_rate_hz`).
     pub camera_rate_hz: f64,
+    /// DVL sample rate, Hz (nominal samples at `j / dvl_rate_hz` on the DVL clock).
     pub dvl_rate_hz: f64,
     /// Standard deviation of each translation component of the pose noise, metres.
     pub pose_sigma_pos_m: f64,
@@ -64,6 +68,7 @@ pub struct SimConfig {
     pub dvl_time_jitter_s: f64,
     /// Absolute time (Unix seconds) of camera time 0; the dataset's epoch.
     pub unix_start_s: i64,
+    /// The camera motion simulated.
     pub motion: MotionKind,
     /// Jerk power spectral densities (`[v; w]`) of [`MotionKind::Prior`].
     pub prior_qc: [f64; 6],
@@ -179,6 +184,7 @@ pub struct SimDataset {
     pub dvl: Vec<DvlSample>,
     /// True camera state at each DVL sample's camera time.
     pub dvl_truth: Vec<MotionState>,
+    /// The calibration the DVL data were generated with.
     pub truth: CalibrationParams,
 }
 

@@ -189,6 +189,7 @@ pub struct FrameSpec {
 /// What [`write_image_dataset`] did.
 #[derive(Clone, Debug, Default)]
 pub struct ImageSimStats {
+    /// Stereo frames rendered.
     pub frames: usize,
     /// Images written (frames times cameras).
     pub images: usize,

@@ -95,12 +95,16 @@ fn magnus4(s: f64, f: impl Fn(f64) -> Vector6<f64>) -> Vector6<f64> {
 /// Constant body twist: `T(t) = start * exp(t * twist)` on `[0, duration_s]`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ScrewMotion {
+    /// `T_world_cam` at time 0.
     pub start: Se3,
+    /// Constant body twist `[v; w]` (m/s, rad/s, camera frame).
     pub twist: Vector6<f64>,
+    /// The motion is used on `[0, duration_s]`, seconds.
     pub duration_s: f64,
 }
 
 impl ScrewMotion {
+    /// The screw motion, after checking the start pose, the twist and the duration.
     pub fn new(start: Se3, twist: Vector6<f64>, duration_s: f64) -> Result<ScrewMotion> {
         check_duration(duration_s)?;
         check_pose("screw motion start", &start)?;
@@ -134,12 +138,16 @@ impl Motion for ScrewMotion {
 /// One sinusoid per axis: component `i` is `amplitude[i] * sin(2 pi freq_hz[i] t + phase_rad[i])`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SinusoidTerm {
+    /// Amplitude per axis (m for position terms, rad for rotation terms).
     pub amplitude: Vector3<f64>,
+    /// Frequency per axis, Hz.
     pub freq_hz: Vector3<f64>,
+    /// Phase per axis at `t = 0`, rad.
     pub phase_rad: Vector3<f64>,
 }
 
 impl SinusoidTerm {
+    /// A term from per-axis amplitudes, frequencies (Hz) and phases (rad).
     pub fn new(amplitude: [f64; 3], freq_hz: [f64; 3], phase_rad: [f64; 3]) -> SinusoidTerm {
         SinusoidTerm {
             amplitude: Vector3::from(amplitude),
@@ -186,10 +194,15 @@ fn sum_sinusoids(
 /// (exact) and `w'` by a fourth-order central difference of the exact `w` (error ~1e-10).
 #[derive(Clone, Debug, PartialEq)]
 pub struct SinusoidMotion {
+    /// The motion is used on `[0, duration_s]`, seconds.
     pub duration_s: f64,
+    /// Constant part `p0` of the camera position in the world frame, m.
     pub position_offset: Vector3<f64>,
+    /// Sinusoids added to the position, m.
     pub position: Vec<SinusoidTerm>,
+    /// Constant part `phi0` of the rotation vector of `R_world_cam`, rad.
     pub rotation_offset: Vector3<f64>,
+    /// Sinusoids added to the rotation vector, rad.
     pub rotation: Vec<SinusoidTerm>,
 }
 
@@ -297,6 +310,7 @@ impl MeanReversion {
 /// Everything that defines a [`SampledMotion`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct SampledConfig {
+    /// Seed of the random stream of the jerk noise.
     pub seed: u64,
     /// The motion is used on `[0, duration_s]`.
     pub duration_s: f64,
@@ -308,8 +322,11 @@ pub struct SampledConfig {
     pub phases: Vec<(f64, [f64; 6])>,
     /// `None`: pure white noise on jerk.
     pub mean_reversion: Option<MeanReversion>,
+    /// `T_world_cam` at time 0.
     pub initial_pose: Se3,
+    /// Body twist `[v; w]` at time 0 (m/s, rad/s, camera frame).
     pub initial_twist: Vector6<f64>,
+    /// Time derivative of the body twist at time 0 (m/s^2, rad/s^2).
     pub initial_twist_rate: Vector6<f64>,
 }
 

@@ -234,7 +234,7 @@ fn prepare(board: &Board, t_cam_board: &Se3) -> Vec<Plane> {
 
 /// Renders what `cam` sees of `board` when the board is at `t_cam_board`; background mid-grey.
 ///
-/// Only the pixels that an edge of the scene may cross are supersampled (see [`edge_mask`]); any
+/// Only the pixels that an edge of the scene may cross are supersampled (see `edge_mask`); any
 /// other pixel lies inside one uniform region and gets its centre's value, which is what all its
 /// samples would give. The result is bit-identical to [`render_exhaustive`].
 pub fn render(

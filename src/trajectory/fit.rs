@@ -4,7 +4,7 @@
 //! consecutive knots and one pose term per knot; Gauss-Newton on the right perturbations of the
 //! knot poses (and additive updates of twists and rates) solves it. Every step solves a
 //! block-tridiagonal system, so a fit takes O(N) time and memory. The problem and the solver are
-//! in [`super::solver`]; the hyperparameters are chosen in [`super::hyper`].
+//! in `trajectory::solver`; the hyperparameters are chosen in `trajectory::hyper`.
 
 use nalgebra::{Matrix3, Matrix6, SMatrix, Vector6};
 
@@ -53,17 +53,24 @@ impl Default for FitOptions {
 /// What the fit found about its own inputs and convergence.
 #[derive(Clone, Debug)]
 pub struct FitReport {
+    /// Gauss-Newton iterations run.
     pub iterations: usize,
+    /// Whether Gauss-Newton converged within the iteration limit.
     pub converged: bool,
     /// Final value of the (doubled negative log-posterior) cost.
     pub cost: f64,
+    /// Power spectral density of jerk used, `[v; w]` order ((m/s^3)^2 s and (rad/s^3)^2 s).
     pub qc: Vector6<f64>,
+    /// Whether `qc` was chosen by marginal likelihood (`false`: given in the options).
     pub qc_estimated: bool,
     /// Default pose standard deviations (m, rad) used for poses without covariance.
     pub pose_sigma: (f64, f64),
+    /// Whether `pose_sigma` was estimated from the poses (`false`: given, or every pose has a
+    /// covariance).
     pub pose_sigma_estimated: bool,
     /// Root-mean-square pose residuals (m, rad) of the measurements against the fit.
     pub residual_rms_pos: f64,
+    /// Root-mean-square rotation residual of the measurements against the fit, rad.
     pub residual_rms_rot: f64,
 }
 
@@ -80,6 +87,7 @@ pub struct Trajectory {
 /// The trajectory at one time.
 #[derive(Clone, Debug)]
 pub struct TrajectoryState {
+    /// Camera-clock time, seconds relative to the dataset epoch.
     pub t: f64,
     /// `T_world_cam`.
     pub pose: Se3,
@@ -96,6 +104,7 @@ pub struct TrajectoryState {
 pub struct TwistJacobian {
     /// Index of the first knot.
     pub knot: usize,
+    /// The interpolated state (pose, twist, rate) at the query time.
     pub state: Knot,
     /// d twist / d [x_k; x_{k+1}], each `x = [dT; dw; ddw]`.
     pub jacobian: SMatrix<f64, 6, 36>,
@@ -226,10 +235,12 @@ impl Trajectory {
         &self.knots
     }
 
+    /// Power spectral density of jerk `Qc` of the GP prior, `[v; w]` order.
     pub fn qc(&self) -> Vector6<f64> {
         self.qc
     }
 
+    /// What the fit found about its inputs and convergence.
     pub fn report(&self) -> &FitReport {
         &self.report
     }
@@ -292,7 +303,9 @@ impl Trajectory {
 /// interpolation and its Jacobians without copying the knots. Needs at least two knots.
 #[derive(Clone, Copy, Debug)]
 pub struct KnotView<'a> {
+    /// Knot times, seconds, strictly increasing.
     pub times: &'a [f64],
+    /// Knot states, one per time.
     pub knots: &'a [Knot],
 }
 

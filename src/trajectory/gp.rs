@@ -376,9 +376,11 @@ pub fn kron_identity(s: &Matrix3<f64>) -> M18 {
 /// `-Phi (x) I6` with its first block column replaced by [`LocalState::d_pose1`]; `j2` is
 /// [`LocalState::d_knot2`] (block lower triangular).
 pub struct PriorFactor {
+    /// The residual `gamma_2 - Phi(dt) gamma_1` (18-vector).
     pub e: V18,
     /// `Phi(dt)`.
     pub phi: Matrix3<f64>,
+    /// Local state of the second knot relative to the first, with its Jacobians.
     pub local: LocalState,
 }
 
@@ -397,6 +399,7 @@ impl PriorFactor {
     }
 }
 
+/// The prior factor between consecutive knots `k1` and `k2`, `dt` seconds apart.
 pub fn prior_factor(k1: &Knot, k2: &Knot, dt: f64) -> PriorFactor {
     let local = local_state(k1, k2);
     let phi = phi_scalar(dt);
@@ -408,11 +411,17 @@ pub fn prior_factor(k1: &Knot, k2: &Knot, dt: f64) -> PriorFactor {
 /// `W = Q(dt)^-1 (x) diag(qc_inv)`, `d1 = J1^T W J1`, `d2 = J2^T W J2`, `upper = J1^T W J2`,
 /// `r1 = -J1^T W e`, `r2 = -J2^T W e` and `cost = e^T W e`.
 pub struct PriorNormal {
+    /// `J1^T W J1`: the first knot's diagonal block.
     pub d1: M18,
+    /// `J2^T W J2`: the second knot's diagonal block.
     pub d2: M18,
+    /// `J1^T W J2`: the off-diagonal block.
     pub upper: M18,
+    /// `-J1^T W e`: the first knot's right-hand side.
     pub r1: V18,
+    /// `-J2^T W e`: the second knot's right-hand side.
     pub r2: V18,
+    /// `e^T W e`: the factor's cost.
     pub cost: f64,
 }
 

@@ -61,6 +61,7 @@ use crate::{Error, Result};
 /// One tag of a board.
 #[derive(Clone, Debug, PartialEq)]
 pub struct BoardTag {
+    /// The tag's id (code index) in the board's family.
     pub id: u32,
     /// Edge of the tag's black square, m.
     pub size_m: f64,
@@ -105,7 +106,9 @@ impl BoardTag {
 /// A calibration board: a set of tags of one family at known positions.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Board {
+    /// The AprilTag family of all the board's tags.
     pub family: TagFamily,
+    /// The board's tags with their corners in the board frame.
     pub tags: Vec<BoardTag>,
     /// One line saying what the board is (printed on the SVG, in logs).
     pub description: String,
@@ -117,10 +120,15 @@ pub struct Board {
 /// The layout of a grid board.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct GridLayout {
+    /// Number of tag rows (along the board's y axis).
     pub rows: u32,
+    /// Number of tag columns (along the board's x axis).
     pub cols: u32,
+    /// Edge of each tag's black square, m.
     pub tag_size_m: f64,
+    /// Gap between neighbouring tags divided by the tag size (dimensionless).
     pub spacing: f64,
+    /// Id of the tag in row 0, column 0; ids increase along each row.
     pub first_id: u32,
 }
 

@@ -25,9 +25,30 @@ use crate::{Error, Result};
 /// Lens distortion model and coefficients.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Distortion {
+    /// No distortion (Kalibr's `none`).
     None,
-    RadTan { k1: f64, k2: f64, p1: f64, p2: f64 },
-    Equidistant { k1: f64, k2: f64, k3: f64, k4: f64 },
+    /// Radial-tangential distortion (Kalibr's `radtan`, OpenCV's plumb-bob with k3 = 0).
+    RadTan {
+        /// Second-order radial coefficient (multiplies r^2).
+        k1: f64,
+        /// Fourth-order radial coefficient (multiplies r^4).
+        k2: f64,
+        /// First tangential coefficient.
+        p1: f64,
+        /// Second tangential coefficient.
+        p2: f64,
+    },
+    /// Equidistant fisheye distortion (Kalibr's `equidistant`, OpenCV's fisheye).
+    Equidistant {
+        /// Coefficient of theta^3 in the distorted angle theta_d.
+        k1: f64,
+        /// Coefficient of theta^5 in the distorted angle theta_d.
+        k2: f64,
+        /// Coefficient of theta^7 in the distorted angle theta_d.
+        k3: f64,
+        /// Coefficient of theta^9 in the distorted angle theta_d.
+        k4: f64,
+    },
 }
 
 impl Distortion {
@@ -134,12 +155,19 @@ impl Distortion {
 /// A pinhole camera with distortion.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Camera {
+    /// Horizontal focal length (px).
     pub fu: f64,
+    /// Vertical focal length (px).
     pub fv: f64,
+    /// Horizontal coordinate of the principal point (px, centre of the top-left pixel at 0).
     pub pu: f64,
+    /// Vertical coordinate of the principal point (px, centre of the top-left pixel at 0).
     pub pv: f64,
+    /// Lens distortion of the normalised image point.
     pub distortion: Distortion,
+    /// Image width (px).
     pub width: u32,
+    /// Image height (px).
     pub height: u32,
 }
 
@@ -196,6 +224,7 @@ impl Camera {
 /// A chain of cameras (Kalibr's camchain).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Camchain {
+    /// The cameras, cam0 first.
     pub cams: Vec<Camera>,
     /// `T_cn_c0` (maps cam0 points into cam n), identity for cam0, composed from Kalibr's
     /// `T_cn_cnm1`.

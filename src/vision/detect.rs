@@ -20,7 +20,7 @@
 //!   (|bias| 0.12 px, RMS 0.19 px); on blurred perspective renders the detected squares come out
 //!   slightly small, which biases the depth of a PnP pose. With `refine_corners` (the default) each
 //!   side is re-located with an interpolating, unbiased edge estimate and the corners are
-//!   intersections of line fits ([`crate::vision::refine`]): |bias| under 0.001 px and RMS 0.002 px
+//!   intersections of line fits (`vision::refine`): |bias| under 0.001 px and RMS 0.002 px
 //!   on the same tags. `tests/vision_detect.rs` and `tests/vision_render.rs` measure both.
 
 use std::os::raw::c_int;
@@ -51,7 +51,7 @@ pub struct DetectorSettings {
     /// Snap the quad edges to strong gradients of the full-resolution image (`refine_edges`).
     pub refine_edges: bool,
     /// After libapriltag, re-locate each side of the black square on the full-resolution image
-    /// and intersect straight-line fits of the sides ([`crate::vision::refine`]). Removes the
+    /// and intersect straight-line fits of the sides (`vision::refine`). Removes the
     /// corner bias libapriltag 3.3 leaves; a tag whose sides cannot be located keeps
     /// libapriltag's corners.
     pub refine_corners: bool,

@@ -95,14 +95,23 @@ const FAMILIES: [FamilyEntry; 9] = [
 /// The tag families libapriltag ships.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum TagFamily {
+    /// The `tag36h11` family (587 codes).
     Tag36h11,
+    /// The `tag36h10` family (2320 codes).
     Tag36h10,
+    /// The `tag25h9` family (35 codes).
     Tag25h9,
+    /// The `tag16h5` family (30 codes).
     Tag16h5,
+    /// The `tagCircle21h7` family (38 codes).
     TagCircle21h7,
+    /// The `tagCircle49h12` family (65535 codes).
     TagCircle49h12,
+    /// The `tagStandard41h12` family (2115 codes).
     TagStandard41h12,
+    /// The `tagStandard52h13` family (48714 codes).
     TagStandard52h13,
+    /// The `tagCustom48h12` family (42211 codes).
     TagCustom48h12,
 }
 

@@ -21,6 +21,7 @@ use crate::vision::pnp::{FramePose, PnpOptions, PoseOutcome, solve_stereo};
 /// What became of a frame.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum FrameStatus {
+    /// The frame got a pose.
     Posed,
     /// None of the frame's images could be used.
     NoImage,
@@ -33,8 +34,11 @@ pub enum FrameStatus {
 /// One frame's result.
 #[derive(Clone, Debug)]
 pub struct FrameResult {
+    /// The frame's time and image paths.
     pub frame: StereoFrame,
+    /// What became of the frame.
     pub status: FrameStatus,
+    /// The frame's pose, `Some` exactly when `status` is [`FrameStatus::Posed`].
     pub pose: Option<FramePose>,
     /// Tags detected in each camera's image (before matching them to the board).
     pub tags_detected: Vec<usize>,
@@ -43,7 +47,9 @@ pub struct FrameResult {
 /// Counts over a run.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct DetectStats {
+    /// Frames processed.
     pub frames: usize,
+    /// Frames that got a pose.
     pub poses: usize,
     /// Images decoded and detected on.
     pub images: usize,
@@ -51,14 +57,20 @@ pub struct DetectStats {
     pub unreadable: usize,
     /// Images whose size differs from their camera's resolution in the camchain.
     pub wrong_size: usize,
-    /// Frames without a pose, by reason.
+    /// Frames without a pose because none of their images could be used.
     pub no_image: usize,
+    /// Frames without a pose because too few corners were on the board.
     pub too_few_corners: usize,
+    /// Frames without a pose because PnP found no solution.
     pub no_solution: usize,
-    /// Tag detections over all images, and how they were used.
+    /// Tag detections over all images (the fields below say how they were used).
     pub tags_detected: usize,
+    /// Detections whose id is not on the board, summed over posed frames.
     pub tags_unknown: usize,
+    /// Tag observations rejected (outliers, duplicate ids, non-finite corners), summed over
+    /// posed frames.
     pub tags_rejected: usize,
+    /// Tag observations used for the poses, summed over posed frames.
     pub tags_used: usize,
     /// Reprojection RMS (px) over all corners of all posed frames.
     pub rms_px: f64,

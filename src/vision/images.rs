@@ -24,6 +24,7 @@ use crate::{Error, Result};
 pub struct StereoFrame {
     /// cam0's time stamp, integer nanoseconds.
     pub t_ns: i64,
+    /// Image path of each camera, indexed by camera (`None`: no image from that camera).
     pub paths: Vec<Option<PathBuf>>,
 }
 
@@ -39,6 +40,7 @@ pub enum Layout {
 /// What [`scan_images`] found.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ScanStats {
+    /// The layout the folder was read as.
     pub layout: Layout,
     /// The folder of each camera's images (`None`: missing).
     pub folders: Vec<Option<PathBuf>>,

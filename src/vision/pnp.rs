@@ -3,7 +3,7 @@
 //! Per frame:
 //! 1. An initial pose from the camera with the most corners: OpenCV's `solvePnP` (SQPnP, then
 //!    IPPE and the iterative solver as fall-backs) on corners undistorted through our own
-//!    [`Camera`] model, so every distortion model we read is handled the same way.
+//!    [`crate::vision::camera::Camera`] model, so every distortion model we read is handled the same way.
 //! 2. Levenberg-Marquardt over the reprojection errors of all cameras, each corner reaching
 //!    camera n through the stereo extrinsics `T_cn_c0`.
 //! 3. Outlier tags: after each solve, the tag observation (one tag in one camera) with the largest
@@ -87,9 +87,11 @@ pub struct FramePose {
 #[derive(Clone, Debug, PartialEq)]
 #[allow(clippy::large_enum_variant)] // one per frame, moved once
 pub enum PoseOutcome {
+    /// The frame's pose.
     Pose(FramePose),
     /// Fewer than `min_corners` corners on the board (before or after outlier rejection).
     TooFewCorners {
+        /// Corners that were left (4 per usable tag observation).
         corners: usize,
     },
     /// No initial solution, or a degenerate configuration (singular normal equations).

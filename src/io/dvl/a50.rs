@@ -34,7 +34,9 @@ pub struct A50VelocityReport {
     pub time: f64,
     /// Velocity in the DVL frame, m/s.
     pub vx: f64,
+    /// Velocity along the DVL frame's y axis, m/s.
     pub vy: f64,
+    /// Velocity along the DVL frame's z axis, m/s.
     pub vz: f64,
     /// Figure of merit, m/s.
     pub fom: f64,

@@ -192,6 +192,7 @@ pub struct DvlLogStats {
     pub warnings: Vec<String>,
     /// First and last sample time, seconds relative to the epoch.
     pub first_time_s: Option<f64>,
+    /// Last sample time, s relative to the epoch.
     pub last_time_s: Option<f64>,
 }
 

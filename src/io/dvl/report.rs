@@ -49,9 +49,17 @@ pub enum Parsed {
     /// A bottom-tracking velocity report (valid or not).
     Velocity(VelocityReport),
     /// A water-tracking velocity report: counted, never used as a velocity.
-    WaterVelocity { label: String },
+    WaterVelocity {
+        /// Format label for the summary, as in [`VelocityReport::label`].
+        label: String,
+    },
     /// A well-formed report of another type (dead reckoning, transducers, replies, ...).
-    Other { label: String, kind: String },
+    Other {
+        /// Format label for the summary, as in [`VelocityReport::label`].
+        label: String,
+        /// The report's type: the JSON `type` field or the serial sentence name (`wru`, ...).
+        kind: String,
+    },
 }
 
 /// Why a line was rejected.
@@ -64,6 +72,7 @@ pub struct Reject {
 }
 
 impl Reject {
+    /// A rejection with a short category `reason` and its `detail`.
     pub fn new(reason: &'static str, detail: impl Into<String>) -> Reject {
         Reject {
             reason,
