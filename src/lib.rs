@@ -75,7 +75,7 @@
 //! let files = dataset_files(Some(Path::new("my_run")), &DatasetOverrides::default())?;
 //! let data = Dataset::load(files, &VisionOptions::default(), &DvlReadOptions::default(), &mut |_| {})?;
 //! let run = calibrate_dataset(&data, &CalibOptions::default(), None)?;
-//! write_results(Path::new("out/calibration.yaml"), &run, &data)?;
+//! write_results(Path::new("out/calibration.yaml"), &run, &data, false)?;
 //! print!("{}", run.summary(&data.log));
 //! # Ok(())
 //! # }

@@ -149,13 +149,12 @@ fn bad_input_is_an_error_not_a_panic() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("valid"), "{e}");
-    // No overlap in time.
-    let mut shifted = ds.dvl.clone();
-    shifted.iter_mut().for_each(|s| s.t += 1000.0);
-    let e = calibrate(&ds.poses, &shifted, &opts)
-        .unwrap_err()
-        .to_string();
-    assert!(e.contains("overlap"), "{e}");
+    // Logs that cannot overlap by the shortest overlap considered (10 s) at any clock offset:
+    // five seconds of DVL reports.
+    let short: Vec<_> = ds.dvl.iter().filter(|s| s.t < 5.0).cloned().collect();
+    let e = calibrate(&ds.poses, &short, &opts).unwrap_err();
+    assert!(matches!(e, dvlcal::Error::NoTimeOverlap(_)), "{e:?}");
+    assert!(e.to_string().contains("overlap"), "{e}");
     // Too few poses.
     assert!(calibrate(&ds.poses[..2], &ds.dvl, &opts).is_err());
 }

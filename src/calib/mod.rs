@@ -11,6 +11,7 @@
 //!
 //! [`calibrate`] runs the stages in this order; [`initialise`] is stages 2 and 3 on their own.
 
+pub mod align;
 pub mod closed_form;
 pub mod model;
 pub mod offset;
@@ -77,6 +78,42 @@ impl Default for WeakThresholds {
     }
 }
 
+/// What a calibration must satisfy to be trusted; a result outside them is
+/// [`Status::Failed`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct SanityLimits {
+    /// Largest DVL cost per degree of freedom (1 when the residuals match the stated noise).
+    pub max_normalized_cost: f64,
+    /// Physical range of the velocity scale: the ratio of the sound speed the DVL assumes to the
+    /// water's (0.9..1.1 covers water from 0 to 35 C, fresh to salt).
+    pub scale_range: (f64, f64),
+}
+
+impl Default for SanityLimits {
+    fn default() -> Self {
+        SanityLimits {
+            max_normalized_cost: 10.0,
+            scale_range: (0.9, 1.1),
+        }
+    }
+}
+
+/// Whether a calibration can be trusted.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Status {
+    /// Every sanity check passed.
+    Ok,
+    /// A check failed: each reason in words, with its likely cause.
+    Failed(Vec<String>),
+}
+
+impl Status {
+    /// Whether the result can be used.
+    pub fn is_ok(&self) -> bool {
+        matches!(self, Status::Ok)
+    }
+}
+
 /// Settings of a calibration.
 #[derive(Clone, Debug)]
 pub struct CalibOptions {
@@ -97,6 +134,8 @@ pub struct CalibOptions {
     pub fit: FitOptions,
     /// Standard deviations above which a parameter is reported as weak.
     pub weak: WeakThresholds,
+    /// What a result must satisfy to be trusted.
+    pub sanity: SanityLimits,
 }
 
 impl Default for CalibOptions {
@@ -110,6 +149,7 @@ impl Default for CalibOptions {
             max_outer_iterations: 10,
             fit: FitOptions::default(),
             weak: WeakThresholds::default(),
+            sanity: SanityLimits::default(),
         }
     }
 }
@@ -249,6 +289,8 @@ pub struct CalibrationOutcome {
     pub trajectory: FitReport,
     /// Human-readable warnings of the run (offset-search notes, inflated standard deviations).
     pub warnings: Vec<String>,
+    /// Whether the result passed the sanity checks ([`SanityLimits`]).
+    pub status: Status,
     /// Where the refinement started: the initialisation's parameters, or the user's guess.
     pub start: CalibrationParams,
     /// The final camera trajectory (refitted with the DVL factors).
@@ -322,7 +364,7 @@ pub fn calibrate(
     let free = free_parameters(&opts.method);
 
     // Samples kept for every offset the refinement may reach.
-    let margin = (opts.offset.range.1 - opts.offset.range.0).abs().min(0.5);
+    let margin = opts.offset.window_s.min(0.5);
     let idx = usable(&traj, &obs, start.time_offset_s, margin);
     counts.dvl_used = idx.len();
     counts.dvl_outside_span = obs.len() - idx.len();
@@ -342,7 +384,7 @@ pub fn calibrate(
     if let Some(storage) = traj.take_covariance_storage() {
         jp.keep_storage(storage);
     }
-    let refined = refine_jointly(
+    let mut refined = refine_jointly(
         &jp,
         traj,
         &obs,
@@ -351,6 +393,9 @@ pub fn calibrate(
         free,
         opts.max_outer_iterations,
     )?;
+    if refined.params.velocity_scale < 0.0 && free.rotation {
+        refined = mirror_if_better(poses, &jp, refined, &obs, &idx, free, opts, &mut warnings)?;
+    }
     let (traj, params) = (refined.trajectory, refined.params);
 
     // 5. Uncertainty, residuals, excitation and the verdicts.
@@ -359,6 +404,7 @@ pub fn calibrate(
     let (residual_rms, excitation) = residuals_and_excitation(&traj, &obs, &idx, &params)?;
     let std = param_std(&covariance);
     let verdicts = verdicts(&std, &opts.weak, &excitation, init.as_ref(), &mask);
+    let status = sanity(&params, normalized_cost, init.as_ref(), free, opts);
     let trajectory = traj.report().clone();
     Ok(CalibrationOutcome {
         params,
@@ -374,6 +420,7 @@ pub fn calibrate(
         excitation,
         trajectory,
         warnings,
+        status,
         start,
         fitted: traj,
         observations: obs,
@@ -421,9 +468,41 @@ pub fn initialise(
                 }),
             )
         }
-        Method::Bcd(g) => (*g, None),
+        Method::Bcd(g) => (clock_checked(traj, obs, opts, g, warnings), None),
+        Method::Fixed {
+            guess,
+            estimate_offset: true,
+        } => (clock_checked(traj, obs, opts, guess, warnings), None),
         Method::Fixed { guess, .. } => (*guess, None),
     })
+}
+
+/// The guess, with its clock offset replaced by the data's when the two are farther apart than
+/// the fine search reaches (a guess without an offset, or clocks that moved): the refinement
+/// only moves the offset locally. When the data give no clear offset the guess is kept.
+fn clock_checked(
+    traj: &Trajectory,
+    obs: &[DvlObs],
+    opts: &CalibOptions,
+    guess: &CalibrationParams,
+    warnings: &mut Vec<String>,
+) -> CalibrationParams {
+    match estimate_offset(traj, obs, &opts.offset) {
+        Ok(off) if (off.offset - guess.time_offset_s).abs() > opts.offset.window_s => {
+            warnings.push(format!(
+                "the guess's clock offset {:.3} s is {:.3} s from the one the speeds give, \
+                 {:.3} s: the refinement started from the latter",
+                guess.time_offset_s,
+                off.offset - guess.time_offset_s,
+                off.offset
+            ));
+            CalibrationParams {
+                time_offset_s: off.offset,
+                ..*guess
+            }
+        }
+        _ => *guess,
+    }
 }
 
 /// The parameters a method estimates: all of them, clock offset and scale only (fixed
@@ -506,6 +585,134 @@ fn refine_jointly(
         params,
         iterations,
     })
+}
+
+/// A negative scale is the rotation 180 deg off in disguise: when the motion stays near a plane,
+/// `kappa R u` and `(-kappa) (R F) u` agree for every `u` in it, where `F` rotates half a turn
+/// about the plane's normal `n` (`F = 2 n n^T - I`). The mirrored solution is refined from a
+/// fresh trajectory and kept when its DVL cost is lower.
+#[allow(clippy::too_many_arguments)]
+fn mirror_if_better(
+    poses: &[PoseMeasurement],
+    jp: &JointProblem,
+    refined: Refined,
+    obs: &[DvlObs],
+    idx: &[usize],
+    free: FreeParams,
+    opts: &CalibOptions,
+    warnings: &mut Vec<String>,
+) -> Result<Refined> {
+    let p = refined.params;
+    let mut m = Matrix3::zeros();
+    for &i in idx {
+        let q = refined.trajectory.state(obs[i].t + p.time_offset_s)?;
+        let v = q.twist.fixed_rows::<3>(0).into_owned();
+        let w = q.twist.fixed_rows::<3>(3).into_owned();
+        let u = v + w.cross(&p.lever_arm_cam_m());
+        m += u * u.transpose();
+    }
+    let eig = m.symmetric_eigen();
+    let k = eig.eigenvalues.imin();
+    let n = eig.eigenvectors.column(k).into_owned();
+    let flip = n * n.transpose() * 2.0 - Matrix3::identity();
+    let mirrored = CalibrationParams::from_r_dvl_cam(
+        p.r_dvl_cam() * flip,
+        p.lever_arm_cam_m(),
+        -p.velocity_scale,
+        p.time_offset_s,
+    );
+    let mut fresh = Trajectory::fit(poses, &opts.fit)?;
+    if let Some(storage) = fresh.take_covariance_storage() {
+        jp.keep_storage(storage);
+    }
+    let other = refine_jointly(
+        jp,
+        fresh,
+        obs,
+        idx,
+        mirrored,
+        free,
+        opts.max_outer_iterations,
+    )?;
+    let cost = |r: &Refined| -> Result<f64> {
+        Ok(refine::linearize(&r.trajectory, obs, idx, &r.params)?.cost)
+    };
+    let (c0, c1) = (cost(&refined)?, cost(&other)?);
+    if other.params.velocity_scale > 0.0 && c1 <= c0 {
+        warnings.push(format!(
+            "the refinement first reached a negative velocity scale ({:.4}): the rotation half a \
+             turn off; the mirrored solution (scale {:.4}) fits the DVL better and is the result",
+            p.velocity_scale, other.params.velocity_scale
+        ));
+        Ok(other)
+    } else {
+        Ok(refined)
+    }
+}
+
+/// The sanity checks of a result: residuals near the stated DVL noise, a physical velocity
+/// scale, and a clock offset inside the offsets searched. Each failure names its likely cause.
+fn sanity(
+    p: &CalibrationParams,
+    normalized_cost: f64,
+    init: Option<&InitReport>,
+    free: FreeParams,
+    opts: &CalibOptions,
+) -> Status {
+    let lim = &opts.sanity;
+    let mut reasons = Vec::new();
+    let poor_match = init.is_some_and(|i| i.offset.alignment.correlation < 0.3);
+    if !(normalized_cost <= lim.max_normalized_cost) {
+        reasons.push(format!(
+            "the DVL residuals are {normalized_cost:.1} times the stated DVL noise after the \
+             refinement (at most {} is credible): the camera and the DVL do not describe the same \
+             motion. Likely causes: {}",
+            lim.max_normalized_cost,
+            if poor_match {
+                "a DVL log of another recording, or clocks that do not overlap (the speeds \
+                 correlate poorly at every clock offset)"
+            } else {
+                "camera poses in the wrong frame (T_cam_world given for T_world_cam, or poses of \
+                 another body), or a DVL covariance far below the real noise (set --dvl-sigma)"
+            }
+        ));
+    }
+    let (lo, hi) = lim.scale_range;
+    if free.scale && !(p.velocity_scale >= lo && p.velocity_scale <= hi) {
+        reasons.push(if p.velocity_scale < 0.0 {
+            format!(
+                "the velocity scale is negative ({:.4}): the rotation came out half a turn off and \
+                 the mirrored solution does not fit; the motion did not excite the rotation",
+                p.velocity_scale
+            )
+        } else {
+            format!(
+                "the velocity scale {:.4} is outside the physical range [{lo}, {hi}] (the ratio of \
+                 sound speeds): camera poses in other units than metres (a board or baseline size \
+                 in mm?), or a DVL log of another recording",
+                p.velocity_scale
+            )
+        });
+    }
+    if free.time_offset
+        && let Some(i) = init
+    {
+        let (a, b) = i.offset.searched;
+        let edge = 0.01 * (b - a);
+        if !(p.time_offset_s > a + edge && p.time_offset_s < b - edge) {
+            reasons.push(format!(
+                "the clock offset {:.4} s ended at the edge of the offsets searched [{a:.4}, \
+                 {b:.4}] s: the clocks could not be aligned (logs that overlap little, or an \
+                 --offset-range that excludes the right offset)",
+                p.time_offset_s
+            ));
+        }
+    }
+    if reasons.is_empty() {
+        Status::Ok
+    } else {
+        Status::Failed(reasons)
+    }
 }
 
 /// Stage 5: the covariance of the free parameters from the joint problem's information, and

@@ -3,10 +3,21 @@
 //! `v_dvl = kappa * R_dvl_cam * (v_cam + w_cam x p_cam_dvl) + n`, evaluated with the camera twist at
 //! the camera-clock time `t_dvl + time_offset_s`.
 
-use nalgebra::{SMatrix, Vector3, Vector6};
+use nalgebra::{Matrix3, SMatrix, Vector3, Vector6};
 
 use crate::lie::{hat, so3};
 use crate::types::CalibrationParams;
+
+/// A DVL velocity on the DVL clock (seconds relative to the camera epoch).
+#[derive(Clone, Debug)]
+pub struct DvlObs {
+    /// DVL-clock time of validity, seconds (`t_cam = t + time_offset_s`).
+    pub t: f64,
+    /// Measured velocity of the DVL origin in the DVL frame, m/s.
+    pub v: Vector3<f64>,
+    /// Noise covariance `Q_d`.
+    pub cov: Matrix3<f64>,
+}
 
 /// Number of estimated parameters: rotation (3), lever arm (3), scale, time offset.
 pub const NPARAM: usize = 8;

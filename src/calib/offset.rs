@@ -8,32 +8,27 @@
 //! `b_i = |v_hat(t_i + delta)|^2 - tr Sigma_v(t_i + delta)`
 //!
 //! is quadratic in `u = 1 / kappa^2`, so for each candidate offset the scale is solved exactly
-//! (the paper searches a small grid of scales instead). The offset is found by a grid search over
-//! the allowed range, first on all samples (speed-magnitude correlation, robust but blurred by
-//! the lever arm), then on the calm subset around that optimum, and polished by golden-section
-//! search.
+//! (the paper searches a small grid of scales instead). The clocks may be any distance apart:
+//! first the global alignment ([`super::align`]) finds the lag over every lag at which the logs
+//! overlap, then a grid search within [`OffsetOptions::window_s`] of it on all samples
+//! (speed-magnitude correlation, robust but blurred by the lever arm), then on the calm subset
+//! around that optimum, polished by golden-section search.
 
-use nalgebra::{Matrix3, Vector3};
-
+use super::align::{AlignOptions, ClockAlignment, align_clocks};
+pub use super::model::DvlObs;
 use crate::error::{Error, Result};
 use crate::trajectory::Trajectory;
-
-/// A DVL velocity on the DVL clock (seconds relative to the camera epoch).
-#[derive(Clone, Debug)]
-pub struct DvlObs {
-    /// DVL-clock time of validity, seconds (`t_cam = t + time_offset_s`).
-    pub t: f64,
-    /// Measured velocity of the DVL origin in the DVL frame, m/s.
-    pub v: Vector3<f64>,
-    /// Noise covariance `Q_d`.
-    pub cov: Matrix3<f64>,
-}
 
 /// Settings of the offset search.
 #[derive(Clone, Debug)]
 pub struct OffsetOptions {
-    /// Offsets searched, seconds (`t_cam = t_dvl + offset`).
-    pub range: (f64, f64),
+    /// Offsets allowed, seconds (`t_cam = t_dvl + offset`); `None`: any offset at which the logs
+    /// overlap.
+    pub range: Option<(f64, f64)>,
+    /// Half-width of the fine search around the global alignment's lag, seconds.
+    pub window_s: f64,
+    /// The global alignment.
+    pub align: AlignOptions,
     /// Angular speed below which a sample counts as calm, rad/s.
     pub calm_threshold: f64,
     /// Fewest calm samples for the calm-subset estimate.
@@ -49,7 +44,9 @@ pub struct OffsetOptions {
 impl Default for OffsetOptions {
     fn default() -> Self {
         OffsetOptions {
-            range: (-1.0, 1.0),
+            range: None,
+            window_s: 1.0,
+            align: AlignOptions::default(),
             calm_threshold: 0.05,
             min_calm: 30,
             coarse_step: 0.02,
@@ -62,11 +59,18 @@ impl Default for OffsetOptions {
 impl OffsetOptions {
     /// Checks the search settings; the error names the option.
     pub fn validate(&self) -> Result<()> {
-        let (lo, hi) = self.range;
-        if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+        if let Some((lo, hi)) = self.range
+            && !(lo.is_finite() && hi.is_finite() && lo < hi)
+        {
             return Err(Error::option(
                 "--offset-range",
                 "takes two increasing values: min,max",
+            ));
+        }
+        if !(self.window_s.is_finite() && self.window_s > 0.0) {
+            return Err(Error::option(
+                "offset window_s",
+                "must be a positive number of seconds",
             ));
         }
         if !(self.coarse_step.is_finite() && self.coarse_step > 0.0) {
@@ -103,8 +107,12 @@ pub struct OffsetResult {
     pub curve: Vec<(f64, f64)>,
     /// Objective of the coarse stage against the offset.
     pub coarse_curve: Vec<(f64, f64)>,
-    /// Human-readable remarks (fallbacks, flat objectives).
+    /// Human-readable remarks (fallbacks, flat objectives, an ambiguous alignment).
     pub notes: Vec<String>,
+    /// The global alignment the search started from.
+    pub alignment: ClockAlignment,
+    /// The offsets the fine search covered, seconds.
+    pub searched: (f64, f64),
 }
 
 /// Value of the profiled objective and the scale that minimises it. `tr_sv[i]` is the trace of
@@ -212,7 +220,14 @@ pub fn estimate_offset(
     opts: &OffsetOptions,
 ) -> Result<OffsetResult> {
     opts.validate()?;
-    let (lo, hi) = opts.range;
+    let alignment = align_clocks(traj, obs, opts.range, &opts.align)?;
+    let (mut lo, mut hi) = (
+        alignment.lag_s - opts.window_s,
+        alignment.lag_s + opts.window_s,
+    );
+    if let Some((a, b)) = opts.range {
+        (lo, hi) = (lo.max(a), hi.min(b));
+    }
     let all = inside(traj, obs, lo, hi);
     if all.len() < 10 {
         let (a, b) = traj.span();
@@ -250,6 +265,24 @@ pub fn estimate_offset(
         .filter_map(|(&i, c)| c.then_some(i))
         .collect();
     let mut notes = Vec::new();
+    if alignment.ambiguous {
+        notes.push(format!(
+            "the clock offset is ambiguous: the speeds match almost as well ({:.3} against {:.3}) \
+             at a clock offset of {:.3} s as at {:.3} s; periodic motion repeats itself, so vary \
+             the speed irregularly (or give --offset-range around the right offset)",
+            alignment.second_correlation.unwrap_or(f64::NAN),
+            alignment.correlation,
+            alignment.second_lag_s.unwrap_or(f64::NAN),
+            alignment.lag_s
+        ));
+    }
+    if alignment.correlation < 0.3 {
+        notes.push(format!(
+            "the DVL and camera speeds correlate poorly at their best clock offset ({:.2}): the \
+             logs may not be of the same recording",
+            alignment.correlation
+        ));
+    }
     let (idx, method) = if calm.len() >= opts.min_calm {
         (calm.clone(), OffsetMethod::CalmSubset)
     } else {
@@ -294,5 +327,7 @@ pub fn estimate_offset(
         curve: curve.into_iter().map(|(d, j)| (d, j / jmin)).collect(),
         coarse_curve,
         notes,
+        alignment,
+        searched: (lo, hi),
     })
 }

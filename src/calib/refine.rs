@@ -109,6 +109,15 @@ pub fn calibration_update(
     let mask = free.mask();
     let mut p = *start;
     let mut lin = linearize(traj, obs, idx, &p)?;
+    // Offsets at which every sample's camera time stays inside the trajectory: a step beyond
+    // them is too long (rejected like one that raises the cost), never an error.
+    let (a, b) = traj.span();
+    let (tmin, tmax) = idx
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &i| {
+            (lo.min(obs[i].t), hi.max(obs[i].t))
+        });
+    let allowed = (a - tmin)..=(b - tmax);
     let mut lambda = 1e-4;
     let mut iterations = 0;
     while iterations < max_iterations {
@@ -132,6 +141,10 @@ pub fn calibration_update(
                 continue;
             };
             let trial = p.updated(&d);
+            if !allowed.contains(&trial.time_offset_s) {
+                lambda *= 10.0;
+                continue;
+            }
             let tl = linearize(traj, obs, idx, &trial)?;
             if tl.cost <= lin.cost {
                 let rel = (lin.cost - tl.cost) / lin.cost.max(1e-300);

@@ -1,6 +1,7 @@
 //! The calibration result file (YAML).
 //!
-//! Keys, in order: `T_cam_dvl` (4x4, rows), `T_dvl_cam` (its inverse),
+//! Keys, in order: `status` (`ok` or `failed`) and `failure` (the reasons, when failed), then
+//! `T_cam_dvl` (4x4, rows), `T_dvl_cam` (its inverse),
 //! `quaternion_cam_dvl_xyzw`, `lever_arm_cam_m` (the translation of `T_cam_dvl`),
 //! `time_offset_s` (`t_cam = t_dvl + time_offset_s`), `velocity_scale`, then the optional
 //! `std`, `observability` and `info` sections.
@@ -77,9 +78,25 @@ pub struct CalibrationInfo {
     pub extra: BTreeMap<String, serde_yaml::Value>,
 }
 
+/// Whether a result can be used.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ResultStatus {
+    /// Every sanity check passed.
+    Ok,
+    /// A sanity check failed; the file's `failure` says why. Do not mount a DVL with it.
+    Failed,
+}
+
 /// The calibration result file.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct CalibrationFile {
+    /// `ok` or `failed` (absent from hand-written files and those of older versions).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub status: Option<ResultStatus>,
+    /// Why the calibration failed, one reason an entry (empty unless `status` is `failed`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub failure: Vec<String>,
     /// `T_cam_dvl`: maps DVL-frame points into the camera frame; rows of the 4x4 matrix.
     #[serde(rename = "T_cam_dvl")]
     pub t_cam_dvl: [[f64; 4]; 4],
@@ -156,6 +173,8 @@ impl CalibrationFile {
     pub fn from_params(p: &CalibrationParams) -> CalibrationFile {
         let t = &p.t_cam_dvl;
         CalibrationFile {
+            status: None,
+            failure: Vec::new(),
             t_cam_dvl: rows(&t.to_matrix()),
             t_dvl_cam: rows(&t.inverse().to_matrix()),
             quaternion_cam_dvl_xyzw: t.quaternion_xyzw(),
@@ -237,6 +256,27 @@ fn flow(v: &[f64]) -> String {
 /// optional sections.
 fn to_yaml(path: &Path, c: &CalibrationFile) -> Result<String> {
     let mut s = String::from(HEADER);
+    if let Some(st) = c.status {
+        let _ = writeln!(
+            s,
+            "status: {}",
+            match st {
+                ResultStatus::Ok => "ok",
+                ResultStatus::Failed => "failed",
+            }
+        );
+    }
+    if !c.failure.is_empty() {
+        #[derive(Serialize)]
+        struct Failure<'a> {
+            failure: &'a [String],
+        }
+        let text = serde_yaml::to_string(&Failure {
+            failure: &c.failure,
+        })
+        .map_err(|e| Error::Input(format!("{}: {e}", path.display())))?;
+        s.push_str(&text);
+    }
     for (key, m) in [("T_cam_dvl", &c.t_cam_dvl), ("T_dvl_cam", &c.t_dvl_cam)] {
         let _ = writeln!(s, "{key}:");
         for row in m {
@@ -303,4 +343,126 @@ pub fn read_calib_yaml(path: &Path) -> Result<CalibrationFile> {
     c.to_params()
         .map_err(|e| Error::Input(format!("{}: {e}", path.display())))?;
     Ok(c)
+}
+
+/// The forms a guess of the extrinsics may take (`--init`, `--guess`): one rotation (a
+/// `T_cam_dvl` matrix, a quaternion, or roll-pitch-yaw), a lever arm unless `T_cam_dvl` carries
+/// it, and optionally the clock offset and the scale.
+#[derive(Deserialize)]
+struct GuessFile {
+    #[serde(rename = "T_cam_dvl")]
+    t_cam_dvl: Option<[[f64; 4]; 4]>,
+    quaternion_cam_dvl_xyzw: Option<[f64; 4]>,
+    rpy_cam_dvl_deg: Option<[f64; 3]>,
+    lever_arm_cam_m: Option<[f64; 3]>,
+    time_offset_s: Option<f64>,
+    velocity_scale: Option<f64>,
+    status: Option<ResultStatus>,
+}
+
+/// `R = Rz(yaw) Ry(pitch) Rx(roll)` from `[roll, pitch, yaw]` in degrees (the ROS convention:
+/// rotations about the fixed x, y and z axes, in that order).
+pub fn rotation_from_rpy_deg(rpy: &[f64; 3]) -> Matrix3<f64> {
+    let [r, p, y] = rpy.map(f64::to_radians);
+    let rx = Matrix3::new(1.0, 0.0, 0.0, 0.0, r.cos(), -r.sin(), 0.0, r.sin(), r.cos());
+    let ry = Matrix3::new(p.cos(), 0.0, p.sin(), 0.0, 1.0, 0.0, -p.sin(), 0.0, p.cos());
+    let rz = Matrix3::new(y.cos(), -y.sin(), 0.0, y.sin(), y.cos(), 0.0, 0.0, 0.0, 1.0);
+    rz * ry * rx
+}
+
+/// Reads a guess of the calibration: a whole result file, or a minimal YAML with `T_cam_dvl`
+/// alone, or `quaternion_cam_dvl_xyzw` and `lever_arm_cam_m`, or `rpy_cam_dvl_deg` (roll, pitch,
+/// yaw of `R_cam_dvl`, degrees, `Rz(yaw) Ry(pitch) Rx(roll)`) and `lever_arm_cam_m`. A missing
+/// `time_offset_s` is 0 and a missing `velocity_scale` is 1. When several forms of the rotation
+/// or lever arm are given they must agree. A result file with `status: failed` is refused.
+pub fn read_calibration_guess(path: &Path) -> Result<CalibrationParams> {
+    let text = read_text(path)?;
+    let g: GuessFile = serde_yaml::from_str(&text).map_err(|e| match e.location() {
+        Some(loc) => Error::parse(path, loc.line(), format!("column {}: {e}", loc.column())),
+        None => Error::Input(format!("{}: {e}", path.display())),
+    })?;
+    let bad = |msg: String| Error::Input(format!("{}: {msg}", path.display()));
+    if g.status == Some(ResultStatus::Failed) {
+        return Err(bad(
+            "is a failed calibration (status: failed): it cannot serve as a guess".into(),
+        ));
+    }
+    let from_t = match &g.t_cam_dvl {
+        Some(m) => Some(check_rigid("T_cam_dvl", &matrix(m)).map_err(|e| bad(e.to_string()))?),
+        None => None,
+    };
+    let from_q = match g.quaternion_cam_dvl_xyzw {
+        Some(q) => {
+            let n = q.iter().map(|c| c * c).sum::<f64>().sqrt();
+            if !(n.is_finite() && n > 0.5 && n < 1.5) {
+                return Err(bad(format!(
+                    "quaternion_cam_dvl_xyzw has norm {n}: not a rotation"
+                )));
+            }
+            Some(Se3::from_quaternion_xyzw(&q, Vector3::zeros()).rot)
+        }
+        None => None,
+    };
+    let from_rpy = match g.rpy_cam_dvl_deg {
+        Some(a) if a.iter().all(|x| x.is_finite()) => Some(rotation_from_rpy_deg(&a)),
+        Some(_) => return Err(bad("rpy_cam_dvl_deg has a non-finite angle".into())),
+        None => None,
+    };
+    let rotations: Vec<(&str, Matrix3<f64>)> = [
+        ("T_cam_dvl", from_t.map(|t| t.rot)),
+        ("quaternion_cam_dvl_xyzw", from_q),
+        ("rpy_cam_dvl_deg", from_rpy),
+    ]
+    .into_iter()
+    .filter_map(|(n, r)| r.map(|r| (n, r)))
+    .collect();
+    let Some(&(first, rot)) = rotations.first() else {
+        return Err(bad(
+            "no rotation: give T_cam_dvl, or quaternion_cam_dvl_xyzw or rpy_cam_dvl_deg with \
+             lever_arm_cam_m"
+                .into(),
+        ));
+    };
+    for (name, r) in &rotations[1..] {
+        // Agreement to 1e-4 rad: a printed quaternion or angles with a few digits still match.
+        let d = (r.transpose() * rot - Matrix3::identity()).norm();
+        if d > 1e-4 {
+            return Err(bad(format!("{name} and {first} give different rotations")));
+        }
+    }
+    let arm = match (from_t, g.lever_arm_cam_m) {
+        (Some(t), Some(a)) => {
+            let a = Vector3::from(a);
+            if (a - t.trans).norm() > 1e-6 * (1.0 + a.norm()) {
+                return Err(bad(
+                    "lever_arm_cam_m is not the translation of T_cam_dvl".into()
+                ));
+            }
+            t.trans
+        }
+        (Some(t), None) => t.trans,
+        (None, Some(a)) => Vector3::from(a),
+        (None, None) => {
+            return Err(bad(format!(
+                "{first} gives the rotation; lever_arm_cam_m (the DVL origin in camera \
+                 coordinates, m) is needed too"
+            )));
+        }
+    };
+    if !arm.iter().all(|x| x.is_finite()) {
+        return Err(bad("lever_arm_cam_m is not finite".into()));
+    }
+    let time_offset_s = g.time_offset_s.unwrap_or(0.0);
+    let velocity_scale = g.velocity_scale.unwrap_or(1.0);
+    if !time_offset_s.is_finite() {
+        return Err(bad("time_offset_s is not finite".into()));
+    }
+    if !(velocity_scale.is_finite() && velocity_scale > 0.0) {
+        return Err(bad("velocity_scale must be positive".into()));
+    }
+    Ok(CalibrationParams {
+        t_cam_dvl: Se3::new(rot, arm),
+        time_offset_s,
+        velocity_scale,
+    })
 }

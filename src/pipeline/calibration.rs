@@ -9,11 +9,11 @@ use std::time::Instant;
 use nalgebra::{Matrix4, Vector3};
 
 use crate::calib::offset::OffsetMethod;
-use crate::calib::{CalibOptions, CalibrationOutcome, Method, Verdict, calibrate};
+use crate::calib::{CalibOptions, CalibrationOutcome, Method, Status, Verdict, calibrate};
 use crate::error::{Error, Result};
 use crate::io::calib_yaml::{
     CalibrationFile, CalibrationInfo, CalibrationStd, Observability, ObservabilityFlags,
-    write_calib_yaml,
+    ResultStatus, write_calib_yaml,
 };
 use crate::io::dvl::DvlLog;
 use crate::io::exports::{FrameNames, kalibr_dvl_block, ros_static_transform};
@@ -77,6 +77,13 @@ pub fn method_name(m: &Method) -> &'static str {
 /// The result file of an outcome, with the DVL log's own counts.
 pub fn result_file(o: &CalibrationOutcome, log: &DvlLog) -> CalibrationFile {
     let mut f = CalibrationFile::from_params(&o.params);
+    match &o.status {
+        Status::Ok => f.status = Some(ResultStatus::Ok),
+        Status::Failed(reasons) => {
+            f.status = Some(ResultStatus::Failed);
+            f.failure = reasons.clone();
+        }
+    }
     let v = |x: &Vector3<f64>| [x.x, x.y, x.z];
     f.std = Some(CalibrationStd {
         rotation_deg: v(&o.std.rotation_deg),
@@ -135,11 +142,21 @@ pub fn result_file(o: &CalibrationOutcome, log: &DvlLog) -> CalibrationFile {
         put(
             "clock_offset_init",
             match init.offset.method {
-                OffsetMethod::CalmSubset => "calm subset",
-                OffsetMethod::SpeedCorrelation => "speed correlation (no calm segment)",
+                OffsetMethod::CalmSubset => "global speed alignment, then calm subset",
+                OffsetMethod::SpeedCorrelation => {
+                    "global speed alignment, then speed correlation (no calm segment)"
+                }
             }
             .into(),
         );
+        let a = &init.offset.alignment;
+        put("clock_alignment_lag_s", a.lag_s.into());
+        put("clock_alignment_correlation", a.correlation.into());
+        if let (Some(l), Some(c)) = (a.second_lag_s, a.second_correlation) {
+            put("clock_alignment_second_lag_s", l.into());
+            put("clock_alignment_second_correlation", c.into());
+        }
+        put("clock_alignment_ambiguous", a.ambiguous.into());
         put("calm_samples", o.counts.calm.into());
     }
     let mut warnings = st.warnings.clone();
@@ -178,16 +195,24 @@ pub fn sibling(out: &Path, suffix: &str) -> PathBuf {
 pub struct ResultPaths {
     /// The result YAML.
     pub result: PathBuf,
-    /// `RESULT-tf.txt`: ROS 1 and ROS 2 static transform commands.
-    pub tf: PathBuf,
-    /// `RESULT-camchain-dvl.yaml`: the Kalibr-style `T_cam_dvl` block per camera.
-    pub camchain_block: PathBuf,
+    /// `RESULT-tf.txt`: ROS 1 and ROS 2 static transform commands (not written for a failed
+    /// calibration unless forced).
+    pub tf: Option<PathBuf>,
+    /// `RESULT-camchain-dvl.yaml`: the Kalibr-style `T_cam_dvl` block per camera (as `tf`).
+    pub camchain_block: Option<PathBuf>,
 }
 
-/// Writes the result YAML to `out` (its folder created) and the ROS and Kalibr exports beside
-/// it, each atomically. With images the Kalibr block is given for every camera of the chain;
-/// with poses, for cam0.
-pub fn write_results(out: &Path, run: &CalibrationRun, data: &Dataset) -> Result<ResultPaths> {
+/// Writes the result YAML to `out` (its folder created) and, when the calibration passed its
+/// sanity checks or `force` is set, the ROS and Kalibr exports beside it, each atomically. A
+/// failed calibration's result file says `status: failed` with the reasons, and exports left
+/// from an earlier run are removed so that none can be mistaken for this run's. With images the
+/// Kalibr block is given for every camera of the chain; with poses, for cam0.
+pub fn write_results(
+    out: &Path,
+    run: &CalibrationRun,
+    data: &Dataset,
+    force: bool,
+) -> Result<ResultPaths> {
     if let Some(d) = out.parent()
         && !d.as_os_str().is_empty()
     {
@@ -196,6 +221,22 @@ pub fn write_results(out: &Path, run: &CalibrationRun, data: &Dataset) -> Result
     write_calib_yaml(out, &run.file)?;
     let calib = &run.outcome.params;
     let tf = sibling(out, "tf.txt");
+    let block = sibling(out, "camchain-dvl.yaml");
+    if !(run.outcome.status.is_ok() || force) {
+        for p in [&tf, &block] {
+            match std::fs::remove_file(p) {
+                Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+                    return Err(Error::io(p, e));
+                }
+                _ => {}
+            }
+        }
+        return Ok(ResultPaths {
+            result: out.to_path_buf(),
+            tf: None,
+            camchain_block: None,
+        });
+    }
     write_atomic(
         &tf,
         ros_static_transform(calib, &FrameNames::default()).as_bytes(),
@@ -204,12 +245,11 @@ pub fn write_results(out: &Path, run: &CalibrationRun, data: &Dataset) -> Result
         Some(run) => run.chain.t_cn_c0.iter().map(|t| t.to_matrix()).collect(),
         None => vec![Matrix4::identity()],
     };
-    let block = sibling(out, "camchain-dvl.yaml");
     write_atomic(&block, kalibr_dvl_block(calib, &t_cn_c0).as_bytes())?;
     Ok(ResultPaths {
         result: out.to_path_buf(),
-        tf,
-        camchain_block: block,
+        tf: Some(tf),
+        camchain_block: Some(block),
     })
 }
 
@@ -319,6 +359,12 @@ impl CalibrationRun {
         );
         for w in self.file.info.iter().flat_map(|i| i.warnings.iter()) {
             let _ = writeln!(out, "warning: {w}");
+        }
+        if let Status::Failed(reasons) = &o.status {
+            let _ = writeln!(out, "CALIBRATION FAILED: the result cannot be trusted");
+            for r in reasons {
+                let _ = writeln!(out, "  - {r}");
+            }
         }
         out
     }

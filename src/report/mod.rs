@@ -34,6 +34,7 @@ pub const PLOT_IDS: &[&str] = &[
     "residuals-z",
     "angular-velocity",
     "lever-arm",
+    "offset-global",
     "offset-coarse",
     "offset-fine",
     "cost",

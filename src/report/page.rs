@@ -32,7 +32,7 @@ border-bottom:1px solid #ccc;padding-bottom:.2em}\
 th,td{border:1px solid #d0d0d0;padding:3px 8px;text-align:left;vertical-align:top}\
 th{background:#f2f2f2}td.num{font-family:ui-monospace,'DejaVu Sans Mono',monospace;\
 white-space:nowrap}.ok{color:#1b7a2a;font-weight:600}.weak{color:#b3261e;font-weight:600}\
-.fixed{color:#555;font-weight:600}.start{color:#777;font-size:.9em;font-weight:400}ul.warn li{color:#8a4b00}.verdicts li{margin:.25em 0}\
+.fixed{color:#555;font-weight:600}.start{color:#777;font-size:.9em;font-weight:400}ul.warn li{color:#8a4b00}.failed{border:2px solid #b00020;background:#fdecee;padding:.2em 1em;margin:1em 0}.failed strong{color:#b00020}.verdicts li{margin:.25em 0}\
 .grid{display:flex;flex-wrap:wrap;gap:8px 16px}figure{margin:.4em 0}\
 figcaption{font-size:.88em;color:#444;max-width:940px}\
 svg.plot{max-width:100%;height:auto;border:1px solid #e2e2e2}\
@@ -177,6 +177,16 @@ fn summary(s: &mut String, input: &ReportInput, d: &Derived) {
         put!(s, "; calibration took {t:.2} s");
     }
     s.push_str("</p>\n");
+    if let crate::calib::Status::Failed(reasons) = &o.status {
+        s.push_str(
+            "<div id=\"failed\" class=\"failed\"><p><strong>Calibration failed: this result \
+             cannot be trusted.</strong> No ROS or Kalibr exports were written.</p><ul>",
+        );
+        for r in reasons {
+            put!(s, "<li>{}</li>", escape(r));
+        }
+        s.push_str("</ul></div>\n");
+    }
 
     let v = &o.verdicts;
     let ext = estimated(&o.method, true);
@@ -668,6 +678,24 @@ fn clock_offset(s: &mut String, o: &CalibrationOutcome) {
         None => (Vec::new(), Vec::new()),
     };
     let note = "no clock-offset search in this method";
+    let mut global = Plot::new(
+        "offset-global",
+        "Speed correlation over every clock offset at which the logs overlap",
+        "clock offset (s)",
+        "correlation",
+    )
+    .size(WIDE, 240.0)
+    .empty_note(note);
+    if let Some(i) = init {
+        let a = &i.offset.alignment;
+        global = global
+            .series(Series::line("", AFTER, a.curve.clone()).size(1.2))
+            .marker(a.lag_s, &format!("best {:.2} s", a.lag_s), BEFORE);
+        if let Some(l) = a.second_lag_s {
+            global = global.marker(l, &format!("second {l:.2} s"), LEVER);
+        }
+    }
+    s.push_str(&global.render());
     for (id, title, curve) in [
         (
             "offset-coarse",
@@ -705,11 +733,14 @@ fn clock_offset(s: &mut String, o: &CalibrationOutcome) {
     s.push_str("</div>");
     let words = match init {
         Some(i) => format!(
-            "The offset search compares DVL speeds with camera speeds shifted by each candidate \
-             offset; the velocity scale is solved exactly at each. It first covers the whole \
-             allowed range on a spread of samples, then the neighbourhood of its best value on {}. \
+            "{} The offset search then compares DVL speeds with camera speeds shifted by each \
+             candidate offset within {:.2} s of it; the velocity scale is solved exactly at each. It \
+             first covers that window on a spread of samples, then the neighbourhood of its best \
+             value on {}. \
              It found {:.4} s (scale {:.4}); the refinement then moved it to {:.4} s \
              (standard deviation {:.2} ms). A sharp, single minimum means a well-defined offset.",
+            alignment_words(&i.offset.alignment),
+            0.5 * (i.offset.searched.1 - i.offset.searched.0),
             match i.offset.method {
                 OffsetMethod::CalmSubset => format!(
                     "the {} calm samples, where the lever arm cannot blur the speeds",
@@ -730,6 +761,28 @@ fn clock_offset(s: &mut String, o: &CalibrationOutcome) {
         ),
     };
     put!(s, "<p>{}</p></section>\n", escape(&words));
+}
+
+/// The global alignment in words: the lag, how well the speeds match there, and how unique it is.
+fn alignment_words(a: &crate::calib::align::ClockAlignment) -> String {
+    let second = match (a.second_lag_s, a.second_correlation) {
+        (Some(l), Some(c)) => format!(
+            "; the best other offset, {l:.2} s, reaches {c:.3} ({:.2} times less{})",
+            a.uniqueness(),
+            if a.ambiguous {
+                ", too close: the offset is ambiguous"
+            } else {
+                ""
+            }
+        ),
+        _ => String::new(),
+    };
+    format!(
+        "Over every clock offset at which the two logs overlap ({} offsets at {} s steps), the \
+         DVL speeds match the camera speeds best at {:.2} s (correlation {:.3} over {:.0} s of \
+         overlap){second}.",
+        a.lags_considered, a.step_s, a.lag_s, a.correlation, a.overlap_s
+    )
 }
 
 fn refinement(s: &mut String, o: &CalibrationOutcome) {

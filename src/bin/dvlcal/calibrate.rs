@@ -7,8 +7,8 @@ use std::path::PathBuf;
 use crate::dataset::{DatasetArgs, load};
 use crate::dvl_info::DvlInputArgs;
 
-use dvlcal::calib::{CalibOptions, Method};
-use dvlcal::io::calib_yaml::read_calib_yaml;
+use dvlcal::calib::{CalibOptions, Method, Status};
+use dvlcal::io::calib_yaml::read_calibration_guess;
 use dvlcal::pipeline::{calibrate_dataset, write_report, write_results};
 use dvlcal::types::CalibrationParams;
 
@@ -50,15 +50,25 @@ pub struct CalibrateArgs {
     /// Initial guess or fixed extrinsics (result YAML schema), for --method bcd and fixed.
     #[arg(long)]
     pub init: Option<PathBuf>,
-    /// Clock offsets searched, `min,max` seconds (t_cam = t_dvl + offset).
-    #[arg(long, value_delimiter = ',', default_values_t = [-1.0, 1.0])]
-    pub offset_range: Vec<f64>,
+    /// Limit of the clock offset, `min,max` seconds (t_cam = t_dvl + offset); default: any
+    /// offset at which the camera and DVL logs overlap, found by a global alignment.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        allow_negative_numbers = true,
+        value_name = "MIN,MAX"
+    )]
+    pub offset_range: Option<Vec<f64>>,
     /// With --method fixed: estimate clock offset and scale with the extrinsics held.
     #[arg(long)]
     pub estimate_offset: bool,
     /// Use the closed form without bias elimination (for comparison only).
     #[arg(long)]
     pub biased: bool,
+    /// Write the ROS and Kalibr exports even when the calibration fails its sanity checks
+    /// (the result file still says `status: failed`, and the exit status is still non-zero).
+    #[arg(long)]
+    pub force: bool,
     /// Self-contained HTML report with plots (written atomically; opens offline).
     #[arg(long, value_name = "REPORT.html")]
     pub report: Option<PathBuf>,
@@ -70,11 +80,13 @@ pub fn options(
     guess: Option<CalibrationParams>,
     estimate_offset: bool,
     dvl_sigma: Option<f64>,
-    offset_range: &[f64],
+    offset_range: Option<&[f64]>,
     biased: bool,
 ) -> Result<CalibOptions> {
-    let [lo, hi] = offset_range else {
-        bail!("--offset-range takes two increasing values: min,max");
+    let range = match offset_range {
+        None => None,
+        Some([lo, hi]) => Some((*lo, *hi)),
+        Some(_) => bail!("--offset-range takes two increasing values: min,max"),
     };
     let method = match (method, guess) {
         (MethodArg::Uic, _) => Method::Uic,
@@ -91,14 +103,14 @@ pub fn options(
         bias_corrected: !biased,
         ..CalibOptions::default()
     };
-    opts.offset.range = (*lo, *hi);
+    opts.offset.range = range;
     opts.validate()?;
     Ok(opts)
 }
 
 pub fn run(a: CalibrateArgs) -> Result<()> {
     let guess = match &a.init {
-        Some(p) => Some(read_calib_yaml(p)?.to_params()?),
+        Some(p) => Some(read_calibration_guess(p)?),
         None => None,
     };
     let opts = options(
@@ -106,7 +118,7 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
         guess,
         a.estimate_offset,
         a.dvl_sigma,
-        &a.offset_range,
+        a.offset_range.as_deref(),
         a.biased,
     )?;
     let data = load(
@@ -122,17 +134,26 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
             data.camera_source.display()
         )
     })?;
-    let paths = write_results(&a.out, &run, &data)?;
+    let paths = write_results(&a.out, &run, &data, a.force)?;
     print!("{}", run.summary(&data.log));
-    println!(
-        "wrote {}, {} and {}",
-        paths.result.display(),
-        paths.tf.display(),
-        paths.camchain_block.display()
-    );
+    match (&paths.tf, &paths.camchain_block) {
+        (Some(tf), Some(block)) => println!(
+            "wrote {}, {} and {}",
+            paths.result.display(),
+            tf.display(),
+            block.display()
+        ),
+        _ => println!(
+            "wrote {} (status: failed; no ROS or Kalibr exports: --force writes them)",
+            paths.result.display()
+        ),
+    }
     if let Some(path) = &a.report {
         write_report(path, &run, &data, &paths.result).context("building the report")?;
         println!("wrote {}", path.display());
+    }
+    if let Status::Failed(reasons) = &run.outcome.status {
+        bail!("the calibration failed: {}", reasons.join("; "));
     }
     Ok(())
 }

@@ -8,7 +8,7 @@ use anyhow::{Result, bail};
 use clap::Args;
 
 use dvlcal::eval::odometry::OdometryOptions;
-use dvlcal::io::calib_yaml::read_calib_yaml;
+use dvlcal::io::calib_yaml::read_calibration_guess;
 use dvlcal::io::write_atomic;
 use dvlcal::pipeline::{baselines, cross_validate, odometry_table};
 
@@ -43,9 +43,15 @@ pub struct EvaluateArgs {
     /// Write the tables (Markdown) here as well.
     #[arg(long, value_name = "FILE")]
     pub out: Option<PathBuf>,
-    /// Clock offsets searched when calibrating, `min,max` seconds.
-    #[arg(long, value_delimiter = ',', default_values_t = [-1.0, 1.0])]
-    pub offset_range: Vec<f64>,
+    /// Limit of the clock offset, `min,max` seconds (t_cam = t_dvl + offset); default: any
+    /// offset at which the camera and DVL logs overlap, found by a global alignment.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        allow_negative_numbers = true,
+        value_name = "MIN,MAX"
+    )]
+    pub offset_range: Option<Vec<f64>>,
     #[command(flatten)]
     pub vision: VisionTuning,
     #[command(flatten)]
@@ -74,12 +80,12 @@ pub fn run(a: EvaluateArgs) -> Result<()> {
     }
     let mut report = String::new();
     if let Some(p) = &a.calib {
-        let c = read_calib_yaml(p)?.to_params()?;
+        let c = read_calibration_guess(p)?;
         report.push_str(&odometry_table(&p.display().to_string(), &data, &c, &odo)?);
     }
     if cross {
         let guess = match &a.guess {
-            Some(p) => Some(read_calib_yaml(p)?.to_params()?),
+            Some(p) => Some(read_calibration_guess(p)?),
             None => None,
         };
         let base = options(
@@ -87,7 +93,7 @@ pub fn run(a: EvaluateArgs) -> Result<()> {
             None,
             false,
             a.dvl_sigma,
-            &a.offset_range,
+            a.offset_range.as_deref(),
             false,
         )?;
         let cv = cross_validate(
