@@ -98,6 +98,23 @@ impl Default for SanityLimits {
     }
 }
 
+/// The clock offset estimated on the first and on the last third of the recording alone (all
+/// other parameters and the trajectory held at the result), to detect a drifting clock.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DriftCheck {
+    /// Offset of the first third, s.
+    pub first_third_s: f64,
+    /// Offset of the last third, s.
+    pub last_third_s: f64,
+    /// Standard deviation of their difference, s (each third has a third of the data: the
+    /// whole recording's offset std times the square root of six).
+    pub difference_std_s: f64,
+    /// The drift the two imply, ppm (parts per million of elapsed time).
+    pub drift_ppm: f64,
+    /// The difference exceeds three standard deviations.
+    pub significant: bool,
+}
+
 /// Whether a calibration can be trusted.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Status {
@@ -291,6 +308,9 @@ pub struct CalibrationOutcome {
     pub warnings: Vec<String>,
     /// Whether the result passed the sanity checks ([`SanityLimits`]).
     pub status: Status,
+    /// The clock offset of the first and the last third of the recording compared (when the
+    /// offset was estimated and each third has enough samples).
+    pub drift: Option<DriftCheck>,
     /// Where the refinement started: the initialisation's parameters, or the user's guess.
     pub start: CalibrationParams,
     /// The final camera trajectory (refitted with the DVL factors).
@@ -405,6 +425,25 @@ pub fn calibrate(
     let std = param_std(&covariance);
     let verdicts = verdicts(&std, &opts.weak, &excitation, init.as_ref(), &mask);
     let status = sanity(&params, normalized_cost, init.as_ref(), free, opts);
+    let drift = if free.time_offset {
+        drift_check(&traj, &obs, &idx, &params, std.time_offset_s)?
+    } else {
+        None
+    };
+    if let Some(d) = &drift
+        && d.significant
+    {
+        warnings.push(format!(
+            "the clock offset drifts: {:.4} s in the first third of the recording and {:.4} s in \
+             the last ({:+.1} ms, {:.1} standard deviations), about {:+.0} ppm; the result assumes \
+             a constant offset (synchronise the clocks, or calibrate shorter recordings)",
+            d.first_third_s,
+            d.last_third_s,
+            1e3 * (d.last_third_s - d.first_third_s),
+            (d.last_third_s - d.first_third_s).abs() / d.difference_std_s,
+            d.drift_ppm
+        ));
+    }
     let trajectory = traj.report().clone();
     Ok(CalibrationOutcome {
         params,
@@ -421,6 +460,7 @@ pub fn calibrate(
         trajectory,
         warnings,
         status,
+        drift,
         start,
         fitted: traj,
         observations: obs,
@@ -648,6 +688,45 @@ fn mirror_if_better(
     } else {
         Ok(refined)
     }
+}
+
+/// The clock offset of the first and the last third of the samples `idx` (by DVL time), each
+/// estimated with every other parameter and the trajectory held at the result. `None` when a
+/// third has too few samples.
+fn drift_check(
+    traj: &Trajectory,
+    obs: &[DvlObs],
+    idx: &[usize],
+    params: &CalibrationParams,
+    offset_std: f64,
+) -> Result<Option<DriftCheck>> {
+    let mut by_time: Vec<usize> = idx.to_vec();
+    by_time.sort_by(|&a, &b| obs[a].t.total_cmp(&obs[b].t));
+    let n = by_time.len() / 3;
+    if n < 30 || !(offset_std.is_finite() && offset_std > 0.0) {
+        return Ok(None);
+    }
+    let only_offset = FreeParams {
+        rotation: false,
+        lever_arm: false,
+        scale: false,
+        time_offset: true,
+    };
+    let third = |part: &[usize]| -> Result<(f64, f64)> {
+        let up = calibration_update(traj, obs, part, params, only_offset, 20)?;
+        let mid = 0.5 * (obs[part[0]].t + obs[part[part.len() - 1]].t);
+        Ok((up.params.time_offset_s, mid))
+    };
+    let (o1, t1) = third(&by_time[..n])?;
+    let (o3, t3) = third(&by_time[by_time.len() - n..])?;
+    let difference_std_s = offset_std * 6f64.sqrt();
+    Ok(Some(DriftCheck {
+        first_third_s: o1,
+        last_third_s: o3,
+        difference_std_s,
+        drift_ppm: 1e6 * (o3 - o1) / (t3 - t1).max(1e-9),
+        significant: (o3 - o1).abs() > 3.0 * difference_std_s,
+    }))
 }
 
 /// The sanity checks of a result: residuals near the stated DVL noise, a physical velocity

@@ -110,6 +110,15 @@ pub fn result_file(o: &CalibrationOutcome, log: &DvlLog) -> CalibrationFile {
     put("dvl_duplicates", st.duplicates.into());
     put("dvl_rejected_lines", st.rejected_lines.into());
     put("dvl_samples", o.counts.dvl_samples.into());
+    if let Some(c) = st.sound_speed_mps {
+        put("dvl_sound_speed_mps", c.into());
+        if o.params.velocity_scale > 0.0 {
+            put(
+                "water_sound_speed_mps",
+                (c / o.params.velocity_scale).into(),
+            );
+        }
+    }
     put("dvl_used", o.counts.dvl_used.into());
     put("dvl_outside_camera_span", o.counts.dvl_outside_span.into());
     put(
@@ -158,6 +167,11 @@ pub fn result_file(o: &CalibrationOutcome, log: &DvlLog) -> CalibrationFile {
         }
         put("clock_alignment_ambiguous", a.ambiguous.into());
         put("calm_samples", o.counts.calm.into());
+    }
+    if let Some(d) = &o.drift {
+        put("clock_offset_first_third_s", d.first_third_s.into());
+        put("clock_offset_last_third_s", d.last_third_s.into());
+        put("clock_drift_apparent_ppm", d.drift_ppm.into());
     }
     let mut warnings = st.warnings.clone();
     warnings.extend(o.warnings.iter().cloned());
@@ -347,6 +361,15 @@ impl CalibrationRun {
             o.params.velocity_scale,
             s.velocity_scale,
             ok(&o.verdicts.velocity_scale)
+        );
+        let _ = writeln!(
+            out,
+            "sound     {}",
+            crate::report::sound_speed_words(
+                o.params.velocity_scale,
+                s.velocity_scale,
+                st.sound_speed_mps
+            )
         );
         let _ = writeln!(
             out,

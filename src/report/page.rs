@@ -129,7 +129,7 @@ pub(super) fn render(input: &ReportInput, d: &Derived) -> String {
         escape(input.title)
     );
     summary(&mut s, input, d);
-    results(&mut s, o);
+    results(&mut s, o, input.dvl_stats.and_then(|st| st.sound_speed_mps));
     warnings(&mut s, input);
     velocity(&mut s, d);
     residuals(&mut s, o, d);
@@ -254,7 +254,7 @@ fn join_words(w: &[&str]) -> String {
     }
 }
 
-fn results(s: &mut String, o: &CalibrationOutcome) {
+fn results(s: &mut String, o: &CalibrationOutcome, sound_speed: Option<f64>) {
     section(s, "results", "Results");
     let c = o.params;
     let c0 = o.start;
@@ -344,6 +344,17 @@ fn results(s: &mut String, o: &CalibrationOutcome) {
         put!(s, "<li>{}</li>", escape(&line));
     }
     s.push_str("</ul>\n");
+    if tim {
+        put!(
+            s,
+            "<p id=\"sound-speed\">Velocity scale as a speed of sound: {}.</p>\n",
+            escape(&super::sound_speed_words(
+                c.velocity_scale,
+                st.velocity_scale,
+                sound_speed
+            ))
+        );
+    }
     let r = c.t_cam_dvl.rot;
     put!(
         s,

@@ -74,6 +74,9 @@ pub struct SimConfig {
     pub prior_qc: [f64; 6],
     /// Initial twist (`[v; w]`) of [`MotionKind::Prior`].
     pub prior_initial_twist: [f64; 6],
+    /// Drift of the DVL clock, ppm: `t_cam = t_dvl + time_offset_s + 1e-6 clock_drift_ppm
+    /// (t_dvl - t_ref)`, with `t_ref` the DVL time at camera time 0 (0 by default: no drift).
+    pub clock_drift_ppm: f64,
 }
 
 impl SimConfig {
@@ -167,6 +170,7 @@ impl Default for SimConfig {
             motion: MotionKind::default(),
             prior_qc: [2e-6, 2e-6, 2e-6, 2e-5, 2e-5, 2e-5],
             prior_initial_twist: [0.1, 0.0, 0.05, 0.0, 0.0, 0.05],
+            clock_drift_ppm: 0.0,
         }
     }
 }
@@ -292,8 +296,11 @@ pub fn simulate_with(cfg: &SimConfig, motion: &dyn Motion) -> Result<SimDataset>
     let offset = truth.time_offset_s;
     let jitter = cfg.dvl_time_jitter_s;
     let rate = cfg.dvl_rate_hz;
-    let j_lo = ((t_first - offset - jitter) * rate).floor() as i64 - 1;
-    let j_hi = ((t_last - offset + jitter) * rate).ceil() as i64 + 1;
+    let drift = 1e-6 * cfg.clock_drift_ppm;
+    let t_ref = t_first - offset;
+    let reach = jitter + drift.abs() * (t_last - t_first) * 2.0;
+    let j_lo = ((t_first - offset - reach) * rate).floor() as i64 - 1;
+    let j_hi = ((t_last - offset + reach) * rate).ceil() as i64 + 1;
     let dvl_cov = Matrix3::identity() * (cfg.dvl_sigma * cfg.dvl_sigma);
     let mut jitter_rng = Rng::stream(cfg.seed, STREAM_DVL_JITTER);
     let mut noise_rng = Rng::stream(cfg.seed, STREAM_DVL_NOISE);
@@ -301,7 +308,7 @@ pub fn simulate_with(cfg: &SimConfig, motion: &dyn Motion) -> Result<SimDataset>
     let mut dvl_truth = Vec::new();
     for j in j_lo..=j_hi {
         let t_dvl = j as f64 / rate + jitter_rng.uniform_in(-jitter, jitter);
-        let t_cam = t_dvl + offset;
+        let t_cam = t_dvl + offset + drift * (t_dvl - t_ref);
         if !(t_first..=t_last).contains(&t_cam) {
             continue;
         }

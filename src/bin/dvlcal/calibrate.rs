@@ -38,6 +38,10 @@ pub struct CalibrateArgs {
     /// covariance in the calibration.
     #[arg(long = "dvl-sigma", value_name = "M_PER_S")]
     pub dvl_sigma: Option<f64>,
+    /// The speed of sound the DVL was set to, m/s, when its log holds no configuration reply:
+    /// the velocity scale is then also read as the water's sound speed.
+    #[arg(long, value_name = "M_PER_S")]
+    pub dvl_sound_speed: Option<f64>,
     /// Stop at the first malformed DVL line instead of skipping and counting it.
     #[arg(long)]
     pub strict: bool,
@@ -121,12 +125,22 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
         a.offset_range.as_deref(),
         a.biased,
     )?;
-    let data = load(
+    if let Some(c) = a.dvl_sound_speed
+        && !(c.is_finite() && (1000.0..=2000.0).contains(&c))
+    {
+        bail!("--dvl-sound-speed must be between 1000 and 2000 m/s, got {c}");
+    }
+    let mut data = load(
         a.dataset.as_deref(),
         &a.files,
         &a.vision.options(),
         &a.dvl_input.read_options(a.strict),
     )?;
+    let st = &mut data.log.stats;
+    if let (None, Some(c)) = (st.sound_speed_mps, a.dvl_sound_speed) {
+        st.sound_speed_mps = Some(c);
+        st.sound_speed_source = Some("--dvl-sound-speed".into());
+    }
     let run = calibrate_dataset(&data, &opts, a.vision.threads).with_context(|| {
         format!(
             "calibrating {} against {}",

@@ -214,7 +214,9 @@ fn topic_list(conns: &BTreeMap<u32, (String, String)>) -> String {
 fn relabel(p: &mut Parsed, topic: &str) {
     let label = match p {
         Parsed::Velocity(r) => &mut r.label,
-        Parsed::WaterVelocity { label } | Parsed::Other { label, .. } => label,
+        Parsed::WaterVelocity { label }
+        | Parsed::Config { label, .. }
+        | Parsed::Other { label, .. } => label,
     };
     *label = format!("{label} (rosbag {topic})");
 }

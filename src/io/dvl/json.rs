@@ -62,6 +62,22 @@ fn identity(line: &[u8]) -> &[u8] {
     line
 }
 
+/// The sound speed of a successful `get_config` reply (`Some(None)` for a reply without one);
+/// `None` for any other response.
+fn config_reply(line: &[u8]) -> Option<Option<f64>> {
+    let v: serde_json::Value = serde_json::from_slice(line).ok()?;
+    if v.get("response_to")?.as_str()? != "get_config" {
+        return None;
+    }
+    let ok = v.get("success").and_then(|s| s.as_bool()).unwrap_or(false);
+    let c = v
+        .get("result")
+        .and_then(|r| r.get("speed_of_sound"))
+        .and_then(|c| c.as_f64())
+        .filter(|c| ok && c.is_finite() && *c > 0.0);
+    Some(c)
+}
+
 /// Parses one line of an A50 JSON log.
 pub fn parse_line(line: &[u8]) -> Result<Parsed, Reject> {
     let line = line.trim_ascii();
@@ -76,6 +92,18 @@ pub fn parse_line(line: &[u8]) -> Result<Parsed, Reject> {
     match f.report_type.as_deref() {
         Some("velocity") => {}
         Some("velocity_water") => return Ok(Parsed::WaterVelocity { label }),
+        Some("response") => {
+            if let Some(c) = config_reply(line) {
+                return Ok(Parsed::Config {
+                    label,
+                    speed_of_sound: c,
+                });
+            }
+            return Ok(Parsed::Other {
+                label,
+                kind: "response".into(),
+            });
+        }
         Some(other) => {
             return Ok(Parsed::Other {
                 label,

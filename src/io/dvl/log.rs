@@ -174,6 +174,11 @@ pub struct DvlLogStats {
     pub water_velocity_reports: usize,
     /// Well-formed reports of other types (dead reckoning, transducer reports, replies, ...).
     pub other_reports: usize,
+    /// The speed of sound the DVL assumed, m/s, from the last configuration reply in the log
+    /// (JSON `get_config`, serial `wrc`) or given by the user.
+    pub sound_speed_mps: Option<f64>,
+    /// Where `sound_speed_mps` came from (`file:line` of the reply, or the option).
+    pub sound_speed_source: Option<String>,
     /// `other_reports` by type.
     pub other_by_type: BTreeMap<String, usize>,
     /// Lines that could not be used.

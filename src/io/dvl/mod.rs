@@ -181,6 +181,24 @@ impl Accumulator {
                 stats.water_velocity_reports += 1;
                 bump(&mut stats.formats_seen, &label);
             }
+            Ok(Parsed::Config {
+                label,
+                speed_of_sound,
+            }) => {
+                stats.other_reports += 1;
+                bump(&mut stats.formats_seen, &label);
+                bump(&mut stats.other_by_type, "config");
+                if let Some(c) = speed_of_sound {
+                    if stats.sound_speed_mps.is_some_and(|old| old != c) {
+                        stats.warnings.push(format!(
+                            "{}:{line}: the DVL's sound speed changed to {c} m/s during the log",
+                            path.display()
+                        ));
+                    }
+                    stats.sound_speed_mps = Some(c);
+                    stats.sound_speed_source = Some(format!("{}:{line}", path.display()));
+                }
+            }
             Ok(Parsed::Other { label, kind }) => {
                 stats.other_reports += 1;
                 bump(&mut stats.formats_seen, &label);

@@ -53,6 +53,14 @@ pub enum Parsed {
         /// Format label for the summary, as in [`VelocityReport::label`].
         label: String,
     },
+    /// The DVL's configuration (a JSON `get_config` reply, a serial `wrc` sentence): counted as
+    /// another report, and the sound speed it assumes is kept.
+    Config {
+        /// Format label for the summary, as in [`VelocityReport::label`].
+        label: String,
+        /// The speed of sound the DVL assumes, m/s, when the reply states it.
+        speed_of_sound: Option<f64>,
+    },
     /// A well-formed report of another type (dead reckoning, transducers, replies, ...).
     Other {
         /// Format label for the summary, as in [`VelocityReport::label`].

@@ -213,6 +213,17 @@ fn parse_body(body: &[u8]) -> Result<Parsed, Reject> {
                 kind: name.to_string(),
             })
         }
+        "wrc" => {
+            // wrc,speed_of_sound,mounting_rotation_offset,acoustic_enabled,dark_mode
+            let c = match f.first() {
+                Some(x) => Some(num(x, "wrc speed of sound")?),
+                None => None,
+            };
+            Ok(Parsed::Config {
+                label,
+                speed_of_sound: c.filter(|c| c.is_finite() && *c > 0.0),
+            })
+        }
         _ => Ok(Parsed::Other {
             label,
             kind: clip(name),
