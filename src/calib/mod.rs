@@ -404,6 +404,9 @@ pub fn calibrate(
     if let Some(storage) = traj.take_covariance_storage() {
         jp.keep_storage(storage);
     }
+    // The pose-only trajectory, for the drift check: the refined one has absorbed part of the
+    // DVL's misfit under a constant offset.
+    let pose_only = traj.clone();
     let mut refined = refine_jointly(
         &jp,
         traj,
@@ -426,7 +429,7 @@ pub fn calibrate(
     let verdicts = verdicts(&std, &opts.weak, &excitation, init.as_ref(), &mask);
     let status = sanity(&params, normalized_cost, init.as_ref(), free, opts);
     let drift = if free.time_offset {
-        drift_check(&traj, &obs, &idx, &params, std.time_offset_s)?
+        drift_check(&pose_only, &obs, &idx, &params, std.time_offset_s)?
     } else {
         None
     };
@@ -691,7 +694,7 @@ fn mirror_if_better(
 }
 
 /// The clock offset of the first and the last third of the samples `idx` (by DVL time), each
-/// estimated with every other parameter and the trajectory held at the result. `None` when a
+/// estimated with every other parameter held at the result, against `traj` (the pose-only fit). `None` when a
 /// third has too few samples.
 fn drift_check(
     traj: &Trajectory,

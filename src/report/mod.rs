@@ -14,8 +14,10 @@ mod data;
 mod input;
 mod page;
 mod svg;
+mod words;
 
 pub use input::{FrameStat, ReportInput, frame_stats};
+pub use words::sound_speed_words;
 
 use crate::error::Result;
 
@@ -60,31 +62,6 @@ pub const SECTION_IDS: &[&str] = &[
     "dvl-log",
     "result-file",
 ];
-
-/// The velocity scale read as a speed of sound. A piston-array DVL like the A50 reports the true
-/// velocity times `c_assumed / c_water`, so with the sound speed the DVL assumed the scale says
-/// what the water's was; without it, how far apart the two are in per cent.
-pub fn sound_speed_words(scale: f64, scale_std: f64, assumed_mps: Option<f64>) -> String {
-    match assumed_mps {
-        Some(c) if scale > 0.0 => {
-            let water = c / scale;
-            format!(
-                "the DVL assumes a sound speed of {c:.0} m/s; the data say the water's is about \
-                 {water:.0} m/s (+- {:.0} m/s)",
-                water * scale_std / scale
-            )
-        }
-        _ if scale > 0.0 => format!(
-            "the DVL's velocities are {:.2} % {} than the camera's (+- {:.2} %): the sound speed it \
-             assumes is that much {} than the water's",
-            100.0 * (scale - 1.0).abs(),
-            if scale >= 1.0 { "higher" } else { "lower" },
-            100.0 * scale_std,
-            if scale >= 1.0 { "higher" } else { "lower" }
-        ),
-        _ => "the velocity scale is not positive: no sound speed can be read from it".into(),
-    }
-}
 
 /// Renders the report as one HTML document.
 pub fn render_html(input: &ReportInput) -> Result<String> {

@@ -348,7 +348,7 @@ fn results(s: &mut String, o: &CalibrationOutcome, sound_speed: Option<f64>) {
         put!(
             s,
             "<p id=\"sound-speed\">Velocity scale as a speed of sound: {}.</p>\n",
-            escape(&super::sound_speed_words(
+            escape(&super::words::sound_speed_words(
                 c.velocity_scale,
                 st.velocity_scale,
                 sound_speed
