@@ -8,6 +8,7 @@
 
 use std::time::Instant;
 
+use dvlcal::calib::align::{AlignOptions, align_clocks};
 use dvlcal::calib::{CalibOptions, calibrate};
 use dvlcal::sim::{MotionKind, SimConfig, simulate};
 
@@ -30,9 +31,9 @@ fn main() {
     };
     println!(
         "| DVL samples | poses | runs | calibration (median) | us/sample | ratio to previous size | \
-         rotation error (deg) | lever arm error (mm) | offset error (ms) |"
+         rotation error (deg) | lever arm error (mm) | offset error (ms) | of which clock alignment |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|");
     let mut prev: Option<f64> = None;
     for n in sizes {
         let cfg = SimConfig {
@@ -60,18 +61,35 @@ fn main() {
         }
         let out = last.expect("one run");
         let t = median(times);
+        // The global clock alignment on its own (it runs inside every calibration), median of 5.
+        let align: Vec<f64> = (0..5)
+            .map(|_| {
+                let t0 = Instant::now();
+                align_clocks(
+                    &out.fitted,
+                    &out.observations,
+                    None,
+                    &AlignOptions::default(),
+                )
+                .expect("alignment");
+                t0.elapsed().as_secs_f64()
+            })
+            .collect();
+        let align = median(align);
         let truth = ds.truth;
         let rot = dvlcal::lie::so3::log(&(out.params.r_dvl_cam() * truth.r_dvl_cam().transpose()))
             .norm()
             .to_degrees();
         println!(
-            "| {} | {} | {reps} | {t:.3} s | {:.1} | {} | {rot:.4} | {:.2} | {:.3} |",
+            "| {} | {} | {reps} | {t:.3} s | {:.1} | {} | {rot:.4} | {:.2} | {:.3} | {:.3} s ({:.1} %) |",
             ds.dvl.len(),
             ds.poses.len(),
             1e6 * t / ds.dvl.len() as f64,
             prev.map_or("-".to_string(), |p| format!("{:.1}", t / p)),
             1e3 * (out.params.lever_arm_cam_m() - truth.lever_arm_cam_m()).norm(),
             1e3 * (out.params.time_offset_s - truth.time_offset_s).abs(),
+            align,
+            100.0 * align / t
         );
         prev = Some(t);
     }

@@ -12,7 +12,8 @@
 //!
 //! Each lag is scored by the evidence of its correlation, `atanh(r) sqrt(n)` over its `n`
 //! overlapping cells, so that a lag at which only part of the logs overlaps cannot win on a
-//! chance match of a short stretch. The best lag (`t_cam = t_dvl + lag`) seeds the fine offset
+//! chance match of a short stretch. Among lags whose evidence is nearly the best (periodic
+//! motion), the one with the largest overlap is taken. The best lag (`t_cam = t_dvl + lag`) seeds the fine offset
 //! search. The second-best peak (the
 //! best correlation farther than [`AlignOptions::peak_separation_s`] from the first) measures the
 //! lag's uniqueness: periodic motion repeats the speed pattern and gives a second peak almost as
@@ -299,8 +300,14 @@ pub fn align_clocks(
         let r = (cov / den).clamp(-0.999_999, 0.999_999);
         lags.push((lag, r, cnt, r.atanh() * cnt.sqrt()));
     }
-    let Some(&(best_lag, best, best_cnt, best_score)) =
-        lags.iter().max_by(|a, b| a.3.total_cmp(&b.3))
+    // The strongest evidence; among lags nearly as strong (periodic motion), the one at which
+    // the logs overlap most: at the true offset the shorter log usually lies wholly inside the
+    // longer one.
+    let top = lags.iter().map(|l| l.3).fold(f64::NEG_INFINITY, f64::max);
+    let Some(&(best_lag, best, best_cnt, best_score)) = lags
+        .iter()
+        .filter(|l| l.3 >= opts.ambiguity_ratio * top)
+        .max_by(|a, b| a.2.total_cmp(&b.2).then(a.3.total_cmp(&b.3)))
     else {
         return Err(Error::NoTimeOverlap(format!(
             "the camera trajectory ({:.1} s, camera clock {} .. {} s) and the DVL log ({:.1} s, DVL \
