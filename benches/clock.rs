@@ -55,7 +55,9 @@ fn main() {
     }
 
     println!();
-    println!("| clock drift (ppm) | seeds | flagged | mean apparent drift (ppm) | its spread (ppm) |");
+    println!(
+        "| clock drift (ppm) | seeds | flagged | mean apparent drift (ppm) | its spread (ppm) |"
+    );
     println!("|---|---|---|---|---|");
     let drift_seeds = (seeds / 2).max(3);
     for &ppm in &[200.0, 0.0] {
@@ -76,8 +78,8 @@ fn main() {
             found.push(d.drift_ppm);
         }
         let m = found.iter().sum::<f64>() / found.len() as f64;
-        let sd = (found.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (found.len() - 1) as f64)
-            .sqrt();
+        let sd =
+            (found.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (found.len() - 1) as f64).sqrt();
         println!("| {ppm} | {drift_seeds} | {flagged} | {m:.1} | {sd:.1} |");
     }
 }

@@ -10,7 +10,7 @@ set -euo pipefail
 trap 'echo "FAIL: $0 stopped at line $LINENO" >&2' ERR
 
 PLOTS="velocity-before-x velocity-after-x velocity-before-y velocity-after-y velocity-before-z
-velocity-after-z residuals-x residuals-y residuals-z angular-velocity lever-arm offset-coarse
+velocity-after-z residuals-x residuals-y residuals-z angular-velocity lever-arm offset-global offset-coarse
 offset-fine cost frames-tags frames-rms pose-residual-pos pose-residual-rot trajectory"
 SECTIONS="summary results warnings velocity residuals motion clock-offset refinement frames
 trajectory-fit dvl-log result-file"

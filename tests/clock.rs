@@ -230,3 +230,42 @@ fn poses_in_millimetres_fail_on_the_scale() {
     println!("millimetres: {f}");
     assert!(f.contains("scale"), "{f}");
 }
+
+#[test]
+fn fixed_extrinsics_with_a_wrong_offset_in_the_guess_still_calibrate() {
+    use dvlcal::calib::Method;
+    // The user's extrinsics are right, but their clock offset is 2.5 s off (and 37 s off): the
+    // data give the offset; no sample ever falls outside the trajectory.
+    for &wrong in &[2.5, 37.0] {
+        let ds = recording(13, 0.07, 120.0, MotionKind::CalmThenRotate);
+        let mut guess = ds.truth;
+        guess.time_offset_s += wrong;
+        for method in [
+            Method::Fixed {
+                guess,
+                estimate_offset: true,
+            },
+            Method::Bcd(guess),
+        ] {
+            let opts = CalibOptions {
+                method,
+                ..CalibOptions::default()
+            };
+            let o = calibrate(&ds.poses, &ds.dvl, &opts).expect("calibration");
+            assert!(
+                (o.params.time_offset_s - ds.truth.time_offset_s).abs() < 0.005,
+                "{} against {}",
+                o.params.time_offset_s,
+                ds.truth.time_offset_s
+            );
+            assert!(o.status.is_ok(), "{:?}", o.status);
+            assert!(
+                o.warnings
+                    .iter()
+                    .any(|w| w.contains("the guess's clock offset")),
+                "{:?}",
+                o.warnings
+            );
+        }
+    }
+}

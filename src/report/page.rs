@@ -789,7 +789,7 @@ fn alignment_words(a: &crate::calib::align::ClockAlignment) -> String {
         _ => String::new(),
     };
     format!(
-        "Over every clock offset at which the two logs overlap ({} offsets at {} s steps), the \
+        "Over every clock offset at which the two logs overlap ({} offsets at {:.3} s steps), the \
          DVL speeds match the camera speeds best at {:.2} s (correlation {:.3} over {:.0} s of \
          overlap){second}.",
         a.lags_considered, a.step_s, a.lag_s, a.correlation, a.overlap_s

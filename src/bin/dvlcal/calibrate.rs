@@ -22,6 +22,24 @@ pub enum MethodArg {
     Fixed,
 }
 
+/// Estimator settings shared by `calibrate` and `evaluate`.
+#[derive(clap::Args)]
+pub struct EstimatorArgs {
+    /// Standard deviation of each DVL velocity component, m/s, replacing the reports'
+    /// covariance in the calibration.
+    #[arg(long = "dvl-sigma", value_name = "M_PER_S")]
+    pub dvl_sigma: Option<f64>,
+    /// Limit of the clock offset, `min,max` seconds (t_cam = t_dvl + offset); default: any
+    /// offset at which the camera and DVL logs overlap, found by a global alignment.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        allow_negative_numbers = true,
+        value_name = "MIN,MAX"
+    )]
+    pub offset_range: Option<Vec<f64>>,
+}
+
 #[derive(clap::Args)]
 pub struct CalibrateArgs {
     /// Dataset folder: cam0/ (+ cam1/) images or a TUM pose file, a Kalibr camchain YAML, a
@@ -34,10 +52,8 @@ pub struct CalibrateArgs {
     pub vision: crate::detect::VisionTuning,
     #[command(flatten)]
     pub dvl_input: DvlInputArgs,
-    /// Standard deviation of each DVL velocity component, m/s, replacing the reports'
-    /// covariance in the calibration.
-    #[arg(long = "dvl-sigma", value_name = "M_PER_S")]
-    pub dvl_sigma: Option<f64>,
+    #[command(flatten)]
+    pub estimator: EstimatorArgs,
     /// The speed of sound the DVL was set to, m/s, when its log holds no configuration reply:
     /// the velocity scale is then also read as the water's sound speed.
     #[arg(long, value_name = "M_PER_S")]
@@ -54,15 +70,6 @@ pub struct CalibrateArgs {
     /// Initial guess or fixed extrinsics (result YAML schema), for --method bcd and fixed.
     #[arg(long)]
     pub init: Option<PathBuf>,
-    /// Limit of the clock offset, `min,max` seconds (t_cam = t_dvl + offset); default: any
-    /// offset at which the camera and DVL logs overlap, found by a global alignment.
-    #[arg(
-        long,
-        value_delimiter = ',',
-        allow_negative_numbers = true,
-        value_name = "MIN,MAX"
-    )]
-    pub offset_range: Option<Vec<f64>>,
     /// With --method fixed: estimate clock offset and scale with the extrinsics held.
     #[arg(long)]
     pub estimate_offset: bool,
@@ -121,8 +128,8 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
         a.method,
         guess,
         a.estimate_offset,
-        a.dvl_sigma,
-        a.offset_range.as_deref(),
+        a.estimator.dvl_sigma,
+        a.estimator.offset_range.as_deref(),
         a.biased,
     )?;
     if let Some(c) = a.dvl_sound_speed

@@ -12,7 +12,7 @@ use dvlcal::io::calib_yaml::read_calibration_guess;
 use dvlcal::io::write_atomic;
 use dvlcal::pipeline::{baselines, cross_validate, odometry_table};
 
-use crate::calibrate::{MethodArg, options};
+use crate::calibrate::{EstimatorArgs, MethodArg, options};
 use crate::dataset::{DatasetArgs, load};
 use crate::detect::VisionTuning;
 use crate::dvl_info::DvlInputArgs;
@@ -43,23 +43,12 @@ pub struct EvaluateArgs {
     /// Write the tables (Markdown) here as well.
     #[arg(long, value_name = "FILE")]
     pub out: Option<PathBuf>,
-    /// Limit of the clock offset, `min,max` seconds (t_cam = t_dvl + offset); default: any
-    /// offset at which the camera and DVL logs overlap, found by a global alignment.
-    #[arg(
-        long,
-        value_delimiter = ',',
-        allow_negative_numbers = true,
-        value_name = "MIN,MAX"
-    )]
-    pub offset_range: Option<Vec<f64>>,
     #[command(flatten)]
     pub vision: VisionTuning,
     #[command(flatten)]
     pub dvl_input: DvlInputArgs,
-    /// Standard deviation of each DVL velocity component, m/s, replacing the reports'
-    /// covariance in the calibrations.
-    #[arg(long = "dvl-sigma", value_name = "M_PER_S")]
-    pub dvl_sigma: Option<f64>,
+    #[command(flatten)]
+    pub estimator: EstimatorArgs,
 }
 
 pub fn run(a: EvaluateArgs) -> Result<()> {
@@ -92,8 +81,8 @@ pub fn run(a: EvaluateArgs) -> Result<()> {
             MethodArg::Uic,
             None,
             false,
-            a.dvl_sigma,
-            a.offset_range.as_deref(),
+            a.estimator.dvl_sigma,
+            a.estimator.offset_range.as_deref(),
             false,
         )?;
         let cv = cross_validate(
