@@ -75,6 +75,18 @@ pub(crate) fn map_indices<R: Send>(
         .collect()
 }
 
+/// A pool of `threads` worker threads (`None`: one per core).
+pub fn worker_pool(threads: Option<usize>) -> crate::Result<rayon::ThreadPool> {
+    let n = threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    if n == 0 {
+        return Err(crate::Error::option("--threads", "must be at least 1"));
+    }
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(n)
+        .build()
+        .map_err(|e| crate::Error::Input(format!("starting the worker threads: {e}")))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -101,16 +113,4 @@ mod tests {
         let all = map_indices(1000, 64, |i| i * 2);
         assert_eq!(all, (0..1000).map(|i| i * 2).collect::<Vec<_>>());
     }
-}
-
-/// A pool of `threads` worker threads (`None`: one per core).
-pub fn worker_pool(threads: Option<usize>) -> crate::Result<rayon::ThreadPool> {
-    let n = threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
-    if n == 0 {
-        return Err(crate::Error::option("--threads", "must be at least 1"));
-    }
-    rayon::ThreadPoolBuilder::new()
-        .num_threads(n)
-        .build()
-        .map_err(|e| crate::Error::Input(format!("starting the worker threads: {e}")))
 }

@@ -744,7 +744,7 @@ fn sanity(
     let lim = &opts.sanity;
     let mut reasons = Vec::new();
     let poor_match = init.is_some_and(|i| i.offset.alignment.correlation < 0.3);
-    if !(normalized_cost <= lim.max_normalized_cost) {
+    if normalized_cost.is_nan() || normalized_cost > lim.max_normalized_cost {
         reasons.push(format!(
             "the DVL residuals are {normalized_cost:.1} times the stated DVL noise after the \
              refinement (at most {} is credible): the camera and the DVL do not describe the same \

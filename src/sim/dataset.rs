@@ -254,7 +254,7 @@ pub fn simulate(cfg: &SimConfig) -> Result<SimDataset> {
 /// the prior fields are ignored). Camera poses cover `[0, cfg.duration_s]`.
 pub fn simulate_with(cfg: &SimConfig, motion: &dyn Motion) -> Result<SimDataset> {
     cfg.validate()?;
-    let truth = cfg.truth.clone();
+    let truth = cfg.truth;
 
     // Camera poses.
     let n_cam = (cfg.duration_s * cfg.camera_rate_hz + 1e-9).floor() as usize + 1;
