@@ -269,6 +269,9 @@ pub struct Counts {
     pub dvl_invalid: usize,
     /// Valid DVL reports the refinement used.
     pub dvl_used: usize,
+    /// Valid DVL reports whose covariance could not weigh them (not symmetric positive
+    /// definite, or nearly singular), weighted with the default noise instead.
+    pub dvl_covariance_replaced: usize,
     /// Valid DVL reports left out because their camera time falls outside the trajectory span
     /// (with a margin for offset changes).
     pub dvl_outside_span: usize,
@@ -322,15 +325,38 @@ pub struct CalibrationOutcome {
     pub used: Vec<usize>,
 }
 
-/// DVL observations with their noise, on the camera epoch.
-fn observations(dvl: &[DvlSample], opts: &CalibOptions) -> Vec<DvlObs> {
-    dvl.iter()
+/// Whether a reported velocity covariance can weigh its sample: finite, symmetric, positive
+/// definite, and not nearly singular (smallest eigenvalue at least 1e-6 of the largest; a nearly
+/// singular covariance would claim an almost exact velocity along some direction). Real A50 logs
+/// hold covariances with slightly negative eigenvalues.
+pub fn usable_covariance(c: &Matrix3<f64>) -> bool {
+    if !c.iter().all(|x| x.is_finite()) {
+        return false;
+    }
+    let max = c.amax();
+    if !(max > 0.0) || (c - c.transpose()).amax() > 1e-9 * max {
+        return false;
+    }
+    let ev = c.symmetric_eigenvalues();
+    ev.min() > 1e-6 * ev.max()
+}
+
+/// DVL observations with their noise, on the camera epoch, and how many reported covariances
+/// were replaced by the default noise because they could not weigh their sample.
+fn observations(dvl: &[DvlSample], opts: &CalibOptions) -> (Vec<DvlObs>, usize) {
+    let mut replaced = 0;
+    let obs = dvl
+        .iter()
         .filter(|s| s.valid && s.v.iter().all(|x| x.is_finite()))
         .map(|s| {
             let cov = match (opts.dvl_sigma, &s.cov) {
                 (Some(sd), _) => Matrix3::identity() * sd * sd,
-                (None, Some(c)) if c.iter().all(|x| x.is_finite()) && c.trace() > 0.0 => *c,
-                _ => Matrix3::identity() * opts.default_dvl_sigma.powi(2),
+                (None, Some(c)) if usable_covariance(c) => *c,
+                (None, Some(_)) => {
+                    replaced += 1;
+                    Matrix3::identity() * opts.default_dvl_sigma.powi(2)
+                }
+                (None, None) => Matrix3::identity() * opts.default_dvl_sigma.powi(2),
             };
             DvlObs {
                 t: s.t,
@@ -338,7 +364,8 @@ fn observations(dvl: &[DvlSample], opts: &CalibOptions) -> Vec<DvlObs> {
                 cov,
             }
         })
-        .collect()
+        .collect();
+    (obs, replaced)
 }
 
 /// Samples usable at offsets within `margin` of `offset`.
@@ -359,11 +386,12 @@ pub fn calibrate(
     opts: &CalibOptions,
 ) -> Result<CalibrationOutcome> {
     opts.validate()?;
-    let obs = observations(dvl, opts);
+    let (obs, replaced) = observations(dvl, opts);
     let mut counts = Counts {
         poses: poses.len(),
         dvl_samples: dvl.len(),
         dvl_invalid: dvl.len() - obs.len(),
+        dvl_covariance_replaced: replaced,
         ..Counts::default()
     };
     if obs.len() < 10 {
@@ -376,6 +404,13 @@ pub fn calibrate(
     // 1. The camera trajectory from the poses alone.
     let traj = Trajectory::fit(poses, &opts.fit)?;
     let mut warnings = Vec::new();
+    if replaced > 0 {
+        warnings.push(format!(
+            "{replaced} DVL reports carry a covariance that is not symmetric positive definite \
+             (or nearly singular); they are weighted with the default noise of {} m/s instead",
+            opts.default_dvl_sigma
+        ));
+    }
     // 2-3. Where the refinement starts.
     let (start, init) = initialise(&traj, &obs, opts, &mut warnings)?;
     if let Some(i) = &init {
@@ -980,7 +1015,7 @@ pub fn cramer_rao(
             poses.len()
         )));
     }
-    let obs = observations(dvl, opts);
+    let (obs, _) = observations(dvl, opts);
     let fitted = Trajectory::fit(poses, &opts.fit)?;
     let traj = fitted.with_knots(truth_knots.to_vec(), None);
     let idx = usable(&traj, &obs, truth.time_offset_s, 0.0);

@@ -120,6 +120,10 @@ pub fn result_file(o: &CalibrationOutcome, log: &DvlLog) -> CalibrationFile {
         }
     }
     put("dvl_used", o.counts.dvl_used.into());
+    put(
+        "dvl_covariance_replaced",
+        o.counts.dvl_covariance_replaced.into(),
+    );
     put("dvl_outside_camera_span", o.counts.dvl_outside_span.into());
     put(
         "dvl_residual_rms_mps",
