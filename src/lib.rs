@@ -102,6 +102,7 @@
 pub mod calib;
 pub mod error;
 pub mod eval;
+pub mod files;
 pub mod io;
 pub mod lie;
 mod parallel;

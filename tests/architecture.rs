@@ -15,6 +15,7 @@ use std::path::{Path, PathBuf};
 fn layer(top: &str) -> Option<u32> {
     Some(match top {
         "error" | "time" => 0,
+        "files" => 1,
         "lie" | "parallel" => 1,
         "types" => 2,
         "io" | "vision" | "trajectory" => 3,

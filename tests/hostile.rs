@@ -81,3 +81,104 @@ fn unusable_covariances_are_replaced_counted_and_do_not_bias_the_result() {
     assert!(d.norm() < 1e-9, "{d}");
     assert!(o.std.rotation_deg.min() > 0.01, "{:?}", o.std);
 }
+
+mod tmp_common;
+
+#[test]
+fn a_velocity_out_of_range_is_a_counted_rejection_and_byte_order_marks_are_harmless() {
+    use dvlcal::io::dvl::a50::{parse_velocity_report, velocity_report_line};
+    let tmp = tmp_common::TmpDir::new("hostile-range");
+    let d = tmp.0.join("run");
+    let req = dvlcal::pipeline::SimulateRequest {
+        config: SimConfig {
+            seed: 22,
+            duration_s: 40.0,
+            ..SimConfig::default()
+        },
+        images: None,
+        note: String::new(),
+    };
+    dvlcal::pipeline::write_simulated_dataset(&d, &req, &|_, _| {}).expect("simulate");
+    let log = d.join("dvl.jsonl");
+    let text = std::fs::read_to_string(&log).expect("log");
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    // Line 5: a velocity of 1e300 m/s.
+    let mut r = parse_velocity_report(&lines[4]).expect("report");
+    r.vx = 1e300;
+    lines[4] = velocity_report_line(&r).trim_end().to_string();
+    // A byte-order mark before the first line, as Windows editors write it.
+    let mut out = String::from('\u{feff}');
+    for l in &lines {
+        out.push_str(l);
+        out.push_str("\r\n");
+    }
+    std::fs::write(&log, out).expect("write");
+    let parsed = read_dvl_log(&log, &DvlReadOptions::default()).expect("log");
+    assert_eq!(
+        parsed.stats.rejected_lines, 1,
+        "{:?}",
+        parsed.stats.rejected
+    );
+    assert_eq!(parsed.stats.rejected[0].line, 5);
+    assert_eq!(parsed.stats.rejected[0].reason, "velocity out of range");
+    assert_eq!(parsed.samples.len(), lines.len() - 1);
+    // Strict mode stops there, naming the file and line.
+    let e = read_dvl_log(
+        &log,
+        &DvlReadOptions {
+            strict: true,
+            ..DvlReadOptions::default()
+        },
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("dvl.jsonl:5"), "{e}");
+    // The folder (with the marked log, and a marked pose file) still calibrates.
+    let poses = d.join("poses.txt");
+    let p = std::fs::read_to_string(&poses).expect("poses");
+    std::fs::write(&poses, format!("\u{feff}{p}")).expect("write");
+    let files = dvlcal::pipeline::dataset_files(Some(&d), &Default::default()).expect("files");
+    let data = dvlcal::pipeline::Dataset::load(
+        files,
+        &Default::default(),
+        &DvlReadOptions::default(),
+        &mut |_| {},
+    )
+    .expect("dataset");
+    let o = calibrate(&data.poses, &data.log.samples, &CalibOptions::default()).expect("calibrate");
+    assert!(o.status.is_ok(), "{:?}", o.status);
+}
+
+#[test]
+fn a_closed_standard_output_ends_the_program_quietly() {
+    use std::io::{BufRead, BufReader};
+    use std::process::{Command, Stdio};
+    let tmp = tmp_common::TmpDir::new("hostile-pipe");
+    let d = tmp.0.join("run");
+    let req = dvlcal::pipeline::SimulateRequest {
+        config: SimConfig {
+            seed: 23,
+            duration_s: 40.0,
+            ..SimConfig::default()
+        },
+        images: None,
+        note: String::new(),
+    };
+    dvlcal::pipeline::write_simulated_dataset(&d, &req, &|_, _| {}).expect("simulate");
+    // `dvlcal calibrate DIR | head -1`: the reader goes away after the first line.
+    let mut child = Command::new(env!("CARGO_BIN_EXE_dvlcal"))
+        .args(["calibrate", d.to_str().expect("utf-8"), "--out"])
+        .arg(tmp.0.join("c.yaml"))
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run dvlcal");
+    let mut first = String::new();
+    BufReader::new(child.stdout.take().expect("stdout"))
+        .read_line(&mut first)
+        .expect("first line");
+    assert!(first.starts_with("dataset"), "{first}");
+    let out = child.wait_with_output().expect("wait");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+}

@@ -83,6 +83,9 @@ fn sniff(path: &Path) -> Result<Vec<u8>> {
         .take(SNIFF_BYTES as u64)
         .read_to_end(&mut buf)
         .map_err(|e| Error::io(path, e))?;
+    if buf.starts_with(crate::files::BOM) {
+        buf.drain(..crate::files::BOM.len());
+    }
     Ok(buf)
 }
 
@@ -98,7 +101,7 @@ fn is_yaml(path: &Path) -> bool {
 
 /// The role of one YAML file from its top-level keys, or why it has none.
 fn yaml_role(path: &Path) -> Result<std::result::Result<Role, String>> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = crate::files::read_text(path)?;
     let value: serde_yaml::Value = match serde_yaml::from_str(&text) {
         Ok(v) => v,
         Err(e) => return Ok(Err(format!("not readable as YAML ({e})"))),

@@ -64,7 +64,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
 
 /// Reads a whole text file, naming the file on failure.
 pub(crate) fn read_text(path: &Path) -> Result<String> {
-    fs::read_to_string(path).map_err(|e| Error::io(path, e))
+    crate::files::read_text(path)
 }
 
 /// The content lines of a text file with their 1-based line numbers: `\r` line ends removed,

@@ -202,7 +202,7 @@ fn check_positive(path: &Path, what: &str, v: f64) -> Result<()> {
 impl Board {
     /// Reads a board YAML: dvlcal's grid or list form, or a Kalibr aprilgrid target.
     pub fn load(path: &Path) -> Result<Board> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = crate::files::read_text(path)?;
         Board::parse(&text, path)
     }
 

@@ -265,7 +265,7 @@ impl Camchain {
     /// Reads a Kalibr camchain YAML (`cam0`, `cam1`, ...; other keys such as `T_cam_imu` and
     /// `cam_overlaps` are ignored).
     pub fn load(path: &Path) -> Result<Camchain> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = crate::files::read_text(path)?;
         Camchain::parse(&text, path)
     }
 

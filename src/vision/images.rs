@@ -255,7 +255,7 @@ fn list_folder(folder: &Path, ignored: &mut usize) -> Result<Vec<(i64, PathBuf)>
 
 /// EuRoC's `data.csv`: `#timestamp [ns],filename` header, then `t_ns,name` lines.
 fn read_euroc_csv(csv: &Path, data: &Path, ignored: &mut usize) -> Result<Vec<(i64, PathBuf)>> {
-    let text = std::fs::read_to_string(csv).map_err(|e| Error::io(csv, e))?;
+    let text = crate::files::read_text(csv)?;
     let mut out = Vec::new();
     for line in text.lines() {
         let line = line.trim();

@@ -42,13 +42,17 @@ pub use record::{RecordOptions, RecordStats, add_host_time, record_tcp};
 pub use report::{Parsed, Reject, VelocityReport};
 pub use serial::parse_line as parse_serial_line;
 
+/// Largest speed component of a valid velocity report, m/s: no DVL-carrying vehicle moves at 10
+/// m/s (the A50 is rated far below it).
+pub const MAX_SPEED_MPS: f64 = 10.0;
+
 /// Reads a DVL log of any accepted format into valid, deduplicated, time-ordered samples.
 ///
 /// Errors: the file cannot be read; its format cannot be recognised; it holds no usable
 /// velocity report; the time source asked for is absent; or, in strict mode, the first
 /// malformed line (named `file:line`).
 pub fn read_dvl_log(path: &Path, opts: &DvlReadOptions) -> Result<DvlLog> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = crate::files::read_bytes(path)?;
     if detect::is_mcap(&bytes) {
         return Err(Error::Input(format!(
             "{}: ROS2 (MCAP) logs are not read yet; export /dvl/json_data as JSON lines",
@@ -161,6 +165,25 @@ impl Accumulator {
         self.last_line = line;
         match parsed {
             Err(r) => stats.reject(path, strict, line, r)?,
+            // A valid report faster than any vehicle a DVL rides on is a unit or encoding error
+            // (mm/s written as m/s, a corrupted number), never a velocity to fit.
+            Ok(Parsed::Velocity(r))
+                if r.valid && r.v.iter().any(|x| !(x.abs() < MAX_SPEED_MPS)) =>
+            {
+                stats.reject(
+                    path,
+                    strict,
+                    line,
+                    Reject::new(
+                        "velocity out of range",
+                        format!(
+                            "velocity [{}, {}, {}] m/s has a component of {MAX_SPEED_MPS} m/s or \
+                             more (millimetres per second written as metres?)",
+                            r.v[0], r.v[1], r.v[2]
+                        ),
+                    ),
+                )?;
+            }
             Ok(Parsed::Velocity(r)) => {
                 stats.velocity_reports += 1;
                 bump(&mut stats.formats_seen, &r.label);
