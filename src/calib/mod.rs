@@ -334,7 +334,7 @@ pub fn usable_covariance(c: &Matrix3<f64>) -> bool {
         return false;
     }
     let max = c.amax();
-    if !(max > 0.0) || (c - c.transpose()).amax() > 1e-9 * max {
+    if max.is_nan() || max <= 0.0 || (c - c.transpose()).amax() > 1e-9 * max {
         return false;
     }
     let ev = c.symmetric_eigenvalues();

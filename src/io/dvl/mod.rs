@@ -168,7 +168,7 @@ impl Accumulator {
             // A valid report faster than any vehicle a DVL rides on is a unit or encoding error
             // (mm/s written as m/s, a corrupted number), never a velocity to fit.
             Ok(Parsed::Velocity(r))
-                if r.valid && r.v.iter().any(|x| !(x.abs() < MAX_SPEED_MPS)) =>
+                if r.valid && r.v.iter().any(|x| x.is_nan() || x.abs() >= MAX_SPEED_MPS) =>
             {
                 stats.reject(
                     path,
