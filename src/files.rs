@@ -25,3 +25,32 @@ pub fn read_bytes(path: &Path) -> Result<Vec<u8>> {
     }
     Ok(bytes)
 }
+
+/// Whether `a` and `b` name the same existing file (after following links).
+pub fn same_file(a: &Path, b: &Path) -> bool {
+    match (std::fs::canonicalize(a), std::fs::canonicalize(b)) {
+        (Ok(x), Ok(y)) => x == y,
+        _ => false,
+    }
+}
+
+/// An error when the output `out` is one of the `inputs` (writing it would destroy the input);
+/// `option` names the output's option.
+pub fn refuse_input<'a>(
+    option: &'static str,
+    out: &Path,
+    inputs: impl IntoIterator<Item = &'a Path>,
+) -> Result<()> {
+    for input in inputs {
+        if same_file(out, input) {
+            return Err(Error::option(
+                option,
+                format!(
+                    "{} is an input of this run; refusing to overwrite it",
+                    out.display()
+                ),
+            ));
+        }
+    }
+    Ok(())
+}

@@ -182,3 +182,130 @@ fn a_closed_standard_output_ends_the_program_quietly() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!stderr.contains("panicked"), "{stderr}");
 }
+
+#[test]
+fn camera_chains_and_boards_in_the_wrong_units_or_shape_are_refused() {
+    use dvlcal::vision::board::Board;
+    use dvlcal::vision::camera::Camchain;
+    let tmp = tmp_common::TmpDir::new("hostile-geometry");
+    let cam = |pu: f64, r11: f64, tx: f64| {
+        format!(
+            "cam0:\n  camera_model: pinhole\n  intrinsics: [460, 460, {pu}, 240]\n  \
+             distortion_model: radtan\n  distortion_coeffs: [0, 0, 0, 0]\n  resolution: [752, 480]\n\
+             cam1:\n  camera_model: pinhole\n  intrinsics: [460, 460, 376, 240]\n  \
+             distortion_model: radtan\n  distortion_coeffs: [0, 0, 0, 0]\n  resolution: [752, 480]\n  \
+             T_cn_cnm1:\n  - [{r11}, 0, 0, {tx}]\n  - [0, 1, 0, 0]\n  - [0, 0, 1, 0]\n  - [0, 0, 0, 1]\n"
+        )
+    };
+    let load = |name: &str, text: String| {
+        let p = tmp.0.join(name);
+        std::fs::write(&p, text).expect("write");
+        Camchain::load(&p).map(|_| ()).map_err(|e| e.to_string())
+    };
+    load("good.yaml", cam(376.0, 1.0, -0.11)).expect("a good chain");
+    let e = load("pp.yaml", cam(900.0, 1.0, -0.11)).unwrap_err();
+    assert!(
+        e.contains("principal point") && e.contains("pp.yaml:"),
+        "{e}"
+    );
+    let e = load("det.yaml", cam(376.0, -1.0, -0.11)).unwrap_err();
+    assert!(e.contains("reflection"), "{e}");
+    let e = load("mm.yaml", cam(376.0, 1.0, -110.0)).unwrap_err();
+    assert!(e.contains("millimetres"), "{e}");
+    let e = load(
+        "nan.yaml",
+        cam(376.0, 1.0, -0.11).replacen("[460, 460, 376, 240]", "[.nan, 460, 376, 240]", 1),
+    )
+    .unwrap_err();
+    assert!(e.contains("not all finite"), "{e}");
+
+    let board = |name: &str, text: &str| {
+        let p = tmp.0.join(name);
+        std::fs::write(&p, text).expect("write");
+        Board::load(&p).map(|_| ()).map_err(|e| e.to_string())
+    };
+    board(
+        "b.yaml",
+        "rows: 6\ncols: 6\ntag_size: 0.088\nspacing: 0.3\n",
+    )
+    .expect("a good board");
+    let e = board(
+        "mm_board.yaml",
+        "rows: 6\ncols: 6\ntag_size: 88\nspacing: 0.3\n",
+    )
+    .unwrap_err();
+    assert!(e.contains("millimetres"), "{e}");
+    let e = board(
+        "kalibr_mm.yaml",
+        "target_type: 'aprilgrid'\ntagCols: 6\ntagRows: 6\ntagSize: 88\ntagSpacing: 0.3\n",
+    )
+    .unwrap_err();
+    assert!(e.contains("millimetres"), "{e}");
+    let e = board(
+        "huge.yaml",
+        "rows: 100000\ncols: 100000\ntag_size: 0.01\nspacing: 0.3\n",
+    )
+    .unwrap_err();
+    assert!(e.contains("at most"), "{e}");
+}
+
+#[test]
+fn no_file_of_the_user_is_lost() {
+    use std::process::Command;
+    let tmp = tmp_common::TmpDir::new("hostile-files");
+    let d = tmp.0.join("run");
+    let run = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_dvlcal"))
+            .args(args)
+            .output()
+            .expect("run dvlcal")
+    };
+    let sim = run(&[
+        "simulate",
+        "--out",
+        d.to_str().expect("utf-8"),
+        "--duration",
+        "40",
+    ]);
+    assert!(sim.status.success());
+    // simulate into a folder that holds files: refused without --force.
+    let again = run(&[
+        "simulate",
+        "--out",
+        d.to_str().expect("utf-8"),
+        "--duration",
+        "40",
+    ]);
+    assert!(!again.status.success());
+    assert!(String::from_utf8_lossy(&again.stderr).contains("--force"));
+    let log = d.join("dvl.jsonl");
+    let before = std::fs::read(&log).expect("log");
+    // --out naming the DVL log: refused, the log untouched.
+    let out = run(&[
+        "calibrate",
+        d.to_str().expect("utf-8"),
+        "--out",
+        log.to_str().expect("utf-8"),
+    ]);
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("refusing to overwrite"), "{stderr}");
+    assert_eq!(std::fs::read(&log).expect("log"), before);
+    // An output that is a device is never replaced by a regular file; a symbolic link is
+    // written through.
+    let e = dvlcal::io::write_atomic(std::path::Path::new("/dev/null"), b"x").unwrap_err();
+    assert!(e.to_string().contains("not a regular file"), "{e}");
+    assert!(!std::fs::metadata("/dev/null").expect("null").is_file());
+    let target = tmp.0.join("target.txt");
+    std::fs::write(&target, "old").expect("write");
+    let link = tmp.0.join("link.txt");
+    std::os::unix::fs::symlink(&target, &link).expect("symlink");
+    dvlcal::io::write_atomic(&link, b"new").expect("write through");
+    assert!(
+        std::fs::symlink_metadata(&link)
+            .expect("link")
+            .file_type()
+            .is_symlink()
+    );
+    assert_eq!(std::fs::read_to_string(&target).expect("target"), "new");
+}

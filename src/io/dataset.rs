@@ -37,6 +37,17 @@ pub struct DatasetFiles {
     pub ignored: Vec<(PathBuf, String)>,
 }
 
+impl DatasetFiles {
+    /// The input files (camchain, target, DVL log, pose file): what no output may overwrite.
+    pub fn inputs(&self) -> Vec<PathBuf> {
+        [&self.camchain, &self.target, &self.dvl, &self.poses]
+            .into_iter()
+            .flatten()
+            .cloned()
+            .collect()
+    }
+}
+
 /// Parts the user named explicitly; they win over what the folder holds, and a role given here
 /// is not searched for.
 #[derive(Clone, Debug, Default)]

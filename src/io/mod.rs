@@ -25,6 +25,26 @@ use crate::time::RawTime;
 /// removed and `path` is left as it was.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     static COUNTER: AtomicU64 = AtomicU64::new(0);
+    // Replace regular files only: a symbolic link is written through (its target is replaced),
+    // and a device, folder or other special file is never replaced by a regular file.
+    let resolved;
+    let path = match fs::symlink_metadata(path) {
+        Ok(m) if m.file_type().is_symlink() => {
+            resolved = match fs::canonicalize(path) {
+                Ok(p) => p,
+                Err(_) => {
+                    let link = fs::read_link(path).map_err(|e| Error::io(path, e))?;
+                    path.parent().unwrap_or(Path::new(".")).join(link)
+                }
+            };
+            match fs::metadata(&resolved) {
+                Ok(t) if !t.is_file() => return Err(not_regular(path)),
+                _ => resolved.as_path(),
+            }
+        }
+        Ok(m) if !m.is_file() => return Err(not_regular(path)),
+        _ => path,
+    };
     let file_name = path.file_name().ok_or_else(|| {
         Error::io(
             path,
@@ -60,6 +80,18 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
         let _ = d.sync_all();
     }
     Ok(())
+}
+
+/// The error for an output that exists and is not a regular file.
+fn not_regular(path: &Path) -> Error {
+    Error::io(
+        path,
+        std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            "exists and is not a regular file (a device, folder or other special file); refusing \
+             to replace it",
+        ),
+    )
 }
 
 /// Reads a whole text file, naming the file on failure.

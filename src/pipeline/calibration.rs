@@ -231,6 +231,14 @@ pub fn write_results(
     data: &Dataset,
     force: bool,
 ) -> Result<ResultPaths> {
+    let inputs = data.files.inputs();
+    for written in [
+        out.to_path_buf(),
+        sibling(out, "tf.txt"),
+        sibling(out, "camchain-dvl.yaml"),
+    ] {
+        crate::files::refuse_input("--out", &written, inputs.iter().map(|p| p.as_path()))?;
+    }
     if let Some(d) = out.parent()
         && !d.as_os_str().is_empty()
     {
@@ -279,6 +287,12 @@ pub fn write_report(
     data: &Dataset,
     result: &Path,
 ) -> Result<()> {
+    let inputs = data.files.inputs();
+    crate::files::refuse_input(
+        "--report",
+        path,
+        inputs.iter().map(|p| p.as_path()).chain([result]),
+    )?;
     let frames = data
         .vision
         .as_ref()

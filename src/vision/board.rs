@@ -187,16 +187,48 @@ fn yaml_err(path: &Path, e: serde_yaml::Error) -> Error {
     Error::parse(path, line, e.to_string())
 }
 
+/// Largest tag edge accepted, m: a printed calibration tag is far smaller.
+pub const MAX_TAG_SIZE_M: f64 = 1.0;
+
+/// Most tags a grid board may have (a 100 x 100 grid), checked before anything is allocated.
+pub const MAX_GRID_TAGS: usize = 10_000;
+
+/// A tag size: positive, and at most [`MAX_TAG_SIZE_M`] (a size in millimetres is the usual
+/// mistake).
 fn check_positive(path: &Path, what: &str, v: f64) -> Result<()> {
-    if v.is_finite() && v > 0.0 {
-        Ok(())
-    } else {
-        Err(Error::parse(
+    if !(v.is_finite() && v > 0.0) {
+        return Err(Error::parse(
             path,
             0,
             format!("{what} must be positive, got {v}"),
-        ))
+        ));
     }
+    if v > MAX_TAG_SIZE_M {
+        return Err(Error::parse(
+            path,
+            0,
+            format!(
+                "{what} is {v} m: tag sizes are in metres (millimetres given? {v} mm is {} m)",
+                v / 1000.0
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// A grid's size, bounded before the tags are made.
+fn check_grid(path: &Path, rows: u32, cols: u32) -> Result<()> {
+    if rows == 0 || cols == 0 {
+        return Err(Error::parse(path, 0, "rows and cols must be positive"));
+    }
+    if (rows as usize).saturating_mul(cols as usize) > MAX_GRID_TAGS {
+        return Err(Error::parse(
+            path,
+            0,
+            format!("a grid of {rows} x {cols} tags: at most {MAX_GRID_TAGS} tags are supported"),
+        ));
+    }
+    Ok(())
 }
 
 impl Board {
@@ -251,6 +283,7 @@ impl Board {
                     "tagCols and tagRows must be positive",
                 ));
             }
+            check_grid(path, k.tag_rows, k.tag_cols)?;
             Board::grid(
                 TagFamily::Tag36h11,
                 k.tag_rows,
@@ -333,9 +366,7 @@ impl Board {
             if !(g.spacing.is_finite() && g.spacing >= 0.0) {
                 return Err(Error::parse(path, 0, "spacing must be >= 0"));
             }
-            if g.rows == 0 || g.cols == 0 {
-                return Err(Error::parse(path, 0, "rows and cols must be positive"));
-            }
+            check_grid(path, g.rows, g.cols)?;
             Board::grid(family, g.rows, g.cols, g.tag_size, g.spacing, g.first_id)
         };
         let n = board.family.code_count();

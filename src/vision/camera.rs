@@ -298,14 +298,35 @@ impl Camchain {
                     e.camera_model
                 )));
             }
-            if e.intrinsics.len() != 4 || !e.intrinsics.iter().all(|v| v.is_finite()) {
-                return Err(bad("intrinsics must be [fu, fv, pu, pv]".into()));
+            if e.intrinsics.len() != 4 {
+                return Err(bad(format!(
+                    "intrinsics must be [fu, fv, pu, pv], got {} values",
+                    e.intrinsics.len()
+                )));
+            }
+            if !e.intrinsics.iter().all(|v| v.is_finite()) {
+                return Err(bad(format!(
+                    "intrinsics {:?} are not all finite numbers",
+                    e.intrinsics
+                )));
             }
             if e.intrinsics[0] <= 0.0 || e.intrinsics[1] <= 0.0 {
                 return Err(bad("focal lengths must be positive".into()));
             }
             if e.resolution.len() != 2 || e.resolution[0] == 0 || e.resolution[1] == 0 {
                 return Err(bad("resolution must be [width, height]".into()));
+            }
+            // The principal point lies inside the image for every real camera; outside it, the
+            // intrinsics belong to another resolution or are in the wrong order.
+            let (w, h) = (f64::from(e.resolution[0]), f64::from(e.resolution[1]));
+            if !(e.intrinsics[2] > 0.0 && e.intrinsics[2] < w)
+                || !(e.intrinsics[3] > 0.0 && e.intrinsics[3] < h)
+            {
+                return Err(bad(format!(
+                    "the principal point ({}, {}) is outside the {}x{} image: intrinsics of \
+                     another resolution, or not in the order [fu, fv, pu, pv]",
+                    e.intrinsics[2], e.intrinsics[3], e.resolution[0], e.resolution[1]
+                )));
             }
             let c = &e.distortion_coeffs;
             let distortion = match e.distortion_model.as_str() {
@@ -362,6 +383,20 @@ impl Camchain {
                 let r = mm.fixed_view::<3, 3>(0, 0).into_owned();
                 if (r.transpose() * r - nalgebra::Matrix3::identity()).norm() > 1e-3 {
                     return Err(bad("T_cn_cnm1's rotation block is not a rotation".into()));
+                }
+                if r.determinant() < 0.0 {
+                    return Err(bad(
+                        "T_cn_cnm1's rotation block is a reflection (determinant -1): an axis \
+                         is flipped"
+                            .into(),
+                    ));
+                }
+                let baseline = mm.fixed_view::<3, 1>(0, 3).norm();
+                if baseline > 2.0 {
+                    return Err(bad(format!(
+                        "T_cn_cnm1 puts the cameras {baseline:.1} m apart: translations are in \
+                         metres (millimetres given?)"
+                    )));
                 }
                 Se3::from_matrix(&mm)
             };

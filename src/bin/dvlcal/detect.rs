@@ -69,11 +69,14 @@ pub struct DetectArgs {
 }
 
 pub fn run(a: DetectArgs) -> Result<()> {
+    let frames = frames_csv_path(&a.out);
+    for out in [&a.out, &frames] {
+        dvlcal::files::refuse_input("--out", out, [a.camchain.as_path(), a.target.as_path()])?;
+    }
     let run = poses_from_images(&a.images, &a.camchain, &a.target, &a.tuning.options())?;
     crate::dataset::print_vision(&run);
     run.require_poses()?;
     write_tum(&a.out, run.epoch, &run.poses)?;
-    let frames = frames_csv_path(&a.out);
     write_atomic(&frames, run.frames_csv().as_bytes())?;
     println!("wrote {} and {}", a.out.display(), frames.display());
     Ok(())

@@ -44,6 +44,11 @@ fn qc_from_arg(v: &[f64]) -> Result<Vector6<f64>> {
 }
 
 pub fn run(a: FitArgs) -> Result<()> {
+    dvlcal::files::refuse_input(
+        "--out",
+        &a.out,
+        std::iter::once(a.poses.as_path()).chain(a.at.as_deref()),
+    )?;
     let tum = read_tum(&a.poses, None)?;
     let mut opts = FitOptions::default();
     if let Some(q) = &a.qc {

@@ -87,12 +87,25 @@ pub struct SimulateArgs {
     /// Write the images as JPEG of this quality (1-100) instead of PNG (smaller datasets).
     #[arg(long, requires = "images", value_name = "Q", value_parser = clap::value_parser!(u8).range(1..=100))]
     pub jpeg_quality: Option<u8>,
+    /// Write into an output folder that already holds files (they may be overwritten).
+    #[arg(long)]
+    pub force: bool,
     /// Worker threads for the images (0: one per core).
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
 }
 
 pub fn run(a: SimulateArgs) -> Result<()> {
+    if !a.force
+        && let Ok(mut entries) = std::fs::read_dir(&a.out)
+        && entries.next().is_some()
+    {
+        anyhow::bail!(
+            "{} already holds files (a dataset?): simulate writes into an empty or new folder; \
+             --force writes into it anyway",
+            a.out.display()
+        );
+    }
     let motion = a.motion.unwrap_or(if a.images {
         MotionArg::BoardView
     } else {
