@@ -319,9 +319,8 @@ impl Camchain {
             // The principal point lies inside the image for every real camera; outside it, the
             // intrinsics belong to another resolution or are in the wrong order.
             let (w, h) = (f64::from(e.resolution[0]), f64::from(e.resolution[1]));
-            if !(e.intrinsics[2] > 0.0 && e.intrinsics[2] < w)
-                || !(e.intrinsics[3] > 0.0 && e.intrinsics[3] < h)
-            {
+            let inside = (0.0..w).contains(&e.intrinsics[2]) && (0.0..h).contains(&e.intrinsics[3]);
+            if !inside || e.intrinsics[2] == 0.0 || e.intrinsics[3] == 0.0 {
                 return Err(bad(format!(
                     "the principal point ({}, {}) is outside the {}x{} image: intrinsics of \
                      another resolution, or not in the order [fu, fv, pu, pv]",
