@@ -309,3 +309,26 @@ fn no_file_of_the_user_is_lost() {
     );
     assert_eq!(std::fs::read_to_string(&target).expect("target"), "new");
 }
+
+#[test]
+fn a_log_that_yields_nothing_says_why() {
+    let tmp = tmp_common::TmpDir::new("hostile-empty");
+    let p = tmp.0.join("all_bad.jsonl");
+    // Every line broken in the same way (a unit mix-up of a logger: velocities in mm/s).
+    let mut text = String::new();
+    for i in 0..5 {
+        text.push_str(&format!(
+            "{{\"time\": 100.0, \"vx\": {}.0, \"vy\": 0.0, \"vz\": 0.0, \"fom\": 0.01, \
+             \"altitude\": 1.0, \"velocity_valid\": true, \"status\": 0, \
+             \"format\": \"json_v3\", \"type\": \"velocity\", \
+             \"time_of_validity\": {}, \"time_of_transmission\": {}}}\n",
+            200 + i,
+            1_700_000_000_000_000i64 + i * 100_000,
+            1_700_000_000_040_000i64 + i * 100_000
+        ));
+    }
+    std::fs::write(&p, text).expect("write");
+    let e = read_dvl_log(&p, &DvlReadOptions::default()).unwrap_err().to_string();
+    assert!(e.contains("5 velocity out of range"), "{e}");
+    assert!(e.contains("first at line 1"), "{e}");
+}

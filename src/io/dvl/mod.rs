@@ -233,11 +233,30 @@ impl Accumulator {
 
     fn finish(self, path: &Path, opts: &DvlReadOptions, mut stats: DvlLogStats) -> Result<DvlLog> {
         if self.reports.is_empty() {
+            // Say why: the commonest rejection reasons with their counts, and the first rejected
+            // line with its detail.
+            let mut reasons: Vec<(&String, &usize)> = stats.rejected_by_reason.iter().collect();
+            reasons.sort_by(|a, b| b.1.cmp(a.1).then(a.0.cmp(b.0)));
+            let why = if reasons.is_empty() {
+                String::new()
+            } else {
+                let top: Vec<String> = reasons
+                    .iter()
+                    .take(3)
+                    .map(|(r, n)| format!("{n} {r}"))
+                    .collect();
+                let first = stats
+                    .rejected
+                    .first()
+                    .map(|r| format!("; first at line {}: {}", r.line, r.detail))
+                    .unwrap_or_default();
+                format!(": rejected lines: {}{first}", top.join(", "))
+            };
             return Err(Error::parse(
                 path,
                 self.last_line.max(1),
                 format!(
-                    "no velocity reports in the log ({} lines, {} rejected, {} of other types)",
+                    "no velocity reports in the log ({} lines, {} rejected, {} of other types){why}",
                     stats.lines,
                     stats.rejected_lines,
                     stats.other_reports + stats.water_velocity_reports
