@@ -328,7 +328,55 @@ fn a_log_that_yields_nothing_says_why() {
         ));
     }
     std::fs::write(&p, text).expect("write");
-    let e = read_dvl_log(&p, &DvlReadOptions::default()).unwrap_err().to_string();
+    let e = read_dvl_log(&p, &DvlReadOptions::default())
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("5 velocity out of range"), "{e}");
     assert!(e.contains("first at line 1"), "{e}");
+}
+
+#[test]
+fn poses_that_do_not_reproject_fail_detection_with_a_hint() {
+    let tmp = tmp_common::TmpDir::new("hostile-rms");
+    let src = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("sample_data/stereo");
+    let d = tmp.0.join("few");
+    for cam in ["cam0", "cam1"] {
+        std::fs::create_dir_all(d.join(cam)).expect("mkdir");
+        let mut names: Vec<_> = std::fs::read_dir(src.join(cam))
+            .expect("images")
+            .map(|e| e.expect("entry").file_name())
+            .collect();
+        names.sort();
+        for n in names.iter().take(5) {
+            std::fs::copy(src.join(cam).join(n), d.join(cam).join(n)).expect("copy");
+        }
+    }
+    // The intrinsics of another camera: focal lengths a quarter too long.
+    let chain = std::fs::read_to_string(src.join("camchain.yaml"))
+        .expect("camchain")
+        .replace("[458.0, 457.0,", "[572.5, 571.25,");
+    let chain_path = tmp.0.join("wrong.yaml");
+    std::fs::write(&chain_path, chain).expect("write");
+    let run = dvlcal::pipeline::poses_from_images(
+        &d,
+        &chain_path,
+        &src.join("target.yaml"),
+        &Default::default(),
+    )
+    .expect("the run itself");
+    println!(
+        "reprojection RMS with wrong intrinsics: {:.2} px",
+        run.stats.rms_px
+    );
+    let e = run.require_poses().unwrap_err().to_string();
+    assert!(e.contains("intrinsics"), "{e}");
+    // The right intrinsics pass.
+    let good = dvlcal::pipeline::poses_from_images(
+        &d,
+        &src.join("camchain.yaml"),
+        &src.join("target.yaml"),
+        &Default::default(),
+    )
+    .expect("run");
+    good.require_poses().expect("good poses");
 }

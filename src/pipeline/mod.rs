@@ -29,6 +29,9 @@ pub use evaluate::{
     Baseline, CrossValidation, baselines, cross_validate, odometry_check, odometry_table,
 };
 pub use simulate::{ImageRequest, SimulateRequest, SimulatedRecording, write_simulated_dataset};
-pub use vision::{VisionOptions, VisionRun, frames_csv_path, posed_frames, poses_from_images};
+pub use vision::{
+    MAX_REPROJECTION_RMS_PX, VisionOptions, VisionRun, frames_csv_path, posed_frames,
+    poses_from_images,
+};
 
 pub use crate::parallel::worker_pool;

@@ -71,6 +71,10 @@ impl VisionOptions {
     }
 }
 
+/// Largest reprojection RMS of the posed frames, px, for the poses to be used: beyond it the
+/// camera model, the board or their units are wrong, and the poses would be too.
+pub const MAX_REPROJECTION_RMS_PX: f64 = 3.0;
+
 /// Everything a run of the image pipeline produced.
 #[derive(Debug)]
 pub struct VisionRun {
@@ -159,6 +163,19 @@ impl VisionRun {
             return Err(Error::dataset(
                 &self.images,
                 format!("no frame gave a pose ({} frames)", self.stats.frames),
+            ));
+        }
+        if !(self.stats.rms_px <= MAX_REPROJECTION_RMS_PX) {
+            return Err(Error::dataset(
+                &self.images,
+                format!(
+                    "the poses reproject the board's corners with {:.1} px RMS (a good camera \
+                     model and board give well under 1 px; at most {MAX_REPROJECTION_RMS_PX} px is \
+                     accepted): check the intrinsics and distortion (of this resolution?), the \
+                     tag size and spacing (metres?), and that the board file is the board in \
+                     the images",
+                    self.stats.rms_px
+                ),
             ));
         }
         Ok(())
