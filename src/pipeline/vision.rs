@@ -165,7 +165,7 @@ impl VisionRun {
                 format!("no frame gave a pose ({} frames)", self.stats.frames),
             ));
         }
-        if !(self.stats.rms_px <= MAX_REPROJECTION_RMS_PX) {
+        if self.stats.rms_px.is_nan() || self.stats.rms_px > MAX_REPROJECTION_RMS_PX {
             return Err(Error::dataset(
                 &self.images,
                 format!(
