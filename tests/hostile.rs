@@ -380,3 +380,31 @@ fn poses_that_do_not_reproject_fail_detection_with_a_hint() {
     .expect("run");
     good.require_poses().expect("good poses");
 }
+
+#[test]
+fn time_stamps_in_the_wrong_unit_are_pointed_out() {
+    let tmp = tmp_common::TmpDir::new("hostile-units");
+    let p = tmp.0.join("ms.jsonl");
+    // time_of_validity in milliseconds where the format has microseconds: 10 Hz looks like 10 kHz.
+    let mut text = String::new();
+    for i in 0..50i64 {
+        text.push_str(&format!(
+            "{{\"time\": 100.0, \"vx\": 0.1, \"vy\": 0.0, \"vz\": 0.0, \"fom\": 0.01, \
+             \"altitude\": 1.0, \"velocity_valid\": true, \"status\": 0, \
+             \"format\": \"json_v3\", \"type\": \"velocity\", \
+             \"time_of_validity\": {}, \"time_of_transmission\": {}}}\n",
+            1_700_000_000_000i64 + i * 100,
+            1_700_000_000_040i64 + i * 100
+        ));
+    }
+    std::fs::write(&p, text).expect("write");
+    let log = read_dvl_log(&p, &DvlReadOptions::default()).expect("log");
+    assert!(
+        log.stats
+            .warnings
+            .iter()
+            .any(|w| w.contains("milliseconds")),
+        "{:?}",
+        log.stats.warnings
+    );
+}

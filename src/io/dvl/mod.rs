@@ -327,6 +327,22 @@ impl Accumulator {
         samples.sort_by(|a, b| a.1.t.total_cmp(&b.1.t));
         stats.first_time_s = samples.first().map(|s| s.1.t);
         stats.last_time_s = samples.last().map(|s| s.1.t);
+        // An A50 reports at 2-26 Hz; a rate far outside that is a time unit read wrongly.
+        if let Some(rate) = stats.rate_hz(samples.len())
+            && samples.len() >= 10
+            && !(0.5..=100.0).contains(&rate)
+        {
+            stats.warnings.push(format!(
+                "{}: the reports come at {rate:.4} Hz on average, where an A50 reports at 2 to 26 \
+                 Hz: the time stamps are probably in other units than the format's ({})",
+                path.display(),
+                if rate > 100.0 {
+                    "milliseconds where microseconds are expected?"
+                } else {
+                    "microseconds where milliseconds are expected, or large gaps?"
+                }
+            ));
+        }
         let (lines, samples) = samples.into_iter().unzip();
         Ok(DvlLog {
             epoch,
