@@ -166,3 +166,54 @@ fn host_time_is_added_to_objects_only() {
         "{\"host_time_us\":1}"
     );
 }
+
+#[test]
+fn bad_addresses_fail_at_once_and_a_cut_log_is_not_glued() {
+    let dir = temp_dir("record-bad");
+    let out = dir.join("bad.jsonl");
+    let stop = AtomicBool::new(false);
+    let opts = RecordOptions {
+        duration: Some(Duration::from_millis(300)),
+        reconnect_delay: Duration::from_millis(50),
+        connect_timeout: Duration::from_millis(100),
+    };
+    for addr in ["127.0.0.1", "127.0.0.1:notaport", ":::"] {
+        let t0 = Instant::now();
+        let e = record_tcp(addr, &out, &opts, &stop, &mut |_| {}).unwrap_err();
+        assert!(t0.elapsed() < Duration::from_secs(2), "{addr}");
+        assert!(e.to_string().contains("--tcp"), "{e}");
+    }
+    // A log that ends mid-line (a recording killed while writing) gets a line end before new
+    // lines are appended.
+    let cut = dir.join("cut.jsonl");
+    std::fs::write(&cut, "{\"a\":1}\n{\"b\":").unwrap();
+    let port = {
+        let l = TcpListener::bind("127.0.0.1:0").unwrap();
+        l.local_addr().unwrap().port()
+    };
+    let mut notes = Vec::new();
+    record_tcp(&format!("127.0.0.1:{port}"), &cut, &opts, &stop, &mut |m| {
+        notes.push(m.to_string())
+    })
+    .unwrap();
+    assert_eq!(
+        std::fs::read_to_string(&cut).unwrap(),
+        "{\"a\":1}\n{\"b\":\n"
+    );
+    assert!(notes.iter().any(|n| n.contains("mid-line")), "{notes:?}");
+    // The program says so and fails when nothing was recorded.
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_dvlcal"))
+        .args([
+            "record-dvl",
+            "--tcp",
+            &format!("127.0.0.1:{port}"),
+            "--out",
+            dir.join("none.jsonl").to_str().unwrap(),
+            "--duration",
+            "0.3",
+        ])
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("nothing was recorded"));
+}

@@ -45,6 +45,14 @@ pub fn run(args: RecordDvlArgs) -> anyhow::Result<()> {
     let stats = record_tcp(&args.tcp, &args.out, &opts, &stop, &mut |m| {
         eprintln!("record-dvl: {m}")
     })?;
+    if stats.lines == 0 {
+        anyhow::bail!(
+            "nothing was recorded from {} ({} connections): is the DVL at that address and port \
+             (the A50 serves its JSON stream on port 16171)?",
+            args.tcp,
+            stats.connections
+        );
+    }
     eprintln!(
         "record-dvl: {} lines ({} bytes) written to {}; {} connections, {} dropped, {} partial lines lost",
         stats.lines,

@@ -82,11 +82,44 @@ pub fn record_tcp(
     stop: &AtomicBool,
     note: &mut dyn FnMut(&str),
 ) -> Result<RecordStats> {
+    // A malformed or unresolvable address is an error now, not a retry loop.
+    match addr.to_socket_addrs().map(|a| a.count()) {
+        Ok(n) if n > 0 => {}
+        Ok(_) => {
+            return Err(Error::option(
+                "--tcp",
+                format!("'{addr}' resolves to no address"),
+            ));
+        }
+        Err(e) => {
+            return Err(Error::option(
+                "--tcp",
+                format!("'{addr}' is not a HOST:PORT address that resolves: {e}"),
+            ));
+        }
+    }
     let mut file: File = OpenOptions::new()
         .create(true)
+        .read(true)
         .append(true)
         .open(out)
         .map_err(|e| Error::io(out, e))?;
+    // A log whose last line was cut (a recording killed mid-line) gets a line end first, so that
+    // the next line is not glued to the fragment.
+    {
+        use std::io::{Seek, SeekFrom};
+        let len = file.metadata().map_err(|e| Error::io(out, e))?.len();
+        if len > 0 {
+            let mut last = [0u8; 1];
+            file.seek(SeekFrom::Start(len - 1))
+                .and_then(|_| file.read_exact(&mut last))
+                .map_err(|e| Error::io(out, e))?;
+            if last[0] != b'\n' {
+                file.write_all(b"\n").map_err(|e| Error::io(out, e))?;
+                note("the log ended mid-line: a line end was added before the new lines");
+            }
+        }
+    }
     let start = Instant::now();
     let done =
         || stop.load(Ordering::SeqCst) || opts.duration.is_some_and(|d| start.elapsed() >= d);
