@@ -43,17 +43,17 @@ const H_TIME: f64 = 1e-6;
 /// Largest accepted relative column error (see the module documentation).
 const TOL: f64 = 1e-6;
 
-/// Deterministic pseudo-random numbers (xorshift64*), so that a failure reproduces.
-struct Rng(u64);
+/// The project's deterministic generator, drawing uniformly in [-1, 1) for these tests.
+struct Rng(crate::sim::rng::Rng);
 
 impl Rng {
+    fn new(seed: u64) -> Rng {
+        Rng(crate::sim::rng::Rng::new(seed))
+    }
+
     /// Uniform in [-1, 1).
     fn next(&mut self) -> f64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        let x = self.0.wrapping_mul(0x2545_F491_4F6C_DD1D);
-        (x >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        self.0.uniform_in(-1.0, 1.0)
     }
 
     fn vec3(&mut self, scale: f64) -> Vector3<f64> {
@@ -195,7 +195,7 @@ fn model_jacobians_match_central_differences_at_random_points() {
     // Beyond the existing single-point check in model.rs: many parameter sets (rotations far
     // from the identity, lever arms up to 0.4 m, scales 0.8..1.2) and a twist that is not linear
     // in time, so the offset column is checked as `dh * (d twist / dt)` for a curved twist.
-    let mut rng = Rng(0x9E37_79B9_7F4A_7C15);
+    let mut rng = Rng::new(0x9E37_79B9_7F4A_7C15);
     let (mut worst_t, mut worst_p): (f64, f64) = (0.0, 0.0);
     for _ in 0..50 {
         let p = test_params(&mut rng);
@@ -256,7 +256,7 @@ fn twist_derivative(times: &[f64], knots: &[Knot], t: f64) -> Vector6<f64> {
 #[test]
 fn dvl_residual_jacobians_match_central_differences() {
     // r = v - predict(p, twist(t + delta)) against [x_k; x_{k+1}] and the 8 parameters.
-    let mut rng = Rng(0xD1B5_4A32_D192_ED03);
+    let mut rng = Rng::new(0xD1B5_4A32_D192_ED03);
     let (mut worst_x, mut worst_p, mut worst_off, mut worst_start) =
         (0.0f64, 0.0f64, 0.0f64, 0.0f64);
     for _ in 0..3 {
@@ -330,7 +330,7 @@ fn dvl_residual_jacobians_match_central_differences() {
 /// J_r xi'` gives 1/4, the exact derivative of `J_r(xi) xi'` 1/6).
 #[test]
 fn interpolated_rate_is_the_twist_derivative_only_at_the_first_knot() {
-    let mut rng = Rng(0xBB67_AE85_84CA_A73B);
+    let mut rng = Rng::new(0xBB67_AE85_84CA_A73B);
     let (mut worst_exact, mut worst_start, mut worst_inside, mut worst_beyond) =
         (0.0f64, 0.0f64, 0.0f64, 0.0f64);
     for _ in 0..3 {
@@ -513,7 +513,7 @@ fn assembled_normal_equations_match_numeric_jacobian() {
     // it), a few DVL samples per interval (some intervals empty, samples used out of order and
     // not all of them), weights chosen so that pose, prior and DVL terms are of similar size
     // (so an error in any one of them shows in the sums).
-    let mut rng = Rng(0x510E_527F_ADE6_82D1);
+    let mut rng = Rng::new(0x510E_527F_ADE6_82D1);
     let n = ASSEMBLY_CHUNK + 6;
     let (times, knots) = test_knots(&mut rng, n);
     let p = test_params(&mut rng);
