@@ -99,7 +99,16 @@ pub struct ClockAlignment {
     pub curve: Vec<(f64, f64)>,
 }
 
+/// Speed correlation at the best lag below which the two logs are probably not of the same
+/// recording.
+pub const POOR_CORRELATION: f64 = 0.3;
+
 impl ClockAlignment {
+    /// The speeds correlate poorly even at the best lag ([`POOR_CORRELATION`]).
+    pub fn is_poor(&self) -> bool {
+        self.correlation < POOR_CORRELATION
+    }
+
     /// Best over second-best evidence (infinite without a second peak).
     pub fn uniqueness(&self) -> f64 {
         match self.second_score {

@@ -440,8 +440,8 @@ pub fn calibrate(
         jp.keep_storage(storage);
     }
     // The pose-only trajectory, for the drift check: the refined one has absorbed part of the
-    // DVL's misfit under a constant offset.
-    let pose_only = traj.clone();
+    // DVL's misfit under a constant offset. Kept only when the offset is estimated.
+    let pose_only = free.time_offset.then(|| traj.clone());
     let mut refined = refine_jointly(
         &jp,
         traj,
@@ -463,10 +463,9 @@ pub fn calibrate(
     let std = param_std(&covariance);
     let verdicts = verdicts(&std, &opts.weak, &excitation, init.as_ref(), &mask);
     let status = sanity(&params, normalized_cost, init.as_ref(), free, opts);
-    let drift = if free.time_offset {
-        drift_check(&pose_only, &obs, &idx, &params, std.time_offset_s)?
-    } else {
-        None
+    let drift = match &pose_only {
+        Some(t) => drift_check(t, &obs, &idx, &params, std.time_offset_s)?,
+        None => None,
     };
     if let Some(d) = &drift
         && d.significant
@@ -778,7 +777,7 @@ fn sanity(
 ) -> Status {
     let lim = &opts.sanity;
     let mut reasons = Vec::new();
-    let poor_match = init.is_some_and(|i| i.offset.alignment.correlation < 0.3);
+    let poor_match = init.is_some_and(|i| i.offset.alignment.is_poor());
     if normalized_cost.is_nan() || normalized_cost > lim.max_normalized_cost {
         reasons.push(format!(
             "the DVL residuals are {normalized_cost:.1} times the stated DVL noise after the \

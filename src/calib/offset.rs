@@ -276,7 +276,7 @@ pub fn estimate_offset(
             alignment.lag_s
         ));
     }
-    if alignment.correlation < 0.3 {
+    if alignment.is_poor() {
         notes.push(format!(
             "the DVL and camera speeds correlate poorly at their best clock offset ({:.2}): the \
              logs may not be of the same recording",

@@ -13,7 +13,6 @@ use std::path::Path;
 use nalgebra::{Matrix3, Matrix4, Vector3};
 use serde::{Deserialize, Serialize};
 
-use super::read_text;
 use crate::error::{Error, Result};
 use crate::lie::Se3;
 use crate::types::CalibrationParams;
@@ -335,7 +334,7 @@ pub fn write_calib_yaml(path: &Path, c: &CalibrationFile) -> Result<()> {
 /// Reads a calibration file and checks it with [`CalibrationFile::to_params`]. Errors name the
 /// file, and the line where the YAML parser reports one.
 pub fn read_calib_yaml(path: &Path) -> Result<CalibrationFile> {
-    let text = read_text(path)?;
+    let text = crate::files::read_text(path)?;
     let c: CalibrationFile = serde_yaml::from_str(&text).map_err(|e| match e.location() {
         Some(loc) => Error::parse(path, loc.line(), format!("column {}: {e}", loc.column())),
         None => Error::Input(format!("{}: {e}", path.display())),
@@ -376,7 +375,7 @@ pub fn rotation_from_rpy_deg(rpy: &[f64; 3]) -> Matrix3<f64> {
 /// `time_offset_s` is 0 and a missing `velocity_scale` is 1. When several forms of the rotation
 /// or lever arm are given they must agree. A result file with `status: failed` is refused.
 pub fn read_calibration_guess(path: &Path) -> Result<CalibrationParams> {
-    let text = read_text(path)?;
+    let text = crate::files::read_text(path)?;
     let g: GuessFile = serde_yaml::from_str(&text).map_err(|e| match e.location() {
         Some(loc) => Error::parse(path, loc.line(), format!("column {}: {e}", loc.column())),
         None => Error::Input(format!("{}: {e}", path.display())),

@@ -94,11 +94,6 @@ fn not_regular(path: &Path) -> Error {
     )
 }
 
-/// Reads a whole text file, naming the file on failure.
-pub(crate) fn read_text(path: &Path) -> Result<String> {
-    crate::files::read_text(path)
-}
-
 /// The content lines of a text file with their 1-based line numbers: `\r` line ends removed,
 /// `#` comments cut off, surrounding white space trimmed, blank lines dropped.
 pub(crate) fn content_lines(text: &str) -> impl Iterator<Item = (usize, &str)> {

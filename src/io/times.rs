@@ -2,7 +2,7 @@
 
 use std::path::Path;
 
-use super::{content_lines, parse_time, read_text};
+use super::{content_lines, parse_time};
 use crate::error::{Error, Result};
 use crate::time::Epoch;
 
@@ -10,7 +10,7 @@ use crate::time::Epoch;
 /// its 1-based line number, as seconds relative to `epoch`, in file order (not necessarily
 /// sorted).
 pub fn read_times(path: &Path, epoch: Epoch) -> Result<Vec<(usize, f64)>> {
-    let text = read_text(path)?;
+    let text = crate::files::read_text(path)?;
     let mut out = Vec::new();
     for (line, content) in content_lines(&text) {
         let fields: Vec<&str> = content

@@ -6,7 +6,7 @@ use std::path::Path;
 
 use nalgebra::Vector3;
 
-use super::{content_lines, fmt_f64, last_line, non_finite, parse_finite, parse_time, read_text};
+use super::{content_lines, fmt_f64, last_line, non_finite, parse_finite, parse_time};
 use crate::error::{Error, Result};
 use crate::lie::Se3;
 use crate::time::{Epoch, RawTime};
@@ -32,7 +32,7 @@ const FIELD_NAMES: [&str; 8] = ["timestamp", "tx", "ty", "tz", "qx", "qy", "qz",
 /// Reads a TUM file. Times are made relative to `epoch`, or, when it is `None`, to the whole
 /// second of the first time stamp. `cov` of every pose is `None`.
 pub fn read_tum(path: &Path, epoch: Option<Epoch>) -> Result<TumPoses> {
-    let text = read_text(path)?;
+    let text = crate::files::read_text(path)?;
     let mut epoch = epoch;
     let mut poses = Vec::new();
     let mut lines = Vec::new();

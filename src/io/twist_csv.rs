@@ -5,7 +5,7 @@ use std::path::Path;
 
 use nalgebra::Vector3;
 
-use super::{fmt_f64, non_finite, parse_finite, parse_time, read_text};
+use super::{fmt_f64, non_finite, parse_finite, parse_time};
 use crate::error::{Error, Result};
 use crate::time::Epoch;
 
@@ -69,7 +69,7 @@ pub fn write_twist_csv(path: &Path, epoch: Epoch, rows: &[TwistRow]) -> Result<(
 /// Reads a file written by [`write_twist_csv`]. The first non-blank line must be the header;
 /// blank lines are skipped.
 pub fn read_twist_csv(path: &Path, epoch: Epoch) -> Result<Vec<TwistRow>> {
-    let text = read_text(path)?;
+    let text = crate::files::read_text(path)?;
     let names: Vec<&str> = TWIST_CSV_HEADER.split(',').collect();
     let mut rows = Vec::new();
     let mut seen_header = false;
