@@ -84,21 +84,26 @@ fn unusable_covariances_are_replaced_counted_and_do_not_bias_the_result() {
 
 mod tmp_common;
 
-#[test]
-fn a_velocity_out_of_range_is_a_counted_rejection_and_byte_order_marks_are_harmless() {
-    use dvlcal::io::dvl::a50::{parse_velocity_report, velocity_report_line};
-    let tmp = tmp_common::TmpDir::new("hostile-range");
-    let d = tmp.0.join("run");
+/// A 40 s simulated dataset folder (poses and an A50 log) written into `dir`.
+fn simulate_into(dir: &std::path::Path, seed: u64) {
     let req = dvlcal::pipeline::SimulateRequest {
         config: SimConfig {
-            seed: 22,
+            seed,
             duration_s: 40.0,
             ..SimConfig::default()
         },
         images: None,
         note: String::new(),
     };
-    dvlcal::pipeline::write_simulated_dataset(&d, &req, &|_, _| {}).expect("simulate");
+    dvlcal::pipeline::write_simulated_dataset(dir, &req, &|_, _| {}).expect("simulate");
+}
+
+#[test]
+fn a_velocity_out_of_range_is_a_counted_rejection_and_byte_order_marks_are_harmless() {
+    use dvlcal::io::dvl::a50::{parse_velocity_report, velocity_report_line};
+    let tmp = tmp_common::TmpDir::new("hostile-range");
+    let d = tmp.0.join("run");
+    simulate_into(&d, 22);
     let log = d.join("dvl.jsonl");
     let text = std::fs::read_to_string(&log).expect("log");
     let mut lines: Vec<String> = text.lines().map(String::from).collect();
@@ -155,16 +160,7 @@ fn a_closed_standard_output_ends_the_program_quietly() {
     use std::process::{Command, Stdio};
     let tmp = tmp_common::TmpDir::new("hostile-pipe");
     let d = tmp.0.join("run");
-    let req = dvlcal::pipeline::SimulateRequest {
-        config: SimConfig {
-            seed: 23,
-            duration_s: 40.0,
-            ..SimConfig::default()
-        },
-        images: None,
-        note: String::new(),
-    };
-    dvlcal::pipeline::write_simulated_dataset(&d, &req, &|_, _| {}).expect("simulate");
+    simulate_into(&d, 23);
     // `dvlcal calibrate DIR | head -1`: the reader goes away after the first line.
     let mut child = Command::new(env!("CARGO_BIN_EXE_dvlcal"))
         .args(["calibrate", d.to_str().expect("utf-8"), "--out"])
