@@ -269,3 +269,57 @@ fn fixed_extrinsics_with_a_wrong_offset_in_the_guess_still_calibrate() {
         }
     }
 }
+
+#[test]
+fn a_negative_scale_from_a_half_turn_guess_is_mirrored_back() {
+    use dvlcal::calib::Method;
+    // Planar motion (x-y translation, yaw only): a rotation half a turn about the camera's z axis
+    // with a negative scale predicts the same DVL velocities, a trap for a refinement that starts
+    // there (as a hand-measured guess with a flipped axis would).
+    let f = 0.05;
+    let motion = SinusoidMotion {
+        duration_s: 120.0,
+        position_offset: Vector3::zeros(),
+        position: vec![
+            SinusoidTerm::new([0.8, 0.6, 0.0], [f, 1.3 * f, 0.0], [0.0, 0.4, 0.0]),
+            SinusoidTerm::new([0.2, 0.3, 0.0], [3.1 * f, 2.3 * f, 0.0], [1.0, 0.2, 0.0]),
+        ],
+        rotation_offset: Vector3::zeros(),
+        rotation: vec![SinusoidTerm::new(
+            [0.0, 0.0, 0.6],
+            [0.0, 0.0, 2.7 * f],
+            [0.0, 0.0, 0.3],
+        )],
+    };
+    let cfg = config(14, 0.07, 120.0, MotionKind::Sinusoid);
+    let ds = simulate_with(&cfg, &motion).expect("simulation");
+    let flip = nalgebra::Matrix3::new(-1.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 1.0);
+    let mut guess = dvlcal::CalibrationParams::from_r_dvl_cam(
+        ds.truth.r_dvl_cam() * flip,
+        ds.truth.lever_arm_cam_m(),
+        -ds.truth.velocity_scale,
+        ds.truth.time_offset_s,
+    );
+    guess.velocity_scale *= 1.02;
+    let opts = CalibOptions {
+        method: Method::Bcd(guess),
+        ..CalibOptions::default()
+    };
+    let o = calibrate(&ds.poses, &ds.dvl, &opts).expect("calibration");
+    println!(
+        "scale {}, warnings {:?}",
+        o.params.velocity_scale, o.warnings
+    );
+    assert!(o.params.velocity_scale > 0.0, "{}", o.params.velocity_scale);
+    let rot = dvlcal::lie::so3::log(&(o.params.r_dvl_cam() * ds.truth.r_dvl_cam().transpose()));
+    assert!(
+        rot.norm().to_degrees() < 2.0,
+        "{} deg",
+        rot.norm().to_degrees()
+    );
+    assert!(
+        o.warnings.iter().any(|w| w.contains("mirrored")),
+        "{:?}",
+        o.warnings
+    );
+}

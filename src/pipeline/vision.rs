@@ -47,12 +47,9 @@ impl Default for VisionOptions {
 }
 
 impl VisionOptions {
-    /// Checks the values the pipeline owns (the detector checks its own, `--decimate`); the
-    /// error names the option.
+    /// Checks the values the pipeline owns (the detector checks its own, `--decimate`, and the
+    /// worker pool `--threads`); the error names the option.
     pub fn validate(&self) -> Result<()> {
-        if self.threads == Some(0) {
-            return Err(Error::option("--threads", "must be at least 1"));
-        }
         if !(self.pair_tolerance_ms.is_finite() && self.pair_tolerance_ms >= 0.0) {
             return Err(Error::option(
                 "--pair-tolerance-ms",
