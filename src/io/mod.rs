@@ -4,6 +4,7 @@
 //! writer goes through [`write_atomic`], so an interrupted or failed write never leaves a
 //! half-written file behind.
 
+pub mod bag;
 pub mod calib_yaml;
 pub mod dataset;
 pub mod dvl;

@@ -6,12 +6,11 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use rosbag::{ChunkRecord, IndexRecord, MessageRecord, RosBag};
-
 use super::json;
 use super::log::{DvlLogStats, DvlReadOptions};
 use super::report::{Parsed, Reject, VelocityReport, content_hash};
 use crate::error::{Error, Result};
+use crate::io::bag::ros1::Ros1Bag;
 use crate::time::RawTime;
 
 /// The topic of the raw JSON strings.
@@ -66,55 +65,25 @@ fn read_bag_inner(
     stats: &mut DvlLogStats,
     sink: &mut Sink<'_>,
 ) -> Result<()> {
-    let bag = RosBag::new(path)
-        .map_err(|e| Error::Input(format!("{}: not a readable ROS1 bag: {e}", path.display())))?;
-    // Connections by id: (topic, type). The index section lists them all in a closed bag;
-    // chunks repeat them before their first message, which covers unindexed bags.
-    let mut conns: BTreeMap<u32, (String, String)> = BTreeMap::new();
-    for rec in bag.index_records() {
-        match rec {
-            Ok(IndexRecord::Connection(c)) => {
-                conns.insert(c.id, (c.topic.to_string(), c.tp.to_string()));
-            }
-            Ok(_) => {}
-            Err(e) => {
-                stats.warnings.push(format!(
-                    "bag index section damaged ({e}); read the chunks only"
-                ));
-                break;
-            }
+    let bag = Ros1Bag::open(path)?;
+    let damage = |stats: &mut DvlLogStats, problems: &[String]| -> Result<()> {
+        if opts.strict && !problems.is_empty() {
+            return Err(Error::Input(format!(
+                "{}: damaged ROS bag: {}",
+                path.display(),
+                problems.join("; ")
+            )));
         }
-    }
-    let mut chunks = Vec::new();
-    for rec in bag.chunk_records() {
-        match rec {
-            Ok(ChunkRecord::Chunk(c)) => chunks.push(c),
-            Ok(ChunkRecord::IndexData(_)) => {}
-            Err(e) => {
-                if opts.strict {
-                    return Err(Error::Input(format!(
-                        "{}: ROS bag damaged after {} chunks: {e}",
-                        path.display(),
-                        chunks.len()
-                    )));
-                }
-                stats.warnings.push(format!(
-                    "bag damaged after {} chunks ({e}); the rest was not read",
-                    chunks.len()
-                ));
-                break;
-            }
-        }
-    }
-    for chunk in &chunks {
-        for m in chunk.messages() {
-            if let Ok(MessageRecord::Connection(c)) = m {
-                conns
-                    .entry(c.id)
-                    .or_insert_with(|| (c.topic.to_string(), c.tp.to_string()));
-            }
-        }
-    }
+        stats
+            .warnings
+            .extend(problems.iter().map(|p| format!("bag: {p}")));
+        Ok(())
+    };
+    damage(stats, bag.problems())?;
+    let conns: BTreeMap<u32, (String, String)> = bag
+        .connections()
+        .map(|c| (c.id, (c.topic.clone(), c.msg_type.clone())))
+        .collect();
     let topic = match &opts.topic {
         Some(t) => t.clone(),
         None => {
@@ -156,44 +125,36 @@ fn read_bag_inner(
         )));
     }
     stats.topic = Some(format!("{topic} ({type_name})"));
-    let mut n = 0usize;
-    for chunk in &chunks {
-        for m in chunk.messages() {
-            let msg = match m {
-                Ok(MessageRecord::MessageData(d)) => d,
-                Ok(MessageRecord::Connection(_)) => continue,
-                Err(e) => {
-                    if opts.strict {
-                        return Err(Error::parse(path, n + 1, format!("damaged bag chunk: {e}")));
-                    }
-                    stats.warnings.push(format!(
-                        "damaged bag chunk after message {n} ({e}); rest of the chunk skipped"
-                    ));
-                    break;
+    let summary = bag.messages(&|id| ids.contains_key(&id), &mut |msg| {
+        let Some(kind) = ids.get(&msg.conn_id) else {
+            return Ok(());
+        };
+        let record_time = RawTime {
+            sec: msg.sec as i64,
+            frac: msg.nsec.min(999_999_999) as f64 * 1e-9,
+        };
+        let parsed = match kind {
+            Kind::JsonString => decode_string(msg.data).and_then(|s| {
+                let mut p = json::parse_line(s)?;
+                relabel(&mut p, &topic);
+                if let Parsed::Velocity(r) = &mut p {
+                    r.host_time = Some(record_time);
+                    r.host_time_kind = Some("host receive time (bag record time)");
                 }
-            };
-            let Some(kind) = ids.get(&msg.conn_id) else {
-                continue;
-            };
-            n += 1;
-            let record_time = RawTime {
-                sec: (msg.time / 1_000_000_000) as i64,
-                frac: (msg.time % 1_000_000_000) as f64 * 1e-9,
-            };
-            let parsed = match kind {
-                Kind::JsonString => decode_string(msg.data).and_then(|s| {
-                    let mut p = json::parse_line(s)?;
-                    relabel(&mut p, &topic);
-                    if let Parsed::Velocity(r) = &mut p {
-                        r.host_time = Some(record_time);
-                        r.host_time_kind = Some("host receive time (bag record time)");
-                    }
-                    Ok(p)
-                }),
-                Kind::DvlMsg => decode_dvl(msg.data, &topic),
-            };
-            sink(stats, n, parsed)?;
-        }
+                Ok(p)
+            }),
+            Kind::DvlMsg => decode_dvl(msg.data, &topic),
+        };
+        sink(stats, msg.number, parsed)
+    })?;
+    damage(stats, &summary.problems)?;
+    if let Some(n) = summary.lost_messages.filter(|&n| n > 0) {
+        damage(
+            stats,
+            &[format!(
+                "{n} messages of {topic} that the bag's index lists could not be read"
+            )],
+        )?;
     }
     Ok(())
 }

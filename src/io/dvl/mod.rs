@@ -252,6 +252,12 @@ impl Accumulator {
                     .unwrap_or_default();
                 format!(": rejected lines: {}{first}", top.join(", "))
             };
+            // Damage found on the way (a bag's lost chunks) is the likelier cause: keep it.
+            let why = if stats.warnings.is_empty() {
+                why
+            } else {
+                format!("{why}; {}", stats.warnings.join("; "))
+            };
             return Err(Error::parse(
                 path,
                 self.last_line.max(1),
