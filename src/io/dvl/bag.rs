@@ -1,7 +1,7 @@
 //! ROS1 bags recorded from the vendor's driver (waterlinked/dvl-a50-ros-driver):
 //! `/dvl/json_data` (std_msgs/String, the raw JSON line) and `/dvl/data`
-//! (`waterlinked_a50_ros_driver/DVL`, header stamp = host receive time). The bag records are
-//! read with the `rosbag` crate; the two message types are decoded here.
+//! (`waterlinked_a50_ros_driver/DVL`, header stamp = host receive time). The bag container is
+//! read by [`crate::io::bag::ros1`], damage included; the two message types are decoded here.
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -46,8 +46,8 @@ pub fn read_bag(
     stats: &mut DvlLogStats,
     sink: &mut Sink<'_>,
 ) -> Result<()> {
-    // The bag reader is third-party code working on untrusted bytes: a panic inside it becomes
-    // an error naming the file rather than taking the program down.
+    // The decompressors are third-party code working on untrusted bytes: a panic inside them
+    // becomes an error naming the file rather than taking the program down.
     match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
         read_bag_inner(path, opts, stats, sink)
     })) {
