@@ -404,3 +404,99 @@ fn time_stamps_in_the_wrong_unit_are_pointed_out() {
         log.stats.warnings
     );
 }
+
+#[test]
+fn image_names_in_other_units_are_read_as_such_and_said() {
+    use dvlcal::vision::images::scan_images;
+    let tmp = tmp_common::TmpDir::new("hostile-names");
+    let d = &tmp.0;
+    let touch = |p: std::path::PathBuf| {
+        std::fs::create_dir_all(p.parent().unwrap()).unwrap();
+        std::fs::write(p, b"").unwrap();
+    };
+    // cam0 in Unix milliseconds (13 digits), cam1 in decimal seconds, 20 Hz.
+    let t0_ms = 1_700_000_000_000i64;
+    for k in 0..10i64 {
+        let ms = t0_ms + 50 * k;
+        touch(d.join("cam0").join(format!("{ms}.png")));
+        touch(
+            d.join("cam1")
+                .join(format!("{}.{:06}.png", ms / 1000, (ms % 1000) * 1000)),
+        );
+    }
+    let (frames, st) = scan_images(d, 2, 1_000_000).unwrap();
+    assert_eq!(frames.len(), 10);
+    assert_eq!(st.complete, 10, "{st:?}");
+    assert_eq!(frames[3].t_ns, (t0_ms + 150) * 1_000_000);
+    assert!(
+        st.warnings
+            .iter()
+            .any(|w| w.contains("cam0") && w.contains("milliseconds") && w.contains("20.000 Hz")),
+        "{:?}",
+        st.warnings
+    );
+    // Microseconds (16 digits), alone.
+    let us = d.join("us");
+    for k in 0..5i64 {
+        touch(
+            us.join("cam0")
+                .join(format!("{}.jpg", 1_700_000_000_000_000 + 100_000 * k)),
+        );
+    }
+    let (frames, st) = scan_images(&us, 1, 0).unwrap();
+    assert_eq!(frames[1].t_ns, 1_700_000_000_100_000_000);
+    assert!(
+        st.warnings.iter().any(|w| w.contains("microseconds")),
+        "{st:?}"
+    );
+    // Nanoseconds, Unix or relative, need no word.
+    let ns = d.join("ns");
+    for k in 0..5i64 {
+        touch(ns.join("cam0").join(format!(
+            "{}.png",
+            1_700_000_000_000_000_000 + 50_000_000 * k
+        )));
+        touch(
+            ns.join("rel")
+                .join("cam0")
+                .join(format!("{}.png", 50_000_000 * k)),
+        );
+    }
+    for dir in [ns.clone(), ns.join("rel")] {
+        let (frames, st) = scan_images(&dir, 1, 0).unwrap();
+        assert_eq!(frames[1].t_ns - frames[0].t_ns, 50_000_000);
+        assert!(st.warnings.is_empty(), "{st:?}");
+    }
+    // A decimal name with more than nanosecond digits is not a stamp: ignored and counted.
+    touch(ns.join("cam0").join("1700000000.0000000001.png"));
+    let (_, st) = scan_images(&ns, 1, 0).unwrap();
+    assert_eq!(st.ignored, 1);
+}
+
+#[test]
+fn a_jpeg_cut_short_is_refused_not_half_decoded() {
+    use dvlcal::vision::detect::load_gray;
+    let tmp = tmp_common::TmpDir::new("hostile-jpeg");
+    let img = image::GrayImage::from_fn(160, 120, |x, y| {
+        image::Luma([((x * 7 + y * 3) % 256) as u8])
+    });
+    let mut jpeg = Vec::new();
+    image::codecs::jpeg::JpegEncoder::new_with_quality(&mut jpeg, 90)
+        .encode_image(&img)
+        .unwrap();
+    let whole = tmp.0.join("whole.jpg");
+    std::fs::write(&whole, &jpeg).unwrap();
+    assert_eq!(load_gray(&whole).unwrap().dimensions(), (160, 120));
+    // Padding after the end marker, as some cameras write, is fine.
+    let padded = tmp.0.join("padded.jpg");
+    let mut p = jpeg.clone();
+    p.extend_from_slice(&[0u8; 16]);
+    std::fs::write(&padded, &p).unwrap();
+    assert!(load_gray(&padded).is_ok());
+    for frac in [0.3, 0.6, 0.9, 0.999] {
+        let cut = tmp.0.join(format!("cut-{frac}.jpg"));
+        std::fs::write(&cut, &jpeg[..(jpeg.len() as f64 * frac) as usize]).unwrap();
+        let e = load_gray(&cut).unwrap_err().to_string();
+        assert!(e.contains("cut-") && e.contains("cut short"), "{e}");
+    }
+}

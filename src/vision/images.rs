@@ -5,7 +5,10 @@
 //! - EuRoC's: `DIR/mav0/camN/data.csv` (`#timestamp [ns],filename`) with the images in
 //!   `DIR/mav0/camN/data/`; `DIR` may also be the `mav0` folder itself.
 //!
-//! Time stamps are integer nanoseconds on the camera clock. A frame is one cam0 image with, for
+//! Time stamps are on the camera clock: integer nanoseconds (both layouts' convention), or
+//! decimal seconds (`1700000000.050000.png`). Integer names in milliseconds or microseconds are
+//! recognised (as Unix times at a camera's frame rate) and read as such, with a warning. A
+//! frame is one cam0 image with, for
 //! every other camera, the image closest in time within the tolerance (each image used at most
 //! once). cam0 images without a partner are kept as frames with a missing image (their pose comes
 //! from cam0 alone); images of the other cameras without a cam0 partner are dropped. Both are
@@ -102,7 +105,7 @@ pub fn scan_images(
     let mut lists: Vec<Vec<(i64, PathBuf)>> = Vec::new();
     for c in 0..cams {
         let name = format!("cam{c}");
-        let (folder, mut list) = match &euroc_root {
+        let (folder, list) = match &euroc_root {
             Some(root) => {
                 let folder = root.join(&name);
                 let csv = folder.join("data.csv");
@@ -123,6 +126,10 @@ pub fn scan_images(
                 }
             }
         };
+        let label = folder
+            .as_ref()
+            .map_or_else(|| name.clone(), |f| f.display().to_string());
+        let mut list = to_nanos(list, &label, &mut stats.ignored, &mut stats.warnings);
         list.sort();
         let before = list.len();
         list.dedup_by_key(|e| e.0);
@@ -226,16 +233,123 @@ fn is_image(name: &str) -> bool {
         .is_some_and(|(_, e)| EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()))
 }
 
-/// `<integer ns>` from a file name `<ns>.<ext>`.
-fn stamp_of(name: &str) -> Option<i64> {
-    let (stem, _) = name.rsplit_once('.')?;
-    if stem.is_empty() || !stem.bytes().all(|b| b.is_ascii_digit()) {
-        return None;
-    }
-    stem.parse().ok()
+/// A time stamp as a file name (or a EuRoC CSV line) writes it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+enum Stamp {
+    /// Digits alone: the unit is decided per camera by [`to_nanos`].
+    Integer(i64),
+    /// `<seconds>.<fraction>`: nanoseconds, exactly.
+    Seconds(i64),
 }
 
-fn list_folder(folder: &Path, ignored: &mut usize) -> Result<Vec<(i64, PathBuf)>> {
+/// The time stamp of a file name `<stamp>.<ext>`: integer digits, or decimal seconds.
+fn stamp_of(name: &str) -> Option<Stamp> {
+    let (stem, _) = name.rsplit_once('.')?;
+    parse_stamp(stem)
+}
+
+fn parse_stamp(text: &str) -> Option<Stamp> {
+    let digits = |s: &str| !s.is_empty() && s.bytes().all(|b| b.is_ascii_digit());
+    match text.split_once('.') {
+        None if digits(text) => text.parse().ok().map(Stamp::Integer),
+        Some((int, frac)) if digits(int) && digits(frac) && frac.len() <= 9 => {
+            let sec: i64 = int.parse().ok()?;
+            let nanos: i64 = format!("{frac:0<9}").parse().ok()?;
+            sec.checked_mul(1_000_000_000)?
+                .checked_add(nanos)
+                .map(Stamp::Seconds)
+        }
+        _ => None,
+    }
+}
+
+/// The units integer stamps may be in, with their size in nanoseconds.
+const UNITS: [(&str, i64); 4] = [
+    ("nanoseconds", 1),
+    ("microseconds", 1_000),
+    ("milliseconds", 1_000_000),
+    ("seconds", 1_000_000_000),
+];
+
+/// Unix times from 2000 to 2100, in nanoseconds.
+const UNIX_NS: std::ops::RangeInclusive<i128> = 946_684_800_000_000_000..=4_102_444_800_000_000_000;
+
+/// Converts one camera's stamps to nanoseconds. Integer stamps are nanoseconds (Kalibr's and
+/// EuRoC's convention) unless another unit is the one that makes them both Unix times (2000 to
+/// 2100) and a camera's frame rate (0.05 Hz to 500 Hz): file names in milliseconds or
+/// microseconds are then read as such, with a warning that says so. Stamps that fit no unit are
+/// kept as nanoseconds with a warning. Stamps that overflow are counted in `ignored`.
+fn to_nanos(
+    list: Vec<(Stamp, PathBuf)>,
+    label: &str,
+    ignored: &mut usize,
+    warnings: &mut Vec<String>,
+) -> Vec<(i64, PathBuf)> {
+    let mut ints: Vec<i64> = list
+        .iter()
+        .filter_map(|(s, _)| match s {
+            Stamp::Integer(v) => Some(*v),
+            Stamp::Seconds(_) => None,
+        })
+        .collect();
+    ints.sort_unstable();
+    ints.dedup();
+    let mut factor = 1i64;
+    if let Some(&median) = ints.get(ints.len() / 2) {
+        let mut gaps: Vec<i64> = ints.windows(2).map(|w| w[1] - w[0]).collect();
+        gaps.sort_unstable();
+        let gap = gaps.get(gaps.len() / 2).copied();
+        let unix = |f: i64| UNIX_NS.contains(&(median as i128 * f as i128));
+        let rate_ok = |f: i64| {
+            gap.is_none_or(|g| {
+                let hz = 1e9 / (g as f64 * f as f64);
+                (0.05..=500.0).contains(&hz)
+            })
+        };
+        let chosen = UNITS
+            .iter()
+            .find(|(_, f)| unix(*f) && rate_ok(*f))
+            .or_else(|| UNITS.iter().find(|(_, f)| rate_ok(*f)));
+        match chosen {
+            Some((name, f)) => {
+                factor = *f;
+                if *f != 1 {
+                    let why = if unix(*f) {
+                        "as nanoseconds they would not be Unix times, as"
+                    } else {
+                        "as nanoseconds the frame rate would not be a camera's, as"
+                    };
+                    warnings.push(format!(
+                        "{label}: file names read as {name} ({why} {name} they are{})",
+                        gap.map_or(String::new(), |g| format!(
+                            " with {:.3} Hz frames",
+                            1e9 / (g as f64 * *f as f64)
+                        ))
+                    ));
+                }
+            }
+            None => warnings.push(format!(
+                "{label}: time stamps read as nanoseconds, but their spacing ({} units) is no \
+                 camera's frame rate in any unit: check the file names",
+                gap.unwrap_or(0)
+            )),
+        }
+    }
+    list.into_iter()
+        .filter_map(|(s, p)| {
+            let ns = match s {
+                Stamp::Integer(v) => v.checked_mul(factor),
+                Stamp::Seconds(ns) => Some(ns),
+            };
+            if ns.is_none() {
+                *ignored += 1;
+            }
+            ns.map(|t| (t, p))
+        })
+        .collect()
+}
+
+fn list_folder(folder: &Path, ignored: &mut usize) -> Result<Vec<(Stamp, PathBuf)>> {
     let rd = std::fs::read_dir(folder).map_err(|e| Error::io(folder, e))?;
     let mut out = Vec::new();
     for entry in rd {
@@ -254,7 +368,7 @@ fn list_folder(folder: &Path, ignored: &mut usize) -> Result<Vec<(i64, PathBuf)>
 }
 
 /// EuRoC's `data.csv`: `#timestamp [ns],filename` header, then `t_ns,name` lines.
-fn read_euroc_csv(csv: &Path, data: &Path, ignored: &mut usize) -> Result<Vec<(i64, PathBuf)>> {
+fn read_euroc_csv(csv: &Path, data: &Path, ignored: &mut usize) -> Result<Vec<(Stamp, PathBuf)>> {
     let text = crate::files::read_text(csv)?;
     let mut out = Vec::new();
     for line in text.lines() {
@@ -267,8 +381,8 @@ fn read_euroc_csv(csv: &Path, data: &Path, ignored: &mut usize) -> Result<Vec<(i
             *ignored += 1;
             continue;
         };
-        match t.parse::<i64>() {
-            Ok(t) if !name.is_empty() => out.push((t, data.join(name))),
+        match parse_stamp(t) {
+            Some(t) if !name.is_empty() => out.push((t, data.join(name))),
             _ => *ignored += 1,
         }
     }
