@@ -1,5 +1,6 @@
 //! Input that must not be taken on trust: DVL covariances that cannot weigh a sample, velocities
-//! out of any physical range, byte-order marks, and a closed standard output.
+//! out of any physical range, byte-order marks, a closed standard output, image names in other
+//! units, JPEGs cut short, and messages that must name the real cause.
 
 use dvlcal::calib::{CalibOptions, calibrate, usable_covariance};
 use dvlcal::io::dvl::{DvlReadOptions, read_dvl_log};
@@ -498,5 +499,54 @@ fn a_jpeg_cut_short_is_refused_not_half_decoded() {
         std::fs::write(&cut, &jpeg[..(jpeg.len() as f64 * frac) as usize]).unwrap();
         let e = load_gray(&cut).unwrap_err().to_string();
         assert!(e.contains("cut-") && e.contains("cut short"), "{e}");
+    }
+}
+
+#[test]
+fn messages_name_the_real_cause() {
+    // A DVL that reports zero velocity throughout (out of the water, no bottom lock) is the
+    // DVL's problem, not the camera's.
+    let ds = simulate(&SimConfig {
+        seed: 5,
+        duration_s: 40.0,
+        ..SimConfig::default()
+    })
+    .expect("simulation");
+    let mut dvl = ds.dvl.clone();
+    for s in &mut dvl {
+        s.v = nalgebra::Vector3::zeros();
+    }
+    let e = calibrate(&ds.poses, &dvl, &CalibOptions::default())
+        .expect_err("zero DVL velocities calibrated")
+        .to_string();
+    assert!(e.contains("DVL") && !e.contains("camera velocity"), "{e}");
+    // A DVL velocity along one axis only: also the DVL's.
+    for s in &mut dvl {
+        s.v = nalgebra::Vector3::new(0.2, 0.0, 0.0);
+    }
+    let e = calibrate(&ds.poses, &dvl, &CalibOptions::default())
+        .expect_err("constant DVL velocities calibrated")
+        .to_string();
+    assert!(e.contains("DVL"), "{e}");
+
+    // NaN intrinsics are named as not numbers, whichever way YAML spells them.
+    use dvlcal::vision::camera::Camchain;
+    let tmp = tmp_common::TmpDir::new("hostile-nan");
+    for nan in [".nan", ".NaN", "nan", "NaN", ".inf"] {
+        let p = tmp.0.join("chain.yaml");
+        std::fs::write(
+            &p,
+            format!(
+                "cam0:\n  camera_model: pinhole\n  intrinsics: [{nan}, 460, 376, 240]\n  \
+                 distortion_model: radtan\n  distortion_coeffs: [0, 0, 0, 0]\n  resolution: [752, 480]\n"
+            ),
+        )
+        .unwrap();
+        let e = Camchain::load(&p).unwrap_err().to_string();
+        assert!(
+            e.contains("chain.yaml") && !e.contains("must be [fu, fv, pu, pv]"),
+            "{nan}: {e}"
+        );
+        assert!(e.contains("finite") || e.contains("number"), "{nan}: {e}");
     }
 }

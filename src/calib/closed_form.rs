@@ -108,10 +108,18 @@ pub fn closed_form(rows: &[ClosedFormRow], bias_corrected: bool) -> Result<Close
     let kr: Matrix3<f64> = z.fixed_view::<3, 3>(0, 0).transpose();
     let det = kr.determinant();
     if !(det.is_finite() && det.abs() > 1e-12) {
-        return Err(Error::Input(
+        // Whose velocities are degenerate: the DVL's (a constant or replayed value), or the
+        // camera's (motion along a line or in a plane).
+        let dvl: Matrix3<f64> = rows.iter().map(|r| r.v_dvl * r.v_dvl.transpose()).sum();
+        let ev = dvl.symmetric_eigenvalues();
+        let msg = if !(ev.min() > 1e-10 * ev.max()) {
+            "the DVL velocities span fewer than three directions (they are constant, or lie \
+             along one line or in one plane, exactly): the DVL rotation is undetermined; check \
+             the DVL log"
+        } else {
             "the camera velocity does not excite all three axes: the DVL rotation is undetermined"
-                .into(),
-        ));
+        };
+        return Err(Error::Input(msg.into()));
     }
     let scale = det.abs().cbrt();
     let r = project_to_rotation(&(kr / scale))?;

@@ -515,6 +515,16 @@ pub fn initialise(
     opts: &CalibOptions,
     warnings: &mut Vec<String>,
 ) -> Result<(CalibrationParams, Option<InitReport>)> {
+    // A DVL that measured nothing explains every later failure: say so first.
+    let still = obs.iter().filter(|o| o.v.norm() < 1e-4).count();
+    if !obs.is_empty() && still == obs.len() {
+        return Err(Error::Input(format!(
+            "the DVL reports zero velocity in all {} samples used: it measured no motion (out \
+             of the water, no bottom lock, or a log of a vehicle at rest); there is nothing to \
+             calibrate against",
+            obs.len()
+        )));
+    }
     Ok(match &opts.method {
         Method::Uic => {
             let off = estimate_offset(traj, obs, &opts.offset)?;

@@ -290,7 +290,7 @@ impl Camchain {
                 .map(|i| i + 1)
                 .unwrap_or(0);
             let e: CamEntry = serde_yaml::from_value(v.clone())
-                .map_err(|err| Error::parse(path, line, format!("{key}: {err}")))?;
+                .map_err(|err| Error::parse(path, line, format!("{key}: {}", explain(&err))))?;
             let bad = |msg: String| Error::parse(path, line, format!("{key}: {msg}"));
             if e.camera_model != "pinhole" {
                 return Err(bad(format!(
@@ -476,5 +476,20 @@ impl Camchain {
             }
         }
         s
+    }
+}
+
+/// A YAML type error in words a user can act on: a word where a number belongs (`nan`, `inf`,
+/// `1,5`) is named as not a number.
+fn explain(err: &serde_yaml::Error) -> String {
+    let msg = err.to_string();
+    match msg
+        .strip_prefix("invalid type: string \"")
+        .and_then(|rest| rest.split_once("\", expected f64"))
+    {
+        Some((word, _)) => {
+            format!("\"{word}\" is not a number (camera parameters are finite decimal numbers)")
+        }
+        None => msg,
     }
 }
