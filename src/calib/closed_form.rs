@@ -112,7 +112,8 @@ pub fn closed_form(rows: &[ClosedFormRow], bias_corrected: bool) -> Result<Close
         // camera's (motion along a line or in a plane).
         let dvl: Matrix3<f64> = rows.iter().map(|r| r.v_dvl * r.v_dvl.transpose()).sum();
         let ev = dvl.symmetric_eigenvalues();
-        let msg = if !(ev.min() > 1e-10 * ev.max()) {
+        let dvl_degenerate = ev.min() <= 1e-10 * ev.max() || !ev.min().is_finite();
+        let msg = if dvl_degenerate {
             "the DVL velocities span fewer than three directions (they are constant, or lie \
              along one line or in one plane, exactly): the DVL rotation is undetermined; check \
              the DVL log"
