@@ -550,3 +550,41 @@ fn messages_name_the_real_cause() {
         assert!(e.contains("finite") || e.contains("number"), "{nan}: {e}");
     }
 }
+
+#[test]
+fn distortion_that_folds_the_image_is_refused() {
+    use dvlcal::vision::camera::Camchain;
+    let tmp = tmp_common::TmpDir::new("hostile-fold");
+    let chain = |model: &str, k: [f64; 4]| {
+        let p = tmp.0.join("chain.yaml");
+        std::fs::write(
+            &p,
+            format!(
+                "cam0:\n  camera_model: pinhole\n  intrinsics: [458.654, 457.296, 367.215, 248.375]\n  \
+                 distortion_model: {model}\n  distortion_coeffs: {k:?}\n  resolution: [752, 480]\n"
+            ),
+        )
+        .unwrap();
+        Camchain::load(&p).map(|_| ()).map_err(|e| e.to_string())
+    };
+    // EuRoC's cam0 (radtan) and TUM-VI's cam0 (equidistant, scaled to this image) are real lenses.
+    chain(
+        "radtan",
+        [-0.28340811, 0.07395907, 0.00019359, 1.76187114e-05],
+    )
+    .unwrap();
+    chain("equidistant", [0.0034823, 0.0007150, -0.0020532, 0.0002029]).unwrap();
+    // Barrel distortion strong enough to turn back inside the image; a k1 in the wrong slot of
+    // an equidistant model; both fold the image over.
+    for (model, k) in [
+        ("radtan", [-1.5, 0.0, 0.0, 0.0]),
+        ("radtan", [-0.9, 0.1, 0.0, 0.0]),
+        ("equidistant", [-0.5, 0.0, 0.0, 0.0]),
+    ] {
+        let e = chain(model, k).expect_err("a folding lens accepted");
+        assert!(
+            e.contains("chain.yaml") && e.contains("fold"),
+            "{model} {k:?}: {e}"
+        );
+    }
+}

@@ -360,6 +360,25 @@ impl Camchain {
                     )));
                 }
             };
+            let corner_radius = {
+                let (fu, fv, pu, pv) = (
+                    e.intrinsics[0],
+                    e.intrinsics[1],
+                    e.intrinsics[2],
+                    e.intrinsics[3],
+                );
+                let du = pu.max(w - pu) / fu;
+                let dv = pv.max(h - pv) / fv;
+                du.hypot(dv)
+            };
+            if let Some(fold) = fold_radius(&distortion, corner_radius) {
+                return Err(bad(format!(
+                    "the distortion coefficients {c:?} fold the image over itself {:.0} px from \
+                     the principal point, inside the image: coefficients of another model or \
+                     camera, or in another order",
+                    fold * e.intrinsics[0]
+                )));
+            }
             let t_prev = if n == 0 {
                 Se3::identity()
             } else {
@@ -492,4 +511,51 @@ fn explain(err: &serde_yaml::Error) -> String {
         }
         None => msg,
     }
+}
+
+/// The distorted radius (normalised image coordinates) at which the radial distortion stops
+/// growing with the angle off axis, when that happens within `corner` (the farthest image
+/// corner from the principal point): there the image would fold over itself, which no real lens
+/// does. `None` for a lens that stays monotone over the whole image.
+fn fold_radius(d: &Distortion, corner: f64) -> Option<f64> {
+    // (distorted radius, its derivative) at undistorted radius r (radtan) or angle theta
+    // (equidistant); tangential terms are small and left out.
+    let radial = |x: f64| -> (f64, f64) {
+        match *d {
+            Distortion::None => (x, 1.0),
+            Distortion::RadTan { k1, k2, .. } => {
+                let x2 = x * x;
+                (
+                    x * (1.0 + k1 * x2 + k2 * x2 * x2),
+                    1.0 + 3.0 * k1 * x2 + 5.0 * k2 * x2 * x2,
+                )
+            }
+            Distortion::Equidistant { k1, k2, k3, k4 } => {
+                let t2 = x * x;
+                let poly = 1.0 + t2 * (k1 + t2 * (k2 + t2 * (k3 + t2 * k4)));
+                let dpoly =
+                    1.0 + t2 * (3.0 * k1 + t2 * (5.0 * k2 + t2 * (7.0 * k3 + t2 * 9.0 * k4)));
+                (x * poly, dpoly)
+            }
+        }
+    };
+    // Walk outwards until the distorted radius passes the corner: radtan up to a radius far
+    // beyond any lens, equidistant up to 90 degrees off axis.
+    let limit = match d {
+        Distortion::Equidistant { .. } => std::f64::consts::FRAC_PI_2,
+        _ => 20.0 * corner.max(1e-3),
+    };
+    let steps = 4000;
+    for k in 1..=steps {
+        let x = limit * k as f64 / steps as f64;
+        let (rd, slope) = radial(x);
+        if slope <= 0.0 || slope.is_nan() || !rd.is_finite() {
+            let (rd_prev, _) = radial(limit * (k - 1) as f64 / steps as f64);
+            return (rd_prev <= corner).then_some(rd_prev.max(0.0));
+        }
+        if rd > corner {
+            return None;
+        }
+    }
+    None
 }
