@@ -501,3 +501,56 @@ fn detection_and_unreadable_inputs() {
     let e = read_dvl_log(&dir.join("missing.jsonl"), &lenient()).unwrap_err();
     assert!(e.to_string().contains("missing.jsonl"));
 }
+
+#[test]
+fn dropouts_of_the_real_logs_are_listed_as_gaps() {
+    // Computed here from the JSON lines alone: valid reports' time_of_validity, repeats
+    // dropped, a gap being four median intervals and at least 0.5 s.
+    let mut total = 0;
+    for (name, ..) in REAL {
+        let text = std::fs::read_to_string(real(name, "jsonl")).unwrap();
+        let mut valid: Vec<(i64, usize)> = Vec::new();
+        for (i, l) in text.lines().enumerate() {
+            let v: serde_json::Value = serde_json::from_str(l).unwrap();
+            if v["type"] == "velocity" && v["velocity_valid"] == true {
+                valid.push((v["time_of_validity"].as_i64().unwrap(), i + 1));
+            }
+        }
+        valid.sort();
+        valid.dedup_by_key(|x| x.0);
+        let mut dt: Vec<f64> = valid
+            .windows(2)
+            .map(|w| (w[1].0 - w[0].0) as f64 * 1e-6)
+            .collect();
+        dt.sort_by(f64::total_cmp);
+        let threshold = (4.0 * dt[dt.len() / 2]).max(0.5);
+        let expected: Vec<(f64, usize)> = valid
+            .windows(2)
+            .map(|w| ((w[1].0 - w[0].0) as f64 * 1e-6, w[0].1))
+            .filter(|(g, _)| *g >= threshold)
+            .collect();
+        for ext in ["jsonl", "bag"] {
+            let log = read(&real(name, ext));
+            assert!(
+                (log.gap_threshold_s() - threshold).abs() < 1e-9,
+                "{name}.{ext}"
+            );
+            let gaps = log.gaps(log.gap_threshold_s());
+            assert_eq!(gaps.len(), expected.len(), "{name}.{ext}");
+            for (g, (len, line)) in gaps.iter().zip(&expected) {
+                assert!((g.end_s - g.start_s - len).abs() < 1e-6, "{name}.{ext}");
+                assert_eq!(g.lines.0, *line, "{name}.{ext}");
+            }
+            let j = log.summary_json();
+            assert_eq!(j["gaps"].as_array().unwrap().len(), expected.len());
+            assert!(
+                log.summary_text()
+                    .contains(&format!("gaps              {}", expected.len()))
+                    || expected.is_empty()
+            );
+        }
+        total += expected.len();
+    }
+    // The real logs do drop out (dvl.bag: 128 invalid reports of 1423).
+    assert!(total >= 10, "{total}");
+}

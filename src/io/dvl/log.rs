@@ -254,6 +254,48 @@ pub struct DvlLog {
     pub stats: DvlLogStats,
 }
 
+/// The shortest stretch without a valid report that counts as a gap, whatever the rate.
+pub const GAP_MIN_S: f64 = 0.5;
+/// A gap is also at least this many typical report intervals (three or more reports missing).
+pub const GAP_MIN_INTERVALS: f64 = 4.0;
+
+/// A stretch of a DVL log without a valid velocity report.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DvlGap {
+    /// Time of the last valid report before the gap, seconds relative to the log's epoch.
+    pub start_s: f64,
+    /// Time of the first valid report after it.
+    pub end_s: f64,
+    /// Source lines (bag: message numbers) of those two reports.
+    pub lines: (usize, usize),
+}
+
+impl DvlLog {
+    /// The shortest stretch without a valid report that counts as a gap in this log:
+    /// [`GAP_MIN_INTERVALS`] median report intervals, and at least [`GAP_MIN_S`].
+    pub fn gap_threshold_s(&self) -> f64 {
+        let mut dt: Vec<f64> = self.samples.windows(2).map(|s| s[1].t - s[0].t).collect();
+        dt.sort_by(f64::total_cmp);
+        let median = dt.get(dt.len() / 2).copied().unwrap_or(0.0);
+        (GAP_MIN_INTERVALS * median).max(GAP_MIN_S)
+    }
+
+    /// The stretches of at least `min_s` seconds between consecutive valid reports, in time
+    /// order (invalid reports inside them do not end them).
+    pub fn gaps(&self, min_s: f64) -> Vec<DvlGap> {
+        self.samples
+            .windows(2)
+            .zip(self.lines.windows(2))
+            .filter(|(s, _)| s[1].t - s[0].t >= min_s)
+            .map(|(s, l)| DvlGap {
+                start_s: s[0].t,
+                end_s: s[1].t,
+                lines: (l[0], l[1]),
+            })
+            .collect()
+    }
+}
+
 /// The non-blank lines of a byte buffer with their 1-based numbers, `\r` line ends removed.
 pub fn text_lines(bytes: &[u8]) -> impl Iterator<Item = (usize, &[u8])> {
     bytes

@@ -35,8 +35,8 @@ use crate::types::DvlSample;
 pub use detect::detect_format;
 pub use json::parse_line as parse_json_line;
 pub use log::{
-    DvlFormat, DvlLog, DvlLogStats, DvlReadOptions, DvlTimeSource, MAX_LISTED, RejectedLine,
-    TimeProblem, text_lines,
+    DvlFormat, DvlGap, DvlLog, DvlLogStats, DvlReadOptions, DvlTimeSource, GAP_MIN_INTERVALS,
+    GAP_MIN_S, MAX_LISTED, RejectedLine, TimeProblem, text_lines,
 };
 pub use record::{RecordOptions, RecordStats, add_host_time, record_tcp};
 pub use report::{Parsed, Reject, VelocityReport};

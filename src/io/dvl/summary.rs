@@ -77,6 +77,12 @@ fn summary_json(log: &DvlLog) -> serde_json::Value {
             "speed": moments(log.samples.iter().map(|x| x.v.norm())),
         },
         "with_covariance": log.samples.iter().filter(|x| x.cov.is_some()).count(),
+        "gap_threshold_s": log.gap_threshold_s(),
+        "gaps": log.gaps(log.gap_threshold_s()).iter().map(|g| json!({
+            "start_s": g.start_s, "end_s": g.end_s, "length_s": g.end_s - g.start_s,
+            "start_abs": log.epoch.format_abs(g.start_s, 6),
+            "at": format!("{file}:{}", g.lines.0), "lines": [g.lines.0, g.lines.1],
+        })).collect::<Vec<_>>(),
     })
 }
 
@@ -122,6 +128,29 @@ fn summary_text(log: &DvlLog, v: &serde_json::Value) -> String {
     }
     if let Some(r) = s.rate_hz(log.samples.len()) {
         let _ = writeln!(o, "  mean rate         {r:.3} Hz");
+    }
+    let threshold = log.gap_threshold_s();
+    let gaps = log.gaps(threshold);
+    if !gaps.is_empty() {
+        let total: f64 = gaps.iter().map(|g| g.end_s - g.start_s).sum();
+        let _ = writeln!(
+            o,
+            "  gaps              {} without a valid report for {threshold:.2} s or more ({total:.1} s in all)",
+            gaps.len()
+        );
+        for g in gaps.iter().take(10) {
+            let _ = writeln!(
+                o,
+                "    {file}:{}..{}: {:.3} s from {}",
+                g.lines.0,
+                g.lines.1,
+                g.end_s - g.start_s,
+                log.epoch.format_abs(g.start_s, 3)
+            );
+        }
+        if gaps.len() > 10 {
+            let _ = writeln!(o, "    ... {} more", gaps.len() - 10);
+        }
     }
     for k in ["vx", "vy", "vz", "speed"] {
         let m = &v["velocity"][k];
