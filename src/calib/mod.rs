@@ -275,6 +275,9 @@ pub struct Counts {
     /// Valid DVL reports left out because their camera time falls outside the trajectory span
     /// (with a margin for offset changes).
     pub dvl_outside_span: usize,
+    /// Valid DVL reports left out because their camera time falls in a gap between poses
+    /// (see [`pose_gap_threshold_s`]).
+    pub dvl_in_pose_gaps: usize,
     /// Calm (slowly rotating) samples the UIC offset search found; 0 for the other methods.
     pub calm: usize,
 }
@@ -371,9 +374,36 @@ fn observations(dvl: &[DvlSample], opts: &CalibOptions) -> (Vec<DvlObs>, usize) 
 /// Samples usable at offsets within `margin` of `offset`.
 fn usable(traj: &Trajectory, obs: &[DvlObs], offset: f64, margin: f64) -> Vec<usize> {
     let (a, b) = traj.span();
+    let gaps = pose_gaps(traj.times());
     (0..obs.len())
         .filter(|&i| obs[i].t + offset - margin >= a && obs[i].t + offset + margin <= b)
+        .filter(|&i| !in_gap(&gaps, obs[i].t + offset))
         .collect()
+}
+
+/// The shortest interval between consecutive poses that counts as a gap: five median pose
+/// intervals, and at least half a second. Inside a gap the trajectory is the motion prior's
+/// extrapolation, not a measurement, and a DVL sample there would be compared with a guess.
+pub fn pose_gap_threshold_s(times: &[f64]) -> f64 {
+    let mut dt: Vec<f64> = times.windows(2).map(|w| w[1] - w[0]).collect();
+    dt.sort_by(f64::total_cmp);
+    let median = dt.get(dt.len() / 2).copied().unwrap_or(0.0);
+    (5.0 * median).max(0.5)
+}
+
+/// The gaps between consecutive poses (`times` sorted), as `(start, end)`.
+pub fn pose_gaps(times: &[f64]) -> Vec<(f64, f64)> {
+    let threshold = pose_gap_threshold_s(times);
+    times
+        .windows(2)
+        .filter(|w| w[1] - w[0] >= threshold)
+        .map(|w| (w[0], w[1]))
+        .collect()
+}
+
+fn in_gap(gaps: &[(f64, f64)], t: f64) -> bool {
+    let k = gaps.partition_point(|g| g.1 <= t);
+    gaps.get(k).is_some_and(|g| g.0 < t && t < g.1)
 }
 
 /// Calibrates the DVL against the camera poses, in the stages of the module documentation: the
@@ -421,8 +451,23 @@ pub fn calibrate(
     // Samples kept for every offset the refinement may reach.
     let margin = opts.offset.window_s.min(0.5);
     let idx = usable(&traj, &obs, start.time_offset_s, margin);
+    let gaps = pose_gaps(traj.times());
+    counts.dvl_in_pose_gaps = obs
+        .iter()
+        .filter(|o| in_gap(&gaps, o.t + start.time_offset_s))
+        .count();
     counts.dvl_used = idx.len();
-    counts.dvl_outside_span = obs.len() - idx.len();
+    counts.dvl_outside_span = obs.len() - idx.len() - counts.dvl_in_pose_gaps;
+    if counts.dvl_in_pose_gaps > 0 {
+        let total: f64 = gaps.iter().map(|g| g.1 - g.0).sum();
+        warnings.push(format!(
+            "{} DVL reports fall in {} gaps between camera poses ({total:.1} s in all, each at \
+             least {:.2} s): left out, since the trajectory there is a guess",
+            counts.dvl_in_pose_gaps,
+            gaps.len(),
+            pose_gap_threshold_s(traj.times())
+        ));
+    }
     if idx.len() < 10 {
         return Err(Error::NoTimeOverlap(format!(
             "only {} DVL samples fall inside the camera time span at offset {:.3} s",

@@ -125,6 +125,7 @@ pub fn result_file(o: &CalibrationOutcome, log: &DvlLog) -> CalibrationFile {
         o.counts.dvl_covariance_replaced.into(),
     );
     put("dvl_outside_camera_span", o.counts.dvl_outside_span.into());
+    put("dvl_in_pose_gaps", o.counts.dvl_in_pose_gaps.into());
     put(
         "dvl_residual_rms_mps",
         vec![o.residual_rms.x, o.residual_rms.y, o.residual_rms.z].into(),

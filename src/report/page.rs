@@ -1150,6 +1150,12 @@ fn dvl_log(s: &mut String, st: Option<&DvlLogStats>, o: &CalibrationOutcome) {
         "outside the camera time span".into(),
         c.dvl_outside_span.to_string(),
     ));
+    if c.dvl_in_pose_gaps > 0 {
+        rows.push((
+            "in gaps between camera poses".into(),
+            c.dvl_in_pose_gaps.to_string(),
+        ));
+    }
     if o.init.is_some() {
         rows.push(("calm samples (clock offset)".into(), c.calm.to_string()));
     }
