@@ -21,9 +21,15 @@ pub struct RawTime {
     pub frac: f64,
 }
 
+/// `i64::MIN` as f64 (exactly -2^63), the smallest whole second a time stamp may have.
+const I64_MIN_F64: f64 = i64::MIN as f64;
+/// 2^63, just past the largest whole second a time stamp may have.
+const I64_END_F64: f64 = 9_223_372_036_854_775_808.0;
+
 impl RawTime {
     /// Parses a decimal time stamp such as `1718000000.123456789` or `12.5` or `-3.25`, keeping the
-    /// whole seconds exact. Returns `None` for anything else (including NaN and infinities).
+    /// whole seconds exact. Returns `None` for anything else (including NaN, infinities and whole
+    /// seconds outside the i64 range).
     pub fn parse(s: &str) -> Option<RawTime> {
         let s = s.trim();
         if s.is_empty() {
@@ -33,14 +39,13 @@ impl RawTime {
         // that would be lost.
         if s.contains(['e', 'E']) {
             let v: f64 = s.parse().ok()?;
-            if !v.is_finite() {
+            // Whole seconds beyond i64 (and NaN, infinities) are not a time stamp: a saturating
+            // cast would silently move them to the end of the range.
+            if !(I64_MIN_F64..I64_END_F64).contains(&v) {
                 return None;
             }
             let sec = v.floor();
-            return Some(RawTime {
-                sec: sec as i64,
-                frac: v - sec,
-            });
+            return RawTime::normalized(sec as i64, v - sec);
         }
         let (neg, body) = match s.strip_prefix('-') {
             Some(rest) => (true, rest),
@@ -70,10 +75,7 @@ impl RawTime {
         };
         if neg {
             if frac > 0.0 {
-                Some(RawTime {
-                    sec: -whole - 1,
-                    frac: 1.0 - frac,
-                })
+                RawTime::normalized(-whole - 1, 1.0 - frac)
             } else {
                 Some(RawTime {
                     sec: -whole,
@@ -81,7 +83,21 @@ impl RawTime {
                 })
             }
         } else {
-            Some(RawTime { sec: whole, frac })
+            RawTime::normalized(whole, frac)
+        }
+    }
+
+    /// `sec + frac` with `frac` in [0, 1]: a fraction rounded up to 1 (`0.99999999999999999`,
+    /// or `-1e-20` in scientific notation) carries into the seconds. `None` when that leaves the
+    /// i64 range.
+    fn normalized(sec: i64, frac: f64) -> Option<RawTime> {
+        if frac >= 1.0 {
+            Some(RawTime {
+                sec: sec.checked_add(1)?,
+                frac: 0.0,
+            })
+        } else {
+            Some(RawTime { sec, frac })
         }
     }
 
@@ -102,20 +118,22 @@ impl Epoch {
 
     /// Seconds from this epoch to `t`.
     pub fn rel(&self, t: RawTime) -> f64 {
-        (t.sec - self.sec) as f64 + t.frac
+        // In i128: a time stamp far from the epoch (both anywhere in i64) cannot overflow.
+        (i128::from(t.sec) - i128::from(self.sec)) as f64 + t.frac
     }
 
     /// Formats the relative time `t` as an absolute decimal time stamp with `decimals` digits after
     /// the point, without passing through a large f64.
     pub fn format_abs(&self, t: f64, decimals: usize) -> String {
         let whole = t.floor();
-        let mut sec = self.sec + whole as i64;
+        // Saturating: a relative time beyond the i64 range of seconds prints as its end.
+        let mut sec = self.sec.saturating_add(whole as i64);
         let frac = t - whole;
         let scale = 10f64.powi(decimals as i32);
         let mut frac_digits = (frac * scale).round() as i64;
         if frac_digits as f64 >= scale {
             frac_digits -= scale as i64;
-            sec += 1;
+            sec = sec.saturating_add(1);
         }
         if decimals == 0 {
             return format!("{sec}");
@@ -161,5 +179,40 @@ mod tests {
         let e = Epoch { sec: 1_550_000_000 };
         assert!((e.rel(t) - 0.123456).abs() < 1e-12);
         assert_eq!(e.format_abs(e.rel(t), 6), "1550000000.123456");
+    }
+
+    #[test]
+    fn extreme_time_stamps_neither_saturate_nor_overflow() {
+        // Whole seconds beyond i64 are refused, not clamped to its ends.
+        for bad in [
+            "-3.2e95",
+            "1e19",
+            "9223372036854775808",
+            "-9223372036854775809",
+        ] {
+            assert!(RawTime::parse(bad).is_none(), "{bad} accepted");
+        }
+        // The ends of the range are times, and their distance from any epoch is a number.
+        let lo = RawTime::parse("-9223372036854775807.5").unwrap();
+        let hi = RawTime::parse("9223372036854775807.5").unwrap();
+        let e = Epoch { sec: 1_700_000_000 };
+        assert!(e.rel(lo) < -9.2e18 && e.rel(hi) > 9.2e18);
+        assert!(Epoch { sec: i64::MAX }.rel(lo) < -1.8e19);
+        assert!(
+            Epoch { sec: i64::MIN }
+                .format_abs(-1e30, 3)
+                .starts_with('-')
+        );
+    }
+
+    #[test]
+    fn a_fraction_rounded_to_one_carries() {
+        // Twenty nines round to 1.0 as an f64; a tiny negative number in scientific notation
+        // leaves 1 - 1e-20 = 1.0 as its fraction. Both are the next whole second.
+        let t = RawTime::parse("4.99999999999999999999").unwrap();
+        assert_eq!((t.sec, t.frac), (5, 0.0));
+        let t = RawTime::parse("-1e-20").unwrap();
+        assert_eq!((t.sec, t.frac), (0, 0.0));
+        assert!(RawTime::parse("9223372036854775807.99999999999999999999").is_none());
     }
 }

@@ -335,7 +335,13 @@ pub fn write_calib_yaml(path: &Path, c: &CalibrationFile) -> Result<()> {
 /// file, and the line where the YAML parser reports one.
 pub fn read_calib_yaml(path: &Path) -> Result<CalibrationFile> {
     let text = crate::files::read_text(path)?;
-    let c: CalibrationFile = serde_yaml::from_str(&text).map_err(|e| match e.location() {
+    parse_calib_yaml(&text, path)
+}
+
+/// Parses the text of a calibration file as [`read_calib_yaml`] does; `path` names the file in
+/// messages.
+pub fn parse_calib_yaml(text: &str, path: &Path) -> Result<CalibrationFile> {
+    let c: CalibrationFile = serde_yaml::from_str(text).map_err(|e| match e.location() {
         Some(loc) => Error::parse(path, loc.line(), format!("column {}: {e}", loc.column())),
         None => Error::Input(format!("{}: {e}", path.display())),
     })?;
@@ -376,7 +382,13 @@ pub fn rotation_from_rpy_deg(rpy: &[f64; 3]) -> Matrix3<f64> {
 /// or lever arm are given they must agree. A result file with `status: failed` is refused.
 pub fn read_calibration_guess(path: &Path) -> Result<CalibrationParams> {
     let text = crate::files::read_text(path)?;
-    let g: GuessFile = serde_yaml::from_str(&text).map_err(|e| match e.location() {
+    parse_calibration_guess(&text, path)
+}
+
+/// Parses the text of a calibration guess as [`read_calibration_guess`] does; `path` names the
+/// file in messages.
+pub fn parse_calibration_guess(text: &str, path: &Path) -> Result<CalibrationParams> {
+    let g: GuessFile = serde_yaml::from_str(text).map_err(|e| match e.location() {
         Some(loc) => Error::parse(path, loc.line(), format!("column {}: {e}", loc.column())),
         None => Error::Input(format!("{}: {e}", path.display())),
     })?;

@@ -130,7 +130,7 @@ pub(crate) fn parse_time(path: &Path, line: usize, s: &str) -> Result<RawTime> {
         Error::parse(
             path,
             line,
-            format!("time stamp '{s}' is not a finite decimal number"),
+            format!("time stamp '{s}' is not a number of seconds (finite, within +-9.2e18)"),
         )
     })
 }

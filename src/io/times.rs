@@ -11,8 +11,14 @@ use crate::time::Epoch;
 /// sorted).
 pub fn read_times(path: &Path, epoch: Epoch) -> Result<Vec<(usize, f64)>> {
     let text = crate::files::read_text(path)?;
+    parse_times(&text, path, epoch)
+}
+
+/// Parses the text of a time stamp list as [`read_times`] does; `path` names the file in
+/// messages.
+pub fn parse_times(text: &str, path: &Path, epoch: Epoch) -> Result<Vec<(usize, f64)>> {
     let mut out = Vec::new();
-    for (line, content) in content_lines(&text) {
+    for (line, content) in content_lines(text) {
         let fields: Vec<&str> = content
             .split(|c: char| c.is_whitespace() || c == ',')
             .filter(|s| !s.is_empty())

@@ -33,12 +33,17 @@ const FIELD_NAMES: [&str; 8] = ["timestamp", "tx", "ty", "tz", "qx", "qy", "qz",
 /// second of the first time stamp. `cov` of every pose is `None`.
 pub fn read_tum(path: &Path, epoch: Option<Epoch>) -> Result<TumPoses> {
     let text = crate::files::read_text(path)?;
+    parse_tum(&text, path, epoch)
+}
+
+/// Parses the text of a TUM file as [`read_tum`] does; `path` names the file in messages.
+pub fn parse_tum(text: &str, path: &Path, epoch: Option<Epoch>) -> Result<TumPoses> {
     let mut epoch = epoch;
     let mut poses = Vec::new();
     let mut lines = Vec::new();
     let mut prev: Option<(RawTime, usize)> = None;
 
-    for (line, content) in content_lines(&text) {
+    for (line, content) in content_lines(text) {
         let fields: Vec<&str> = content
             .split(|c: char| c.is_whitespace() || c == ',')
             .filter(|s| !s.is_empty())
@@ -96,7 +101,7 @@ pub fn read_tum(path: &Path, epoch: Option<Epoch>) -> Result<TumPoses> {
             poses,
             lines,
         }),
-        _ => Err(Error::parse(path, last_line(&text), "no poses in file")),
+        _ => Err(Error::parse(path, last_line(text), "no poses in file")),
     }
 }
 

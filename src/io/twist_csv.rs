@@ -70,6 +70,12 @@ pub fn write_twist_csv(path: &Path, epoch: Epoch, rows: &[TwistRow]) -> Result<(
 /// blank lines are skipped.
 pub fn read_twist_csv(path: &Path, epoch: Epoch) -> Result<Vec<TwistRow>> {
     let text = crate::files::read_text(path)?;
+    parse_twist_csv(&text, path, epoch)
+}
+
+/// Parses the text of a twist CSV file as [`read_twist_csv`] does; `path` names the file in
+/// messages.
+pub fn parse_twist_csv(text: &str, path: &Path, epoch: Epoch) -> Result<Vec<TwistRow>> {
     let names: Vec<&str> = TWIST_CSV_HEADER.split(',').collect();
     let mut rows = Vec::new();
     let mut seen_header = false;
@@ -117,7 +123,7 @@ pub fn read_twist_csv(path: &Path, epoch: Epoch) -> Result<Vec<TwistRow>> {
     if !seen_header {
         return Err(Error::parse(
             path,
-            super::last_line(&text),
+            super::last_line(text),
             "empty file: no header",
         ));
     }

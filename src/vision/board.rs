@@ -231,6 +231,32 @@ fn check_grid(path: &Path, rows: u32, cols: u32) -> Result<()> {
     Ok(())
 }
 
+/// A grid's ids `first_id .. first_id + rows * cols` all exist in the family, checked before
+/// the tags are made (so the ids cannot overflow `u32` either).
+fn check_grid_ids(
+    path: &Path,
+    family: TagFamily,
+    rows: u32,
+    cols: u32,
+    first_id: u32,
+) -> Result<()> {
+    let n = family.code_count() as u64;
+    let end = u64::from(first_id) + u64::from(rows) * u64::from(cols);
+    if end > n {
+        // The first id outside the family, as the check of listed tags names it.
+        let id = u64::from(first_id).max(n);
+        return Err(Error::parse(
+            path,
+            0,
+            format!(
+                "tag id {id} does not exist in {} ({n} codes)",
+                family.name()
+            ),
+        ));
+    }
+    Ok(())
+}
+
 impl Board {
     /// Reads a board YAML: dvlcal's grid or list form, or a Kalibr aprilgrid target.
     pub fn load(path: &Path) -> Result<Board> {
@@ -284,6 +310,7 @@ impl Board {
                 ));
             }
             check_grid(path, k.tag_rows, k.tag_cols)?;
+            check_grid_ids(path, TagFamily::Tag36h11, k.tag_rows, k.tag_cols, 0)?;
             Board::grid(
                 TagFamily::Tag36h11,
                 k.tag_rows,
@@ -299,6 +326,7 @@ impl Board {
                 return Err(Error::parse(path, 0, "the board lists no tags"));
             }
             let mut tags = Vec::with_capacity(l.tags.len());
+            let mut ids = std::collections::HashSet::with_capacity(l.tags.len());
             for t in &l.tags {
                 check_positive(path, &format!("size of tag {}", t.id), t.size)?;
                 let pose = match (&t.position, &t.quaternion_xyzw, &t.t_board_tag) {
@@ -341,7 +369,7 @@ impl Board {
                         ));
                     }
                 };
-                if tags.iter().any(|x: &BoardTag| x.id == t.id) {
+                if !ids.insert(t.id) {
                     return Err(Error::parse(
                         path,
                         0,
@@ -367,6 +395,7 @@ impl Board {
                 return Err(Error::parse(path, 0, "spacing must be >= 0"));
             }
             check_grid(path, g.rows, g.cols)?;
+            check_grid_ids(path, family, g.rows, g.cols, g.first_id)?;
             Board::grid(family, g.rows, g.cols, g.tag_size, g.spacing, g.first_id)
         };
         let n = board.family.code_count();

@@ -16,7 +16,7 @@
 
 use nalgebra::{Matrix2, Matrix2x3, Matrix4, Vector2, Vector3};
 use serde::Deserialize;
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
 
 use crate::lie::Se3;
@@ -278,17 +278,23 @@ impl Camchain {
             t_cn_c0: vec![],
             topics: vec![],
         };
+        // The line of each `camN:` key (its first line starting so), found in one pass: a
+        // search per camera would take time quadratic in the file.
+        let mut key_lines: HashMap<&str, usize> = HashMap::new();
+        for (i, l) in text.lines().enumerate() {
+            if let Some((key, _)) = l.split_once(':')
+                && key.starts_with("cam")
+            {
+                key_lines.entry(key).or_insert(i + 1);
+            }
+        }
         let mut n = 0usize;
         loop {
             let key = format!("cam{n}");
             let Some(v) = entries.get(&key) else { break };
             // Re-serialise the entry to check it with field-level messages; the line of the
             // camera's key locates it in the file.
-            let line = text
-                .lines()
-                .position(|l| l.trim_end().starts_with(&format!("{key}:")))
-                .map(|i| i + 1)
-                .unwrap_or(0);
+            let line = key_lines.get(key.as_str()).copied().unwrap_or(0);
             let e: CamEntry = serde_yaml::from_value(v.clone())
                 .map_err(|err| Error::parse(path, line, format!("{key}: {}", explain(&err))))?;
             let bad = |msg: String| Error::parse(path, line, format!("{key}: {msg}"));

@@ -46,6 +46,10 @@ pub use serial::parse_line as parse_serial_line;
 /// m/s (the A50 is rated far below it).
 pub const MAX_SPEED_MPS: f64 = 10.0;
 
+/// Largest time line rebuilt from `time` increments, ms: 2^63, where whole milliseconds stop
+/// fitting an i64.
+const MAX_REBUILT_MS: f64 = 9_223_372_036_854_775_808.0;
+
 /// Reads a DVL log of any accepted format into valid, deduplicated, time-ordered samples.
 ///
 /// Errors: the file cannot be read; its format cannot be recognised; it holds no usable
@@ -419,12 +423,19 @@ fn choose_times(
     let mut t_ms = 0.0f64;
     let mut out = Vec::with_capacity(reports.len());
     let mut missing = 0usize;
+    let mut beyond = 0usize;
     for (i, (_, r)) in reports.iter().enumerate() {
         match r.time_ms {
             Some(dt) if dt >= 0.0 => {
-                if i > 0 {
-                    t_ms += dt;
+                let next = if i > 0 { t_ms + dt } else { t_ms };
+                // Increments adding up past i64 milliseconds (or to infinity) are no time line:
+                // the whole milliseconds would saturate, or the fraction become NaN.
+                if !next.is_finite() || next >= MAX_REBUILT_MS {
+                    beyond += 1;
+                    out.push(None);
+                    continue;
                 }
+                t_ms = next;
                 let ms = t_ms.floor();
                 let us = (t_ms - ms) * 1e3;
                 // Whole milliseconds kept exactly in the integer part.
@@ -447,6 +458,13 @@ fn choose_times(
             path.display()
         )));
     }
+    if missing + beyond == reports.len() {
+        return Err(Error::Input(format!(
+            "{}: velocity reports carry no absolute time, and their `time` increments add up to \
+             more than {MAX_REBUILT_MS:e} ms",
+            path.display()
+        )));
+    }
     stats.time_source_used =
         "rebuilt from `time` increments (no absolute time in this format)".to_string();
     stats.warnings.push(
@@ -458,6 +476,12 @@ fn choose_times(
     if missing > 0 {
         stats.warnings.push(format!(
             "{missing} velocity reports without `time` were dropped"
+        ));
+    }
+    if beyond > 0 {
+        stats.warnings.push(format!(
+            "{beyond} velocity reports whose `time` increments add up to more than \
+             {MAX_REBUILT_MS:e} ms were dropped"
         ));
     }
     Ok(out)

@@ -96,29 +96,53 @@ pub fn content_hash(bytes: &[u8]) -> u64 {
     h.finish()
 }
 
+/// The CRC-8 table of polynomial 0x07: `CRC8_TABLE[x]` is the CRC of the single byte `x`.
+const CRC8_TABLE: [u8; 256] = {
+    let mut t = [0u8; 256];
+    let mut i = 0;
+    while i < 256 {
+        let mut c = i as u8;
+        let mut k = 0;
+        while k < 8 {
+            c = if c & 0x80 != 0 {
+                (c << 1) ^ 0x07
+            } else {
+                c << 1
+            };
+            k += 1;
+        }
+        t[i] = c;
+        i += 1;
+    }
+    t
+};
+
 /// CRC-8 of the Water Linked serial protocol: polynomial 0x07, initial value 0, no reflection,
 /// no final xor (check value 0xf4 for `123456789`).
 pub fn crc8(bytes: &[u8]) -> u8 {
-    const TABLE: [u8; 256] = {
-        let mut t = [0u8; 256];
-        let mut i = 0;
-        while i < 256 {
-            let mut c = i as u8;
-            let mut k = 0;
-            while k < 8 {
-                c = if c & 0x80 != 0 {
-                    (c << 1) ^ 0x07
-                } else {
-                    c << 1
-                };
-                k += 1;
-            }
-            t[i] = c;
-            i += 1;
+    bytes.iter().fold(0u8, |c, &b| CRC8_TABLE[(c ^ b) as usize])
+}
+
+/// [`crc8`] of every suffix of `bytes` in one pass: element `i` is `crc8(&bytes[i..])` (the
+/// last element, for the empty suffix, is 0).
+///
+/// Without an initial value or final xor the CRC is linear over GF(2), so
+/// `crc8(b + rest) = crc8(rest) ^ T^(rest.len() + 1)(b)`, where `T` is the table as a linear map
+/// of a byte. `T^k` is kept as the images of the eight bits and advanced one step per byte.
+pub fn suffix_crc8(bytes: &[u8]) -> Vec<u8> {
+    let mut out = vec![0u8; bytes.len() + 1];
+    let mut cols: [u8; 8] = [1, 2, 4, 8, 16, 32, 64, 128];
+    for i in (0..bytes.len()).rev() {
+        for c in &mut cols {
+            *c = CRC8_TABLE[*c as usize];
         }
-        t
-    };
-    bytes.iter().fold(0u8, |c, &b| TABLE[(c ^ b) as usize])
+        let b = bytes[i];
+        let image = (0..8)
+            .filter(|k| b & (1 << k) != 0)
+            .fold(0u8, |acc, k| acc ^ cols[k]);
+        out[i] = out[i + 1] ^ image;
+    }
+    out
 }
 
 #[cfg(test)]
@@ -129,5 +153,16 @@ mod tests {
     fn crc8_check_values() {
         assert_eq!(crc8(b"123456789"), 0xf4);
         assert_eq!(crc8(b"wru,0,0.070,1.10,-40,-95"), 0x9c);
+    }
+
+    #[test]
+    fn suffix_crc8_matches_crc8_of_each_suffix() {
+        let mut bytes: Vec<u8> = b"wrz,0.1,-0.2,*garbage wr".to_vec();
+        bytes.extend((0u16..300).map(|i| (i.wrapping_mul(151) % 256) as u8));
+        let all = suffix_crc8(&bytes);
+        assert_eq!(all.len(), bytes.len() + 1);
+        for i in 0..=bytes.len() {
+            assert_eq!(all[i], crc8(&bytes[i..]), "suffix from {i}");
+        }
     }
 }

@@ -11,49 +11,80 @@
 use super::report::{Parsed, Reject, VelocityReport, content_hash, crc8};
 
 /// Parses one line of a serial capture.
+///
+/// Every `wr<letter>` in the line is a candidate sentence start, tried from the left; the first
+/// intact one is parsed. Otherwise the error is the first checksum mismatch, or else the first
+/// candidate's problem. The work is linear in the line's length however many candidates it
+/// holds (a long line of `wr`s and stars is garbage, but must not take quadratic time).
 pub fn parse_line(line: &[u8]) -> Result<Parsed, Reject> {
-    let mut problem: Option<Reject> = None;
-    let mut start = 0;
-    while let Some(off) = find_start(&line[start..]) {
-        let i = start + off;
-        start = i + 1;
-        let Some(star_off) = line[i..].iter().position(|&b| b == b'*') else {
-            problem.get_or_insert(Reject::new(
-                "truncated sentence",
-                "no '*' checksum separator",
-            ));
-            continue;
-        };
-        let star = i + star_off;
-        let tail = line[star + 1..].trim_ascii_end();
-        let Some(sum) = parse_hex2(tail) else {
-            problem.get_or_insert(Reject::new(
-                "truncated sentence",
-                "checksum is not two hex digits at the end of the line",
-            ));
-            continue;
+    // Only the last '*' of a line can be followed by exactly two hex digits and the line end, so
+    // only candidates whose first '*' is that one (those after the one before it) can be intact.
+    let last_star = line.iter().rposition(|&b| b == b'*');
+    let prev_star = last_star.and_then(|p| line[..p].iter().rposition(|&b| b == b'*'));
+    let sum = last_star.and_then(|p| parse_hex2(line[p + 1..].trim_ascii_end()));
+    let mut first_problem: Option<Reject> = None;
+    let mut mismatch: Option<Reject> = None;
+    // CRC-8 of line[lo + k..star] for every k, built when a second checksum candidate appears.
+    let mut suffix_crcs: Option<(usize, Vec<u8>)> = None;
+    for i in sentence_starts(line) {
+        let (star, sum) = match (last_star, sum) {
+            (Some(star), _) if i < star => match (prev_star, sum) {
+                (Some(q), _) if q > i => {
+                    first_problem.get_or_insert_with(not_two_hex);
+                    continue;
+                }
+                (_, None) => {
+                    first_problem.get_or_insert_with(not_two_hex);
+                    continue;
+                }
+                (_, Some(sum)) => (star, sum),
+            },
+            _ => {
+                first_problem.get_or_insert_with(|| {
+                    Reject::new("truncated sentence", "no '*' checksum separator")
+                });
+                continue;
+            }
         };
         let body = &line[i..star];
-        let crc = crc8(body);
-        if crc != sum {
-            // Keep the first mismatch, unless a candidate further on is intact.
-            if problem.as_ref().is_none_or(|p| p.reason != "bad checksum") {
-                problem = Some(Reject::new(
-                    "bad checksum",
-                    format!("checksum {sum:02x}, computed {crc:02x}"),
-                ));
+        let crc = match &suffix_crcs {
+            Some((lo, crcs)) => crcs[i - lo],
+            None if mismatch.is_none() => crc8(body),
+            None => {
+                let crcs = super::report::suffix_crc8(body);
+                let crc = crcs[0];
+                suffix_crcs = Some((i, crcs));
+                crc
             }
-            continue;
+        };
+        if crc == sum {
+            return parse_body(body);
         }
-        return parse_body(body);
+        // Keep the first mismatch.
+        mismatch.get_or_insert_with(|| {
+            Reject::new(
+                "bad checksum",
+                format!("checksum {sum:02x}, computed {crc:02x}"),
+            )
+        });
     }
-    Err(problem.unwrap_or_else(|| Reject::new("not a DVL sentence", "no 'wr' sentence start")))
+    Err(mismatch
+        .or(first_problem)
+        .unwrap_or_else(|| Reject::new("not a DVL sentence", "no 'wr' sentence start")))
 }
 
-/// Offset of the next `wr` followed by a letter or `?`.
-fn find_start(s: &[u8]) -> Option<usize> {
-    s.windows(3)
-        .position(|w| w[0] == b'w' && w[1] == b'r' && (w[2].is_ascii_alphabetic() || w[2] == b'?'))
+fn not_two_hex() -> Reject {
+    Reject::new(
+        "truncated sentence",
+        "checksum is not two hex digits at the end of the line",
+    )
+}
+
+/// Offsets of every `wr` followed by a letter or `?`, in order.
+fn sentence_starts(s: &[u8]) -> impl Iterator<Item = usize> + '_ {
+    s.windows(3).enumerate().filter_map(|(i, w)| {
+        (w[0] == b'w' && w[1] == b'r' && (w[2].is_ascii_alphabetic() || w[2] == b'?')).then_some(i)
+    })
 }
 
 fn parse_hex2(s: &[u8]) -> Option<u8> {

@@ -1,0 +1,14 @@
+//! Board YAML: dvlcal's grid and list forms and Kalibr aprilgrid targets.
+#![no_main]
+
+use std::path::Path;
+
+use dvlcal::vision::board::Board;
+use libfuzzer_sys::fuzz_target;
+
+fuzz_target!(|data: &[u8]| {
+    let Ok(text) = std::str::from_utf8(data) else {
+        return;
+    };
+    let _ = Board::parse(text, Path::new("fuzz-board.yaml"));
+});

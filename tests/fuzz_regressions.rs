@@ -1,0 +1,268 @@
+//! The fuzz corpora and the inputs that once broke a parser, replayed on the stable compiler.
+//!
+//! Every file under `fuzz/corpus/<target>/` and `fuzz/regressions/<target>/` goes through the
+//! same library calls as the fuzz target of that name (`fuzz/fuzz_targets/<target>.rs`): each
+//! call must return, `Ok` or `Err`, without a panic. Each regression input also has its own
+//! expected outcome below, so a fix cannot quietly turn into a different failure.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use dvlcal::io::calib_yaml::{parse_calib_yaml, parse_calibration_guess};
+use dvlcal::io::dvl::{DvlFormat, DvlReadOptions, read_dvl_text};
+use dvlcal::io::times::parse_times;
+use dvlcal::io::tum::parse_tum;
+use dvlcal::io::twist_csv::parse_twist_csv;
+use dvlcal::time::Epoch;
+use dvlcal::vision::board::Board;
+use dvlcal::vision::camera::Camchain;
+
+/// The fuzz targets, as named in `fuzz/Cargo.toml`.
+const TARGETS: [&str; 7] = [
+    "dvl_log",
+    "tum",
+    "camchain",
+    "board",
+    "calib_yaml",
+    "twist_csv",
+    "times",
+];
+
+/// The epoch the fuzz targets give the readers that need one.
+const EPOCH: Epoch = Epoch { sec: 1_700_000_000 };
+
+/// What one library call returned: `Ok` with a short summary, or the error's message.
+type Outcome = Result<String, String>;
+
+fn outcome<T>(r: dvlcal::Result<T>, summary: impl FnOnce(&T) -> String) -> Outcome {
+    r.as_ref().map(summary).map_err(|e| e.to_string())
+}
+
+/// A DVL read's summary; sample times that are not finite numbers are flagged, since no input
+/// should produce them.
+fn dvl_summary(log: &dvlcal::io::dvl::DvlLog) -> String {
+    let n = log.samples.len();
+    if log.samples.iter().all(|s| s.t.is_finite()) {
+        format!("{n} samples")
+    } else {
+        format!("{n} samples, NON-FINITE times")
+    }
+}
+
+/// The calls of fuzz target `target` on `data`, in the target's order. Text targets skip input
+/// that is not UTF-8, as the targets do.
+fn run(target: &str, data: &[u8]) -> Vec<Outcome> {
+    if target == "dvl_log" {
+        let name = Path::new("fuzz.log");
+        let mut out = vec![outcome(
+            read_dvl_text(name, data, &DvlReadOptions::default()),
+            dvl_summary,
+        )];
+        for format in [DvlFormat::JsonLines, DvlFormat::Serial] {
+            let opts = DvlReadOptions {
+                format: Some(format),
+                ..DvlReadOptions::default()
+            };
+            out.push(outcome(read_dvl_text(name, data, &opts), dvl_summary));
+        }
+        return out;
+    }
+    let Ok(text) = std::str::from_utf8(data) else {
+        return vec![];
+    };
+    match target {
+        "tum" => {
+            let name = Path::new("fuzz.tum");
+            vec![
+                outcome(parse_tum(text, name, None), |p| {
+                    format!("{} poses", p.poses.len())
+                }),
+                outcome(parse_tum(text, name, Some(EPOCH)), |p| {
+                    format!("{} poses", p.poses.len())
+                }),
+            ]
+        }
+        "camchain" => vec![outcome(
+            Camchain::parse(text, Path::new("fuzz-camchain.yaml")),
+            |c| format!("{} cameras", c.cams.len()),
+        )],
+        "board" => vec![outcome(
+            Board::parse(text, Path::new("fuzz-board.yaml")),
+            |b| format!("{} tags", b.tags.len()),
+        )],
+        "calib_yaml" => {
+            let name = Path::new("fuzz-calibration.yaml");
+            vec![
+                outcome(parse_calib_yaml(text, name), |_| "result file".into()),
+                outcome(parse_calibration_guess(text, name), |_| "guess".into()),
+            ]
+        }
+        "twist_csv" => vec![outcome(
+            parse_twist_csv(text, Path::new("fuzz-twist.csv"), EPOCH),
+            |r| format!("{} rows", r.len()),
+        )],
+        "times" => vec![outcome(
+            parse_times(text, Path::new("fuzz-times.txt"), EPOCH),
+            |t| format!("{} times", t.len()),
+        )],
+        other => panic!("no fuzz target {other}"),
+    }
+}
+
+fn fuzz_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz")
+}
+
+/// The files of `fuzz/<kind>/<target>/`, sorted (none when the folder does not exist).
+fn files(kind: &str, target: &str) -> Vec<PathBuf> {
+    let dir = fuzz_dir().join(kind).join(target);
+    let Ok(entries) = std::fs::read_dir(&dir) else {
+        return vec![];
+    };
+    let mut out: Vec<PathBuf> = entries
+        .map(|e| e.expect("readable folder entry").path())
+        .filter(|p| p.is_file())
+        .collect();
+    out.sort();
+    out
+}
+
+/// Runs `data` through the target's calls, turning a panic into a failure that names the file.
+fn run_file(target: &str, file: &Path) -> Vec<Outcome> {
+    let data = std::fs::read(file).expect("readable fuzz input");
+    std::panic::catch_unwind(|| run(target, &data))
+        .unwrap_or_else(|_| panic!("{target}: {} panicked", file.display()))
+}
+
+#[test]
+fn every_corpus_input_returns() {
+    let mut counts = BTreeMap::new();
+    for target in TARGETS {
+        let inputs = files("corpus", target);
+        assert!(
+            !inputs.is_empty(),
+            "fuzz/corpus/{target} is empty: the test would pass without testing anything"
+        );
+        for file in &inputs {
+            for o in run_file(target, file) {
+                assert!(
+                    !o.as_ref().is_ok_and(|s| s.contains("NON-FINITE")),
+                    "{}: {o:?}",
+                    file.display()
+                );
+            }
+        }
+        counts.insert(target, inputs.len());
+    }
+    println!("corpus inputs per target: {counts:?}");
+}
+
+/// Asserts that every outcome is an error whose message contains each of `parts`.
+fn all_err(out: &[Outcome], parts: &[&str]) {
+    assert!(!out.is_empty(), "no call was made");
+    for o in out {
+        match o {
+            Ok(s) => panic!("expected an error with {parts:?}, got Ok ({s})"),
+            Err(msg) => {
+                for p in parts {
+                    assert!(msg.contains(p), "error '{msg}' lacks '{p}'");
+                }
+            }
+        }
+    }
+}
+
+/// The expected outcome of each regression input, keyed by `target/file`.
+fn check_regression(key: &str, out: &[Outcome]) {
+    match key {
+        // Whole seconds beyond i64 in scientific notation used to saturate, and the epoch
+        // subtraction then overflowed.
+        "times/negative_sci_overflow" => all_err(
+            out,
+            &[
+                "fuzz-times.txt:6:",
+                "'-3.2e95'",
+                "is not a number of seconds",
+            ],
+        ),
+        "tum/huge_negative_time_overflow" => {
+            assert_eq!(out.len(), 2);
+            all_err(
+                out,
+                &[
+                    "fuzz.tum:3:",
+                    "-92233720368547758071e9",
+                    "not a number of seconds",
+                ],
+            );
+        }
+        // A time stamp near -2^63 s is a valid i64; subtracting the epoch overflowed. Now the
+        // row is read and the file fails later, on its own damage.
+        "twist_csv/time_overflow" => all_err(out, &["fuzz-twist.csv:3:", "expected 19 fields"]),
+        // 40000 sentence starts without a '*': each start rescanned the rest of the line.
+        "dvl_log/serial_starts_without_star" => {
+            // Detected as serial, forced JSON, forced serial: no velocity in any.
+            all_err(out, &["fuzz.log:", "no velocity reports"]);
+            assert!(
+                out[0].as_ref().unwrap_err().contains("truncated sentence"),
+                "{:?}",
+                out[0]
+            );
+        }
+        // The first candidate start fails its checksum, the second is the intact sentence.
+        "dvl_log/serial_sentence_behind_false_start" => {
+            assert_eq!(out[0], Ok("1 samples".to_string()));
+            assert_eq!(out[2], Ok("1 samples".to_string()));
+            assert!(out[1].is_err(), "{:?}", out[1]);
+        }
+        // json_v2 increments adding up to infinity gave NaN sample times; those reports are
+        // now dropped with a warning.
+        "dvl_log/time_increments_overflow" => {
+            assert_eq!(out[0], Ok("1 samples".to_string()));
+            assert_eq!(out[1], Ok("1 samples".to_string()));
+            assert!(out[2].is_err(), "{:?}", out[2]);
+        }
+        // One camera per line: finding each camera's line searched the whole file again.
+        "camchain/many_cameras_last_bad" => all_err(
+            out,
+            &[
+                "fuzz-camchain.yaml:1500:",
+                "cam1499: camera_model 'omni' is not supported",
+            ],
+        ),
+        // first_id + index overflowed u32 while the grid was built.
+        "board/grid_first_id_overflow" => all_err(
+            out,
+            &[
+                "fuzz-board.yaml:",
+                "tag id 4294967295 does not exist in tag36h11",
+            ],
+        ),
+        "board/kalibr_grid_too_many_ids" => all_err(
+            out,
+            &[
+                "fuzz-board.yaml:",
+                "tag id 587 does not exist in tag36h11 (587 codes)",
+            ],
+        ),
+        // 2001 listed tags: the duplicate check compared each tag with all before it.
+        "board/many_tags_last_duplicate" => all_err(out, &["tag id 7 listed twice"]),
+        other => {
+            panic!("fuzz/regressions/{other} has no expected outcome in tests/fuzz_regressions.rs")
+        }
+    }
+}
+
+#[test]
+fn every_regression_input_behaves_as_fixed() {
+    let mut n = 0;
+    for target in TARGETS {
+        for file in files("regressions", target) {
+            let out = run_file(target, &file);
+            let name = file.file_name().expect("file name").to_string_lossy();
+            check_regression(&format!("{target}/{name}"), &out);
+            n += 1;
+        }
+    }
+    assert!(n > 0, "no regression inputs found under fuzz/regressions");
+}
