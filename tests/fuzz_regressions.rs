@@ -1,4 +1,5 @@
 //! The fuzz corpora and the inputs that once broke a parser, replayed on the stable compiler.
+//! The ros1_bag inputs are bags written to a temporary file, as the fuzz target does.
 //!
 //! Every file under `fuzz/corpus/<target>/` and `fuzz/regressions/<target>/` goes through the
 //! same library calls as the fuzz target of that name (`fuzz/fuzz_targets/<target>.rs`): each
@@ -18,8 +19,9 @@ use dvlcal::vision::board::Board;
 use dvlcal::vision::camera::Camchain;
 
 /// The fuzz targets, as named in `fuzz/Cargo.toml`.
-const TARGETS: [&str; 7] = [
+const TARGETS: [&str; 8] = [
     "dvl_log",
+    "ros1_bag",
     "tum",
     "camchain",
     "board",
@@ -67,6 +69,9 @@ fn run(target: &str, data: &[u8]) -> Vec<Outcome> {
         }
         return out;
     }
+    if target == "ros1_bag" {
+        return ros1_bag(data);
+    }
     let Ok(text) = std::str::from_utf8(data) else {
         return vec![];
     };
@@ -107,6 +112,36 @@ fn run(target: &str, data: &[u8]) -> Vec<Outcome> {
         )],
         other => panic!("no fuzz target {other}"),
     }
+}
+
+/// The ros1_bag target: the bytes follow the bag magic (unless they start with `#`, then they
+/// are the whole file); the bag is opened, every message is read, and the DVL reader runs on it.
+fn ros1_bag(data: &[u8]) -> Vec<Outcome> {
+    use dvlcal::io::bag::ros1::Ros1Bag;
+    let mut bytes = if data.first() == Some(&b'#') {
+        Vec::new()
+    } else {
+        b"#ROSBAG V2.0\n".to_vec()
+    };
+    bytes.extend_from_slice(data);
+    let dir = std::env::temp_dir().join(format!("dvlcal-fuzz-replay-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temporary folder");
+    let id = std::thread::current().id();
+    let path = dir.join(format!("{id:?}.bag").replace(['(', ')'], ""));
+    std::fs::write(&path, &bytes).expect("write the bag");
+    let opened = Ros1Bag::open(&path).and_then(|b| {
+        b.messages(&|_| true, &mut |_| Ok(()))
+            .map(|s| format!("{} messages", s.messages))
+    });
+    let out = vec![
+        opened.map_err(|e| e.to_string()),
+        outcome(
+            dvlcal::io::dvl::read_dvl_log(&path, &DvlReadOptions::default()),
+            dvl_summary,
+        ),
+    ];
+    let _ = std::fs::remove_file(&path);
+    out
 }
 
 fn fuzz_dir() -> PathBuf {
