@@ -15,6 +15,7 @@ pub mod align;
 pub mod closed_form;
 pub mod model;
 pub mod offset;
+pub mod prior;
 pub(crate) mod refine;
 pub(crate) mod state;
 
@@ -33,6 +34,7 @@ use crate::types::{DvlSample, PoseMeasurement};
 use closed_form::{ClosedForm, ClosedFormRow, closed_form};
 use model::{NPARAM, predict};
 use offset::{DvlObs, OffsetMethod, OffsetOptions, OffsetResult, estimate_offset};
+use prior::Priors;
 use refine::{FreeParams, calibration_update};
 use state::{JointProblem, joint_covariance, joint_step, state_update};
 
@@ -153,6 +155,8 @@ pub struct CalibOptions {
     pub weak: WeakThresholds,
     /// What a result must satisfy to be trusted.
     pub sanity: SanityLimits,
+    /// Priors on the calibration (a measured lever arm, a known rotation); none by default.
+    pub priors: prior::Priors,
 }
 
 impl Default for CalibOptions {
@@ -167,6 +171,7 @@ impl Default for CalibOptions {
             fit: FitOptions::default(),
             weak: WeakThresholds::default(),
             sanity: SanityLimits::default(),
+            priors: prior::Priors::default(),
         }
     }
 }
@@ -175,6 +180,7 @@ impl CalibOptions {
     /// Checks every setting before anything is computed; the error names the option.
     pub fn validate(&self) -> Result<()> {
         self.offset.validate()?;
+        self.priors.validate()?;
         if let Some(s) = self.dvl_sigma
             && !(s.is_finite() && s > 0.0)
         {
@@ -478,7 +484,8 @@ pub fn calibrate(
 
     // 4. Block-coordinate refinement of the parameters and the trajectory.
     let mask = free.mask();
-    let jp = JointProblem::new(poses, &traj, &obs, &idx)?;
+    let mut jp = JointProblem::new(poses, &traj, &obs, &idx)?;
+    jp.priors = opts.priors;
     let mut traj = traj;
     // The fit's covariance was for the initialisation; its storage serves the joint problem.
     if let Some(storage) = traj.take_covariance_storage() {
@@ -504,6 +511,13 @@ pub fn calibrate(
     // 5. Uncertainty, residuals, excitation and the verdicts.
     let (covariance, normalized_cost) =
         uncertainty(&jp, &traj, &obs, &idx, &params, &mask, &mut warnings)?;
+    if opts.priors.any() {
+        // What the data alone would say, to tell which parameters the priors determined.
+        let priors = std::mem::take(&mut jp.priors);
+        let (data_only, _) = joint_covariance(&jp, &traj, &params, &mask)?;
+        jp.priors = priors;
+        warnings.extend(prior_notes(&opts.priors, &data_only, &params));
+    }
     let (residual_rms, excitation) = residuals_and_excitation(&traj, &obs, &idx, &params)?;
     let std = param_std(&covariance);
     let verdicts = verdicts(&std, &opts.weak, &excitation, init.as_ref(), &mask);
@@ -686,7 +700,7 @@ fn refine_jointly(
     let rounds = rounds.max(1);
     for round in 1..=rounds {
         // Calibration update with the trajectory fixed, then state update with it fixed.
-        let up = calibration_update(&traj, obs, idx, &params, free, 50)?;
+        let up = calibration_update(&traj, obs, idx, &params, free, &jp.priors, 50)?;
         let change = refine::change_in_std(&params, &up.params, &up.hessian, &mask);
         params = up.params;
         // Warm-started from the previous state, one Gauss-Newton step per round: the rounds
@@ -805,7 +819,7 @@ fn drift_check(
         time_offset: true,
     };
     let third = |part: &[usize]| -> Result<(f64, f64)> {
-        let up = calibration_update(traj, obs, part, params, only_offset, 20)?;
+        let up = calibration_update(traj, obs, part, params, only_offset, &Priors::default(), 20)?;
         let mid = 0.5 * (obs[part[0]].t + obs[part[part.len() - 1]].t);
         Ok((up.params.time_offset_s, mid))
     };
@@ -911,6 +925,89 @@ fn uncertainty(
         covariance *= normalized_cost;
     }
     Ok((covariance, normalized_cost))
+}
+
+/// For each prior, whether it or the data determined its parameter: the prior did when its
+/// variance is below the data's alone on some axis.
+///
+/// A prior that disagrees with the data is named too: for a linear Gaussian problem the data's
+/// own estimate lies at `prior + (estimate - prior) (s_d^2 + s_p^2) / s_d^2` on each axis, and
+/// its distance from the prior in units of `sqrt(s_d^2 + s_p^2)` is the disagreement.
+fn prior_notes(priors: &Priors, data_only: &ParamMat, params: &CalibrationParams) -> Vec<String> {
+    let worst = |first: usize| {
+        (first..first + 3)
+            .map(|k| data_only[(k, k)].max(0.0).sqrt())
+            .fold(0.0, f64::max)
+    };
+    let residual = priors.terms(params);
+    let disagreement = |first: usize, sigma: f64| {
+        (first..first + 3)
+            .map(|k| {
+                let sd2 = data_only[(k, k)].max(1e-300);
+                // The gradient is r / sigma^2, so r = gradient * sigma^2.
+                let r = residual.gradient[k] * sigma * sigma;
+                r.abs() * (sd2 + sigma * sigma).sqrt() / sd2
+            })
+            .fold(0.0, f64::max)
+    };
+    let mut notes = Vec::new();
+    let conflict = |what: &str, z: f64| {
+        if z > 3.0 {
+            Some(format!(
+                "the {what} prior and the data disagree by {z:.1} standard deviations: check the \
+                 measured value and its frame (the lever arm is the DVL origin in the camera \
+                 frame; the rotation is R_cam_dvl)"
+            ))
+        } else {
+            None
+        }
+    };
+    let mut conflicts = Vec::new();
+    if let Some(l) = &priors.lever_arm {
+        conflicts.extend(conflict("lever-arm", disagreement(3, l.sigma_m)));
+    }
+    if let Some(r) = &priors.rotation {
+        conflicts.extend(conflict(
+            "rotation",
+            disagreement(0, r.sigma_deg.to_radians()),
+        ));
+    }
+    if let Some(l) = &priors.lever_arm {
+        let data = worst(3);
+        notes.push(if data > l.sigma_m {
+            format!(
+                "the lever arm comes mainly from its prior ({:.1} mm per axis): the data alone \
+                 determine it only to {:.1} mm on its weakest axis",
+                1e3 * l.sigma_m,
+                1e3 * data
+            )
+        } else {
+            format!(
+                "the lever arm comes mainly from the data ({:.1} mm on its weakest axis alone; \
+                 prior {:.1} mm)",
+                1e3 * data,
+                1e3 * l.sigma_m
+            )
+        });
+    }
+    if let Some(r) = &priors.rotation {
+        let data = worst(0).to_degrees();
+        notes.push(if data > r.sigma_deg {
+            format!(
+                "the rotation comes mainly from its prior ({:.2} deg): the data alone determine \
+                 it only to {data:.2} deg about its weakest axis",
+                r.sigma_deg
+            )
+        } else {
+            format!(
+                "the rotation comes mainly from the data ({data:.3} deg about its weakest axis \
+                 alone; prior {:.2} deg)",
+                r.sigma_deg
+            )
+        });
+    }
+    notes.extend(conflicts);
+    notes
 }
 
 /// The RMS DVL residual per axis and the motion's excitation over the samples used. Sums are

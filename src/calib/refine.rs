@@ -5,6 +5,7 @@ use nalgebra::{SMatrix, SVector};
 
 use super::model::{NPARAM, d_predict_d_params, difference, predict};
 use super::offset::DvlObs;
+use super::prior::Priors;
 use crate::error::{Error, Result};
 use crate::trajectory::Trajectory;
 use crate::types::CalibrationParams;
@@ -98,17 +99,30 @@ pub struct UpdateResult {
 }
 
 /// Levenberg-Marquardt on the free parameters, trajectory fixed.
+#[allow(clippy::too_many_arguments)]
 pub fn calibration_update(
     traj: &Trajectory,
     obs: &[DvlObs],
     idx: &[usize],
     start: &CalibrationParams,
     free: FreeParams,
+    priors: &Priors,
     max_iterations: usize,
 ) -> Result<UpdateResult> {
     let mask = free.mask();
     let mut p = *start;
-    let mut lin = linearize(traj, obs, idx, &p)?;
+    // The DVL term with the priors' factors added.
+    let linearize = |p: &CalibrationParams| -> Result<Linearized> {
+        let mut lin = linearize(traj, obs, idx, p)?;
+        if priors.any() {
+            let t = priors.terms(p);
+            lin.cost += t.cost;
+            lin.hessian += t.information;
+            lin.gradient += t.gradient;
+        }
+        Ok(lin)
+    };
+    let mut lin = linearize(&p)?;
     // Offsets at which every sample's camera time stays inside the trajectory: a step beyond
     // them is too long (rejected like one that raises the cost), never an error.
     let (a, b) = traj.span();
@@ -145,7 +159,7 @@ pub fn calibration_update(
                 lambda *= 10.0;
                 continue;
             }
-            let tl = linearize(traj, obs, idx, &trial)?;
+            let tl = linearize(&trial)?;
             if tl.cost <= lin.cost {
                 let rel = (lin.cost - tl.cost) / lin.cost.max(1e-300);
                 let step = d.abs().max();

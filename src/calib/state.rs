@@ -11,6 +11,7 @@ use nalgebra::{Matrix3, Matrix6, SMatrix, Vector6};
 
 use super::model::{NPARAM, d_predict_d_params, d_predict_d_twist, predict};
 use super::offset::DvlObs;
+use super::prior::Priors;
 use super::refine::{ParamMat, ParamVec, pin_fixed};
 use crate::error::{Error, Result};
 use crate::lie::Se3;
@@ -32,6 +33,8 @@ pub struct JointProblem<'a> {
     pub idx: &'a [usize],
     /// DVL information matrices, one per observation.
     pub dvl_info: Vec<Matrix3<f64>>,
+    /// Priors on the calibration, factors of the joint problem beside the DVL's.
+    pub priors: Priors,
     times: Vec<f64>,
     meas: Vec<Se3>,
     pose_info: Vec<Matrix6<f64>>,
@@ -61,6 +64,7 @@ impl<'a> JointProblem<'a> {
             obs,
             idx,
             dvl_info,
+            priors: Priors::default(),
             times: traj.times().to_vec(),
             meas: poses.iter().map(|m| m.pose).collect(),
             pose_info: measurement_information(poses, traj.report().pose_sigma)?,
@@ -418,7 +422,15 @@ pub fn state_update(
     if let Some(s) = solved.spare {
         jp.keep_storage(s);
     }
-    Ok((traj.with_knots(solved.knots, None), solved.cost))
+    let prior_cost = if jp.priors.any() {
+        jp.priors.terms(p).cost
+    } else {
+        0.0
+    };
+    Ok((
+        traj.with_knots(solved.knots, None),
+        solved.cost + prior_cost,
+    ))
 }
 
 /// The joint system at `(traj, p)` with the fixed parameters decoupled, factorised: the
@@ -446,6 +458,16 @@ fn joint_system(
     for (c, _) in free.iter().enumerate().filter(|(_, f)| !**f) {
         a.cross.iter_mut().for_each(|m| m.column_mut(c).fill(0.0));
         a.gradient[c] = 0.0;
+    }
+    if jp.priors.any() {
+        let t = jp.priors.terms(p);
+        a.theta += t.information;
+        a.cost += t.cost;
+        for (c, f) in free.iter().enumerate() {
+            if *f {
+                a.gradient[c] += t.gradient[c];
+            }
+        }
     }
     pin_fixed(&mut a.theta, free);
     Ok(JointSystem {
@@ -531,7 +553,10 @@ pub fn joint_step(
         // A step that moves a sample outside the trajectory is too long.
         if let Ok(f) = DvlFactors::new(jp, &params) {
             let knots = step(traj.knots(), &dx, scale);
-            let cost = f.cost(&knots);
+            let mut cost = f.cost(&knots);
+            if jp.priors.any() {
+                cost += jp.priors.terms(&params).cost;
+            }
             if cost.is_finite() && cost <= js.cost {
                 return Ok(Some(JointStep {
                     trajectory: traj.with_knots(knots, None),

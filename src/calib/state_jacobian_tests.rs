@@ -407,6 +407,7 @@ fn joint_problem<'a>(
     idx: &'a [usize],
 ) -> JointProblem<'a> {
     JointProblem {
+        priors: Default::default(),
         obs,
         idx,
         dvl_info: obs.iter().map(|o| o.cov.try_inverse().unwrap()).collect(),

@@ -7,8 +7,9 @@ use std::path::PathBuf;
 use crate::dataset::{DatasetArgs, load};
 use crate::dvl_info::DvlInputArgs;
 
+use dvlcal::calib::prior::{LeverArmPrior, Priors, RotationPrior};
 use dvlcal::calib::{CalibOptions, Method, Status};
-use dvlcal::io::calib_yaml::read_calibration_guess;
+use dvlcal::io::calib_yaml::{read_calibration_guess, rotation_from_rpy_deg};
 use dvlcal::pipeline::{calibrate_dataset, write_report, write_results};
 use dvlcal::types::CalibrationParams;
 
@@ -38,6 +39,60 @@ pub struct EstimatorArgs {
         value_name = "MIN,MAX"
     )]
     pub offset_range: Option<Vec<f64>>,
+    /// A measured lever arm, the DVL origin in the camera frame, `x,y,z` metres, with its
+    /// standard deviation after a colon (default 0.02 m): a prior of the calibration.
+    #[arg(long, allow_hyphen_values = true, value_name = "X,Y,Z[:SIGMA_M]")]
+    pub lever_arm_prior: Option<String>,
+    /// A known rotation R_cam_dvl as `roll,pitch,yaw` degrees (Rz(yaw) Ry(pitch) Rx(roll)),
+    /// with its standard deviation after a colon (default 2 deg): a prior of the calibration.
+    #[arg(
+        long,
+        allow_hyphen_values = true,
+        value_name = "ROLL,PITCH,YAW[:SIGMA_DEG]"
+    )]
+    pub rotation_prior: Option<String>,
+}
+
+/// `a,b,c[:sigma]` as three finite numbers and a sigma (`default` when none is given).
+fn vector_and_sigma(option: &str, text: &str, default: f64) -> Result<([f64; 3], f64)> {
+    let (values, sigma) = match text.split_once(':') {
+        Some((v, s)) => (v, s.trim().parse::<f64>().ok()),
+        None => (text, Some(default)),
+    };
+    let v: Vec<f64> = values
+        .split(',')
+        .map(|x| x.trim().parse::<f64>())
+        .collect::<std::result::Result<_, _>>()
+        .unwrap_or_default();
+    match (v.as_slice(), sigma) {
+        ([x, y, z], Some(s)) if [*x, *y, *z, s].iter().all(|v| v.is_finite()) && s > 0.0 => {
+            Ok(([*x, *y, *z], s))
+        }
+        _ => bail!(
+            "{option} takes three numbers and an optional positive sigma, as 0.1,-0.02,0.3:0.01; got '{text}'"
+        ),
+    }
+}
+
+impl EstimatorArgs {
+    fn priors(&self) -> Result<Priors> {
+        let mut p = Priors::default();
+        if let Some(t) = &self.lever_arm_prior {
+            let (v, s) = vector_and_sigma("--lever-arm-prior", t, 0.02)?;
+            p.lever_arm = Some(LeverArmPrior {
+                lever_arm_cam_m: v.into(),
+                sigma_m: s,
+            });
+        }
+        if let Some(t) = &self.rotation_prior {
+            let (rpy, s) = vector_and_sigma("--rotation-prior", t, 2.0)?;
+            p.rotation = Some(RotationPrior {
+                r_cam_dvl: rotation_from_rpy_deg(&rpy),
+                sigma_deg: s,
+            });
+        }
+        Ok(p)
+    }
 }
 
 #[derive(clap::Args)]
@@ -90,11 +145,10 @@ pub fn options(
     method: MethodArg,
     guess: Option<CalibrationParams>,
     estimate_offset: bool,
-    dvl_sigma: Option<f64>,
-    offset_range: Option<&[f64]>,
+    est: &EstimatorArgs,
     biased: bool,
 ) -> Result<CalibOptions> {
-    let range = match offset_range {
+    let range = match est.offset_range.as_deref() {
         None => None,
         Some([lo, hi]) => Some((*lo, *hi)),
         Some(_) => bail!("--offset-range takes two increasing values: min,max"),
@@ -110,8 +164,9 @@ pub fn options(
     };
     let mut opts = CalibOptions {
         method,
-        dvl_sigma,
+        dvl_sigma: est.dvl_sigma,
         bias_corrected: !biased,
+        priors: est.priors()?,
         ..CalibOptions::default()
     };
     opts.offset.range = range;
@@ -124,14 +179,7 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
         Some(p) => Some(read_calibration_guess(p)?),
         None => None,
     };
-    let opts = options(
-        a.method,
-        guess,
-        a.estimate_offset,
-        a.estimator.dvl_sigma,
-        a.estimator.offset_range.as_deref(),
-        a.biased,
-    )?;
+    let opts = options(a.method, guess, a.estimate_offset, &a.estimator, a.biased)?;
     if let Some(c) = a.dvl_sound_speed
         && !(c.is_finite() && (1000.0..=2000.0).contains(&c))
     {

@@ -77,14 +77,7 @@ pub fn run(a: EvaluateArgs) -> Result<()> {
             Some(p) => Some(read_calibration_guess(p)?),
             None => None,
         };
-        let base = options(
-            MethodArg::Uic,
-            None,
-            false,
-            a.estimator.dvl_sigma,
-            a.estimator.offset_range.as_deref(),
-            false,
-        )?;
+        let base = options(MethodArg::Uic, None, false, &a.estimator, false)?;
         let cv = cross_validate(
             &data,
             baselines(guess),
