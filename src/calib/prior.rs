@@ -2,12 +2,16 @@
 //! measured with a tape, a rotation known from the mount). They enter the MAP problem as
 //! factors on the parameters, in the estimator's coordinates `[dphi; dp; dkappa; ddelta]`.
 
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
-use super::refine::{ParamMat, ParamVec};
+use super::model::NPARAM;
 use crate::error::{Error, Result};
 use crate::lie::so3;
 use crate::types::CalibrationParams;
+
+// The parameter-space types of `refine`, spelled out so that this module does not import it.
+type ParamMat = SMatrix<f64, NPARAM, NPARAM>;
+type ParamVec = SVector<f64, NPARAM>;
 
 /// A lever arm `lever_arm_cam_m` known to `sigma_m` (the same on each axis).
 #[derive(Clone, Copy, Debug, PartialEq)]
