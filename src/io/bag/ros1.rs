@@ -613,17 +613,9 @@ impl Ros1Bag {
                     matches!(r.head.op, OP_MESSAGE | OP_CONNECTION)
                         && r.data_start + r.data_len <= data.len()
                 }) else {
-                    if c.cut && resync_tail_only(&data, p) {
-                        // The last record of a chunk the file cuts: nothing more to read.
-                        problems.push(format!(
-                            "the chunk at byte {} is cut by the end of the file: its messages \
-                             after byte {} are lost",
-                            c.record,
-                            c.data + p as u64
-                        ));
-                        break;
-                    }
                     clean = false;
+                    // One scan for the next record that parses: none after the last record
+                    // of a chunk the file cuts means the cut is the only damage.
                     match resync(&data, p + 1, &[OP_MESSAGE, OP_CONNECTION], false) {
                         Some(q) => {
                             problems.push(format!(
@@ -634,6 +626,15 @@ impl Ros1Bag {
                             ));
                             p = q;
                             continue;
+                        }
+                        None if c.cut => {
+                            problems.push(format!(
+                                "the chunk at byte {} is cut by the end of the file: its \
+                                 messages after byte {} are lost",
+                                c.record,
+                                c.data + p as u64
+                            ));
+                            break;
                         }
                         None => {
                             problems.push(format!(
@@ -677,11 +678,6 @@ impl Ros1Bag {
         }
         Ok(whole)
     }
-}
-
-/// Whether nothing after `p` in `data` parses as a record (so the damage is only the cut end).
-fn resync_tail_only(data: &[u8], p: usize) -> bool {
-    resync(data, p + 1, &[OP_MESSAGE, OP_CONNECTION], false).is_none()
 }
 
 /// A record inside a chunk.
