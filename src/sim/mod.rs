@@ -4,17 +4,21 @@
 //! - [`motion`]: continuous camera motions with exact poses, twists and twist rates.
 //! - [`dataset`]: noisy camera poses and DVL velocities simulated from a motion and a known
 //!   calibration.
+//! - [`corrupt`](mod@corrupt): damage to a simulated dataset as real recordings suffer it (DVL
+//!   spikes, bad poses, coloured DVL noise, gaps).
 //! - [`a50`]: simulated DVL samples as the A50's json_v3 reports.
 //! - [`render`]: camera images of a board, rendered from libapriltag's own tag patterns.
 //! - [`image_dataset`]: the stereo images of a simulated recording, written as a dataset folder.
 
 pub mod a50;
+pub mod corrupt;
 pub mod dataset;
 pub mod image_dataset;
 pub mod motion;
 pub mod render;
 pub mod rng;
 
+pub use corrupt::{Corruption, CorruptionLog, corrupt};
 pub use dataset::{
     MotionKind, SimConfig, SimDataset, build_motion, dvl_model, simulate, simulate_with,
 };
