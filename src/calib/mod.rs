@@ -17,7 +17,9 @@ pub mod model;
 pub mod offset;
 pub mod prior;
 pub(crate) mod refine;
+pub mod robust;
 pub(crate) mod state;
+pub mod whiteness;
 
 /// Covariance or information of the parameters, in [`ParamVec`]'s order.
 pub use refine::ParamMat;
@@ -28,6 +30,7 @@ pub use refine::ParamVec;
 use nalgebra::{Matrix3, Vector3};
 
 use crate::error::{Error, Result};
+use crate::trajectory::solver::measurement_information;
 use crate::trajectory::{FitOptions, FitReport, Knot, Trajectory};
 use crate::types::CalibrationParams;
 use crate::types::{DvlSample, PoseMeasurement};
@@ -36,7 +39,9 @@ use model::{NPARAM, predict};
 use offset::{DvlObs, OffsetMethod, OffsetOptions, OffsetResult, estimate_offset};
 use prior::Priors;
 use refine::{FreeParams, calibration_update};
+use robust::{Loss, RobustSummary};
 use state::{JointProblem, joint_covariance, joint_step, state_update};
+use whiteness::Whiteness;
 
 /// How the calibration starts.
 #[derive(Clone, Debug)]
@@ -157,6 +162,15 @@ pub struct CalibOptions {
     pub sanity: SanityLimits,
     /// Priors on the calibration (a measured lever arm, a known rotation); none by default.
     pub priors: prior::Priors,
+    /// The loss on the DVL and pose residuals ([`robust`]); Cauchy by default.
+    pub loss: Loss,
+    /// Standard deviation of the broad prior (zero lever arm) applied when `priors` has no
+    /// lever-arm prior, metres: it keeps a lever arm the motion does not observe from running
+    /// to metres and corrupting the other parameters (1 m by default; `None`: no such prior).
+    pub default_lever_arm_sigma_m: Option<f64>,
+    /// Inflate the covariance for correlated DVL residuals and for halves of the recording that
+    /// disagree (on by default).
+    pub honest_covariance: bool,
 }
 
 impl Default for CalibOptions {
@@ -172,6 +186,9 @@ impl Default for CalibOptions {
             weak: WeakThresholds::default(),
             sanity: SanityLimits::default(),
             priors: prior::Priors::default(),
+            loss: Loss::default(),
+            default_lever_arm_sigma_m: Some(1.0),
+            honest_covariance: true,
         }
     }
 }
@@ -181,6 +198,14 @@ impl CalibOptions {
     pub fn validate(&self) -> Result<()> {
         self.offset.validate()?;
         self.priors.validate()?;
+        if let Some(s) = self.default_lever_arm_sigma_m
+            && !(s.is_finite() && s > 0.0)
+        {
+            return Err(Error::option(
+                "default_lever_arm_sigma_m",
+                "must be a positive number of metres",
+            ));
+        }
         if let Some(s) = self.dvl_sigma
             && !(s.is_finite() && s > 0.0)
         {
@@ -286,6 +311,29 @@ pub struct Counts {
     pub dvl_in_pose_gaps: usize,
     /// Calm (slowly rotating) samples the UIC offset search found; 0 for the other methods.
     pub calm: usize,
+    /// Valid DVL reports left out of the initialisation because their velocity jumps away from
+    /// their neighbours' (the refinement weighs them by their residuals instead).
+    pub dvl_spikes_screened: usize,
+    /// DVL reports used whose residual marks them as outliers: down-weighted by the loss.
+    pub dvl_downweighted: usize,
+    /// Camera poses whose residual against the trajectory marks them as outliers:
+    /// down-weighted by the loss.
+    pub poses_downweighted: usize,
+}
+
+/// What the robust loss did to the DVL reports and to the poses.
+#[derive(Clone, Debug, Default)]
+pub struct Robustness {
+    /// The loss asked for.
+    pub loss: Loss,
+    /// The DVL factors (residuals in DVL-clock time).
+    pub dvl: RobustSummary,
+    /// The pose factors (camera-clock time), judged against the pose-only trajectory.
+    pub poses: RobustSummary,
+    /// Weight of each DVL observation in the result (1 for those not used).
+    pub dvl_weights: Vec<f64>,
+    /// Weight of each pose in the result.
+    pub pose_weights: Vec<f64>,
 }
 
 /// Everything a calibration run produced.
@@ -332,6 +380,77 @@ pub struct CalibrationOutcome {
     pub observations: Vec<DvlObs>,
     /// Indices into `observations` of the samples the refinement used.
     pub used: Vec<usize>,
+    /// What the robust loss down-weighted.
+    pub robust: Robustness,
+    /// The autocorrelation of the DVL residuals and the inflation it implied.
+    pub whiteness: Whiteness,
+    /// The calibration of each half of the recording compared (when each half has enough
+    /// samples).
+    pub halves: Option<HalvesCheck>,
+    /// The priors the estimate used: the user's, and the broad default on the lever arm.
+    pub priors: Priors,
+    /// Whether the lever arm came from the broad default prior rather than the data.
+    pub lever_arm_from_default_prior: bool,
+}
+
+impl CalibrationOutcome {
+    /// The fraction of the DVL reports given that the result rests on: used, and not
+    /// down-weighted as outliers.
+    pub fn usable_fraction(&self) -> f64 {
+        let c = &self.counts;
+        if c.dvl_samples == 0 {
+            return 0.0;
+        }
+        c.dvl_used.saturating_sub(c.dvl_downweighted) as f64 / c.dvl_samples as f64
+    }
+
+    /// How much of the recording was usable, in words.
+    pub fn usable_words(&self) -> String {
+        let c = &self.counts;
+        format!(
+            "{:.0}% of the DVL reports used: {} of {} ({} invalid, {} outside the camera span, {} \
+             in gaps between poses, {} down-weighted as outliers); {} of {} poses down-weighted",
+            100.0 * self.usable_fraction(),
+            c.dvl_used.saturating_sub(c.dvl_downweighted),
+            c.dvl_samples,
+            c.dvl_invalid,
+            c.dvl_outside_span,
+            c.dvl_in_pose_gaps,
+            c.dvl_downweighted,
+            c.poses_downweighted,
+            c.poses
+        )
+    }
+}
+
+/// Each half of the recording calibrated on its own (the trajectory held at the result) and
+/// compared: a parameter whose halves disagree by more than three standard deviations has its
+/// standard deviation inflated to what the difference implies.
+#[derive(Clone, Debug, PartialEq)]
+pub struct HalvesCheck {
+    /// DVL-clock time where the halves meet, seconds.
+    pub split_t: f64,
+    /// The first half's calibration.
+    pub first: CalibrationParams,
+    /// The second half's calibration.
+    pub second: CalibrationParams,
+    /// Second minus first, in the covariance's coordinates ([`model::difference`]).
+    pub difference: [f64; NPARAM],
+    /// Standard deviation of that difference (infinite where a half does not determine the
+    /// parameter).
+    pub difference_std: [f64; NPARAM],
+    /// Whether the parameter was compared: both halves determine it to within three times the
+    /// standard deviation half the data would give (a calm half does not test the lever arm).
+    pub compared: [bool; NPARAM],
+    /// The factor each parameter's standard deviation was multiplied by (1: consistent).
+    pub inflation: [f64; NPARAM],
+}
+
+impl HalvesCheck {
+    /// The difference of parameter `k` in its standard deviations.
+    pub fn z(&self, k: usize) -> f64 {
+        self.difference[k].abs() / self.difference_std[k]
+    }
 }
 
 /// Whether a reported velocity covariance can weigh its sample: finite, symmetric, positive
@@ -437,9 +556,23 @@ pub fn calibrate(
             needed: 10,
         });
     }
-    // 1. The camera trajectory from the poses alone.
-    let traj = Trajectory::fit(poses, &opts.fit)?;
+    // 1. The camera trajectory from the poses alone, bad poses down-weighted.
+    let (weighted_poses, traj, pose_robust, pose_weights) = robust_fit(poses, opts)?;
+    let poses = &weighted_poses[..];
+    counts.poses_downweighted = pose_robust.outliers;
     let mut warnings = Vec::new();
+    if pose_robust.outliers > 0 {
+        warnings.push(format!(
+            "{} of {} camera poses lie far from the trajectory the others describe (worst at t = \
+             {:.2} s, {:.0} times the stated variance): {} (a misdetected tag or a board \
+             seen at a grazing angle?)",
+            pose_robust.outliers,
+            pose_robust.factors,
+            pose_robust.worst.first().map_or(f64::NAN, |o| o.t),
+            pose_robust.worst.first().map_or(f64::NAN, |o| o.s),
+            downweighted_by(opts.loss)
+        ));
+    }
     if replaced > 0 {
         warnings.push(format!(
             "{replaced} DVL reports carry a covariance that is not symmetric positive definite \
@@ -447,6 +580,7 @@ pub fn calibrate(
             opts.default_dvl_sigma
         ));
     }
+    counts.dvl_spikes_screened = obs.len() - screen_spikes(&obs, opts).1.len();
     // 2-3. Where the refinement starts.
     let (start, init) = initialise(&traj, &obs, opts, &mut warnings)?;
     if let Some(i) = &init {
@@ -484,8 +618,9 @@ pub fn calibrate(
 
     // 4. Block-coordinate refinement of the parameters and the trajectory.
     let mask = free.mask();
+    let priors = effective_priors(opts);
     let mut jp = JointProblem::new(poses, &traj, &obs, &idx)?;
-    jp.priors = opts.priors;
+    jp.priors = priors;
     let mut traj = traj;
     // The fit's covariance was for the initialisation; its storage serves the joint problem.
     if let Some(storage) = traj.take_covariance_storage() {
@@ -506,24 +641,166 @@ pub fn calibrate(
     if refined.params.velocity_scale < 0.0 && free.rotation {
         refined = mirror_if_better(poses, &jp, refined, &obs, &idx, free, opts, &mut warnings)?;
     }
+    // 4b. Iteratively reweighted: the DVL factors under the robust loss, refined again from
+    // where least squares ended until the weights settle.
+    let mut dvl_weights = vec![1.0; obs.len()];
+    let mut weighted = obs.clone();
+    let mut dvl_robust = RobustSummary::default();
+    for pass in 0..=IRLS_PASSES {
+        let s = whitened_residuals(&refined.trajectory, &obs, &idx, &refined.params)?;
+        let t: Vec<f64> = idx.iter().map(|&i| obs[i].t).collect();
+        let (w, mut summary) = robust::weigh(opts.loss, &s, &t, 3, 1.0);
+        for o in summary.worst.iter_mut() {
+            o.index = idx[o.index];
+        }
+        let change = idx
+            .iter()
+            .zip(&w)
+            .map(|(&i, &wi)| (dvl_weights[i] - wi).abs())
+            .fold(0.0, f64::max);
+        for (&i, &wi) in idx.iter().zip(&w) {
+            dvl_weights[i] = wi;
+            weighted[i].cov = obs[i].cov / wi.max(1e-12);
+        }
+        dvl_robust = summary;
+        if change < 0.01 || pass == IRLS_PASSES {
+            break;
+        }
+        let storage = jp.take_storage();
+        let mut jw = JointProblem::new(poses, &refined.trajectory, &weighted, &idx)?;
+        jw.priors = priors;
+        if let Some(st) = storage {
+            jw.keep_storage(st);
+        }
+        refined = refine_jointly(
+            &jw,
+            refined.trajectory,
+            &weighted,
+            &idx,
+            refined.params,
+            free,
+            opts.max_outer_iterations,
+        )?;
+        if let Some(st) = jw.take_storage() {
+            jp.keep_storage(st);
+        }
+    }
+    counts.dvl_downweighted = dvl_robust.outliers;
+    if dvl_robust.outliers > 0 {
+        warnings.push(format!(
+            "{} of {} DVL reports disagree with the camera's motion beyond what their noise \
+             explains (worst at t = {:.2} s, {:.0} times the stated variance): {} (a fish, a \
+             lost beam, a bubble?)",
+            dvl_robust.outliers,
+            dvl_robust.factors,
+            dvl_robust.worst.first().map_or(f64::NAN, |o| o.t),
+            dvl_robust.worst.first().map_or(f64::NAN, |o| o.s),
+            downweighted_by(opts.loss)
+        ));
+    }
     let (traj, params) = (refined.trajectory, refined.params);
 
     // 5. Uncertainty, residuals, excitation and the verdicts.
-    let (covariance, normalized_cost) =
-        uncertainty(&jp, &traj, &obs, &idx, &params, &mask, &mut warnings)?;
-    if opts.priors.any() {
+    let normalized_cost = inlier_normalized_cost(&traj, &obs, &idx, &params, &dvl_robust)?;
+    let whiteness = residual_whiteness(&traj, &obs, &idx, &params, &dvl_weights)?;
+    if opts.honest_covariance && whiteness.correlated {
+        // Correlated residuals carry the information of fewer independent ones: the DVL
+        // factors' information divided by the integrated autocorrelation time.
+        for i in idx.iter().copied() {
+            weighted[i].cov *= whiteness.inflation;
+        }
+        warnings.push(format!(
+            "the DVL residuals are correlated in time (integrated autocorrelation time {:.1} \
+             samples, {:.2} s; white noise would give 1 +- {:.2}): they carry the information of \
+             {:.0} independent reports, not {}, and the standard deviations account for that",
+            whiteness.inflation,
+            whiteness.inflation * whiteness.sample_interval_s,
+            whiteness.tau_noise,
+            idx.len() as f64 / whiteness.inflation,
+            idx.len()
+        ));
+    }
+    let obs_used = &weighted;
+    let mut jp = {
+        let storage = jp.take_storage();
+        let mut jw = JointProblem::new(poses, &traj, obs_used, &idx)?;
+        jw.priors = priors;
+        if let Some(st) = storage {
+            jw.keep_storage(st);
+        }
+        jw
+    };
+    let mut covariance = uncertainty(&jp, &traj, &params, &mask, normalized_cost, &mut warnings)?;
+    // The drift check compares the thirds of the recording at the model's offset variance: the
+    // halves check below would inflate it for the very drift the check is looking for.
+    let model_offset_std = covariance[(7, 7)].max(0.0).sqrt();
+    let halves = if opts.honest_covariance {
+        let noise_factor = if normalized_cost > 1.5 {
+            normalized_cost
+        } else {
+            1.0
+        };
+        halves_check(
+            &jp,
+            poses,
+            &traj,
+            obs_used,
+            &idx,
+            &params,
+            free,
+            noise_factor,
+            &mut covariance,
+        )?
+    } else {
+        None
+    };
+    if let Some(h) = &halves {
+        warnings.extend(halves_notes(h));
+    }
+    let std = param_std(&covariance);
+    let mut lever_arm_from_default_prior = false;
+    if opts.priors.any() || (priors.any() && free.lever_arm && std.lever_arm_m.max() > 0.05) {
         // What the data alone would say, to tell which parameters the priors determined.
-        let priors = std::mem::take(&mut jp.priors);
+        let taken = std::mem::take(&mut jp.priors);
         let (data_only, _) = joint_covariance(&jp, &traj, &params, &mask)?;
-        jp.priors = priors;
-        warnings.extend(prior_notes(&opts.priors, &data_only, &params));
+        jp.priors = taken;
+        if opts.priors.any() {
+            warnings.extend(prior_notes(&opts.priors, &data_only, &params));
+        }
+        if let (None, Some(l)) = (opts.priors.lever_arm, priors.lever_arm) {
+            let data = (3..6)
+                .map(|k| data_only[(k, k)].max(0.0).sqrt())
+                .fold(0.0, f64::max);
+            if data.is_nan() || data >= 0.5 * l.sigma_m {
+                lever_arm_from_default_prior = true;
+                warnings.push(format!(
+                    "the motion did not observe the lever arm (the data alone determine it only \
+                     to {:.2} m): it comes from the broad default prior (zero, {:.1} m), which \
+                     keeps it from corrupting the other parameters; measure it and give \
+                     --lever-arm-prior",
+                    data, l.sigma_m
+                ));
+            }
+        }
     }
     let (residual_rms, excitation) = residuals_and_excitation(&traj, &obs, &idx, &params)?;
-    let std = param_std(&covariance);
-    let verdicts = verdicts(&std, &opts.weak, &excitation, init.as_ref(), &mask);
+    let mut verdicts = verdicts(&std, &opts.weak, &excitation, init.as_ref(), &mask);
+    if lever_arm_from_default_prior {
+        verdicts.lever_arm = Verdict {
+            ok: false,
+            reason: "not observed by the motion: the value is the broad default prior's \
+                     (zero); measure the lever arm and give --lever-arm-prior"
+                .into(),
+        };
+    }
+    if let Some(h) = &halves {
+        flag_inconsistent(&mut verdicts, h);
+    }
     let status = sanity(&params, normalized_cost, init.as_ref(), free, opts);
     let drift = match &pose_only {
-        Some(t) => drift_check(t, &obs, &idx, &params, std.time_offset_s)?,
+        // At the stated weights: a drifting clock makes the ends of the recording look like
+        // outliers to a constant offset, and down-weighting them would hide the drift.
+        Some(t) => drift_check(t, &obs, &idx, &params, model_offset_std)?,
         None => None,
     };
     if let Some(d) = &drift
@@ -561,6 +838,17 @@ pub fn calibrate(
         fitted: traj,
         observations: obs,
         used: idx,
+        robust: Robustness {
+            loss: opts.loss,
+            dvl: dvl_robust,
+            poses: pose_robust,
+            dvl_weights,
+            pose_weights,
+        },
+        whiteness,
+        halves,
+        priors,
+        lever_arm_from_default_prior,
     })
 }
 
@@ -584,10 +872,17 @@ pub fn initialise(
             obs.len()
         )));
     }
+    // Velocities that jump away from their neighbours are left out of the initialisation: the
+    // speed search and the closed form are least squares and would follow them.
+    let (screened, keep) = screen_spikes(obs, opts);
+    let obs = &screened[..];
     Ok(match &opts.method {
         Method::Uic => {
-            let off = estimate_offset(traj, obs, &opts.offset)?;
+            let mut off = estimate_offset(traj, obs, &opts.offset)?;
             warnings.extend(off.notes.iter().cloned());
+            for c in off.calm.iter_mut() {
+                *c = keep[*c];
+            }
             let idx = usable(traj, obs, off.offset, 0.0);
             let rows: Vec<ClosedFormRow> = crate::parallel::map_indices(idx.len(), 2048, |j| {
                 let i = idx[j];
@@ -600,7 +895,7 @@ pub fn initialise(
             })
             .into_iter()
             .collect::<Result<_>>()?;
-            let cf = closed_form(&rows, opts.bias_corrected)?;
+            let cf = trimmed_closed_form(&rows, opts.bias_corrected)?;
             let params = CalibrationParams {
                 time_offset_s: off.offset,
                 ..cf.params
@@ -621,6 +916,64 @@ pub fn initialise(
         } => (clock_checked(traj, obs, opts, guess, warnings), None),
         Method::Fixed { guess, .. } => (*guess, None),
     })
+}
+
+/// The observations without the velocity spikes [`robust::velocity_spikes`] finds (none are
+/// removed under the least-squares loss), and the index in `obs` of each kept one.
+fn screen_spikes(obs: &[DvlObs], opts: &CalibOptions) -> (Vec<DvlObs>, Vec<usize>) {
+    let spikes = if opts.loss == Loss::L2 {
+        Vec::new()
+    } else {
+        let t: Vec<f64> = obs.iter().map(|o| o.t).collect();
+        let v: Vec<Vector3<f64>> = obs.iter().map(|o| o.v).collect();
+        robust::velocity_spikes(&t, &v, SPIKE_HALF_WINDOW, SPIKE_FACTOR, SPIKE_FLOOR_MPS)
+    };
+    // Screening more than a tenth would be judging the motion, not spikes.
+    if spikes.is_empty() || spikes.len() * 10 > obs.len() {
+        return (obs.to_vec(), (0..obs.len()).collect());
+    }
+    let mut keep = Vec::with_capacity(obs.len() - spikes.len());
+    let mut k = 0;
+    for i in 0..obs.len() {
+        if spikes.get(k) == Some(&i) {
+            k += 1;
+        } else {
+            keep.push(i);
+        }
+    }
+    (keep.iter().map(|&i| obs[i].clone()).collect(), keep)
+}
+
+/// Reports on each side of a DVL velocity that the spike screen compares it with.
+const SPIKE_HALF_WINDOW: usize = 3;
+/// A spike deviates from its neighbours' median by this many times the median deviation...
+const SPIKE_FACTOR: f64 = 8.0;
+/// ...and by at least this much, m/s.
+const SPIKE_FLOOR_MPS: f64 = 0.02;
+
+/// The closed form, solved again without the rows whose residual is more than five robust
+/// standard deviations out (bad twists from bad poses, spikes the screen missed) when they are
+/// few (at most a fifth).
+fn trimmed_closed_form(rows: &[ClosedFormRow], bias_corrected: bool) -> Result<ClosedForm> {
+    let cf = closed_form(rows, bias_corrected)?;
+    let d: Vec<f64> = rows
+        .iter()
+        .map(|r| (r.v_dvl - predict(&cf.params, &r.twist)).norm())
+        .collect();
+    let mut sorted = d.clone();
+    sorted.sort_by(f64::total_cmp);
+    // The median norm of a 3-D standard normal vector is 1.538.
+    let sigma = sorted.get(sorted.len() / 2).copied().unwrap_or(0.0) / 1.538;
+    let kept: Vec<ClosedFormRow> = rows
+        .iter()
+        .zip(&d)
+        .filter(|&(_, &x)| x <= 5.0 * sigma)
+        .map(|(r, _)| r.clone())
+        .collect();
+    if kept.len() == rows.len() || kept.len() * 5 < rows.len() * 4 {
+        return Ok(cf);
+    }
+    closed_form(&kept, bias_corrected)
 }
 
 /// The guess, with its clock offset replaced by the data's when the two are farther apart than
@@ -900,22 +1253,18 @@ fn sanity(
     }
 }
 
-/// Stage 5: the covariance of the free parameters from the joint problem's information, and
-/// the DVL cost per degree of freedom. When the residuals exceed the stated DVL noise by half
-/// or more, the covariance is inflated by that factor and a warning says so.
+/// Stage 5: the covariance of the free parameters from the joint problem's information. When
+/// the DVL residuals exceed the stated noise by half or more (`normalized_cost`), the covariance
+/// is inflated by that factor and a warning says so.
 fn uncertainty(
     jp: &JointProblem,
     traj: &Trajectory,
-    obs: &[DvlObs],
-    idx: &[usize],
     params: &CalibrationParams,
     mask: &[bool; NPARAM],
+    normalized_cost: f64,
     warnings: &mut Vec<String>,
-) -> Result<(ParamMat, f64)> {
+) -> Result<ParamMat> {
     let (mut covariance, _) = joint_covariance(jp, traj, params, mask)?;
-    let dvl_cost: f64 = refine::linearize(traj, obs, idx, params)?.cost;
-    let dof = (3 * idx.len()).saturating_sub(NPARAM).max(1) as f64;
-    let normalized_cost = dvl_cost / dof;
     if normalized_cost > 1.5 {
         warnings.push(format!(
             "DVL residuals are {:.1} times the stated DVL variance; the standard deviations are \
@@ -924,7 +1273,322 @@ fn uncertainty(
         ));
         covariance *= normalized_cost;
     }
-    Ok((covariance, normalized_cost))
+    Ok(covariance)
+}
+
+/// Passes of reweighting after the least-squares refinement (each a full refinement, warm
+/// started; they stop early once no weight moves by more than 0.01).
+const IRLS_PASSES: usize = 4;
+
+/// Squared whitened DVL residuals `r^T C^-1 r` of the samples `idx` (stated covariances), in
+/// the order of `idx`.
+fn whitened_residuals(
+    traj: &Trajectory,
+    obs: &[DvlObs],
+    idx: &[usize],
+    params: &CalibrationParams,
+) -> Result<Vec<f64>> {
+    crate::parallel::map_indices(idx.len(), 2048, |j| {
+        let o = &obs[idx[j]];
+        let q = traj.state(o.t + params.time_offset_s)?;
+        let r = o.v - predict(params, &q.twist);
+        let w = o.cov.try_inverse().ok_or_else(|| {
+            Error::Input(format!("DVL sample at t = {}: singular covariance", o.t))
+        })?;
+        Ok((r.transpose() * w * r)[0])
+    })
+    .into_iter()
+    .collect()
+}
+
+/// The DVL cost per degree of freedom under the stated noise, over the samples that are not
+/// outliers: about 1 when the noise is right, whatever the outliers.
+fn inlier_normalized_cost(
+    traj: &Trajectory,
+    obs: &[DvlObs],
+    idx: &[usize],
+    params: &CalibrationParams,
+    robust: &RobustSummary,
+) -> Result<f64> {
+    let s = whitened_residuals(traj, obs, idx, params)?;
+    let limit = robust.threshold * robust.noise_scale;
+    let (sum, n) = s
+        .iter()
+        .filter(|&&x| robust.applied.is_none() || x <= limit)
+        .fold((0.0, 0usize), |(a, n), &x| (a + x, n + 1));
+    let dof = (3 * n).saturating_sub(NPARAM).max(1) as f64;
+    Ok(sum / dof)
+}
+
+/// The trajectory fitted to the poses with the bad ones down-weighted: a fit, the poses'
+/// residuals against it, and refits with the weights of the loss until the outliers found stop
+/// changing (at most three fits). Returns the poses as weighted (their covariance divided by
+/// the weight), the trajectory, what was done, and the weight of each pose.
+fn robust_fit(
+    poses: &[PoseMeasurement],
+    opts: &CalibOptions,
+) -> Result<(Vec<PoseMeasurement>, Trajectory, RobustSummary, Vec<f64>)> {
+    let mut traj = Trajectory::fit(poses, &opts.fit)?;
+    let mut weighted = poses.to_vec();
+    let mut weights = vec![1.0; poses.len()];
+    let mut summary = RobustSummary::default();
+    if opts.loss == Loss::L2 {
+        return Ok((weighted, traj, summary, weights));
+    }
+    let t: Vec<f64> = poses.iter().map(|p| p.t).collect();
+    // The stated noise: the poses' own covariance, or the first fit's estimate of it (later
+    // fits see every pose with a covariance and estimate nothing).
+    let info = measurement_information(poses, traj.report().pose_sigma)?;
+    let refit = FitOptions {
+        pose_sigma: Some(traj.report().pose_sigma),
+        ..opts.fit.clone()
+    };
+    for fit in 1..=3 {
+        let s: Vec<f64> = poses
+            .iter()
+            .zip(traj.knots())
+            .zip(&info)
+            .map(|((m, k), w)| {
+                let e = (m.pose.inverse() * k.pose).log();
+                (e.transpose() * w * e)[0]
+            })
+            .collect();
+        let (w, sum) = robust::weigh(opts.loss, &s, &t, 6, 1.0);
+        let change = w
+            .iter()
+            .zip(&weights)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        summary = sum;
+        if change < 0.01 || fit == 3 {
+            break;
+        }
+        for (k, p) in weighted.iter_mut().enumerate() {
+            weights[k] = w[k];
+            let cov = info[k].try_inverse().ok_or_else(|| {
+                Error::Numerical(format!(
+                    "pose {} (t = {}): information not invertible",
+                    k + 1,
+                    p.t
+                ))
+            })?;
+            p.cov = if w[k] < 1.0 {
+                Some(cov / w[k].max(1e-12))
+            } else {
+                poses[k].cov
+            };
+        }
+        traj = Trajectory::fit(&weighted, &refit)?;
+    }
+    Ok((weighted, traj, summary, weights))
+}
+
+/// What was done with outliers under `loss`, in words.
+fn downweighted_by(loss: Loss) -> String {
+    match loss {
+        Loss::L2 => "kept at full weight (--loss l2): they pull the result".into(),
+        l => format!("down-weighted by the {} loss", l.name()),
+    }
+}
+
+/// The user's priors, with the broad default prior on the lever arm when none is given.
+fn effective_priors(opts: &CalibOptions) -> Priors {
+    let mut p = opts.priors;
+    if p.lever_arm.is_none()
+        && let Some(sigma_m) = opts.default_lever_arm_sigma_m
+    {
+        p.lever_arm = Some(prior::LeverArmPrior {
+            lever_arm_cam_m: Vector3::zeros(),
+            sigma_m,
+        });
+    }
+    p
+}
+
+/// The autocorrelation of the DVL residuals of the samples `idx` that kept at least half their
+/// weight, each axis divided by its stated standard deviation.
+fn residual_whiteness(
+    traj: &Trajectory,
+    obs: &[DvlObs],
+    idx: &[usize],
+    params: &CalibrationParams,
+    weights: &[f64],
+) -> Result<Whiteness> {
+    let mut kept: Vec<usize> = idx.iter().copied().filter(|&i| weights[i] >= 0.5).collect();
+    kept.sort_by(|&a, &b| obs[a].t.total_cmp(&obs[b].t));
+    let r: Vec<Vector3<f64>> = crate::parallel::map_indices(kept.len(), 2048, |j| {
+        let o = &obs[kept[j]];
+        let q = traj.state(o.t + params.time_offset_s)?;
+        let r = o.v - predict(params, &q.twist);
+        Ok(Vector3::new(
+            r.x / o.cov[(0, 0)].max(1e-300).sqrt(),
+            r.y / o.cov[(1, 1)].max(1e-300).sqrt(),
+            r.z / o.cov[(2, 2)].max(1e-300).sqrt(),
+        ))
+    })
+    .into_iter()
+    .collect::<Result<_>>()?;
+    let t: Vec<f64> = kept.iter().map(|&i| obs[i].t).collect();
+    Ok(whiteness::whiteness(&t, &r))
+}
+
+/// Fewest samples in each half for the halves check.
+const HALF_MIN: usize = 50;
+
+/// Each half of the samples `idx` (by DVL time) calibrated on its own and compared with the
+/// other; where they differ by more than three standard deviations the rows and columns of
+/// `covariance` are scaled so that the difference is one (the variance the difference itself
+/// estimates).
+///
+/// Each half's estimate is two Gauss-Newton steps on its joint problem (all poses, the half's
+/// DVL reports) from the result, and its covariance that problem's marginal one (times
+/// `noise_factor`, the inflation of the whole's for residuals above the stated noise): a half
+/// that does not excite a parameter (a calm first half) gives it a large variance and no false
+/// alarm.
+#[allow(clippy::too_many_arguments)]
+fn halves_check(
+    jp: &JointProblem,
+    poses: &[PoseMeasurement],
+    traj: &Trajectory,
+    obs: &[DvlObs],
+    idx: &[usize],
+    params: &CalibrationParams,
+    free: FreeParams,
+    noise_factor: f64,
+    covariance: &mut ParamMat,
+) -> Result<Option<HalvesCheck>> {
+    let mask = free.mask();
+    if !mask.iter().any(|&m| m) {
+        return Ok(None);
+    }
+    let mut by_time: Vec<usize> = idx.to_vec();
+    by_time.sort_by(|&a, &b| obs[a].t.total_cmp(&obs[b].t));
+    let n = by_time.len() / 2;
+    if n < HALF_MIN {
+        return Ok(None);
+    }
+    let (first_idx, second_idx) = by_time.split_at(n);
+    let mut storage = jp.take_storage();
+    let mut half = |part: &[usize]| -> Result<(CalibrationParams, ParamMat)> {
+        let mut jh = JointProblem::new(poses, traj, obs, part)?;
+        jh.priors = jp.priors;
+        if let Some(st) = storage.take() {
+            jh.keep_storage(st);
+        }
+        let (mut t, mut p) = (traj.clone(), *params);
+        for _ in 0..2 {
+            match joint_step(&jh, &t, &p, &mask)? {
+                Some(js) => (t, p) = (js.trajectory, js.params),
+                None => break,
+            }
+        }
+        let (cov, _) = joint_covariance(&jh, &t, &p, &mask)?;
+        storage = jh.take_storage();
+        Ok((p, cov * noise_factor))
+    };
+    let (first, c1) = half(first_idx)?;
+    let (second, c2) = half(second_idx)?;
+    if let Some(st) = storage {
+        jp.keep_storage(st);
+    }
+    let d = model::difference(&second, &first);
+    let mut difference = [0.0; NPARAM];
+    let mut difference_std = [f64::INFINITY; NPARAM];
+    let mut inflation = [1.0; NPARAM];
+    let mut compared = [false; NPARAM];
+    for k in 0..NPARAM {
+        difference[k] = d[k];
+        let var = c1[(k, k)] + c2[(k, k)];
+        if !(mask[k] && var.is_finite() && var > 0.0) {
+            continue;
+        }
+        difference_std[k] = var.sqrt();
+        // A half that determines a parameter far worse than half the data should (a calm half
+        // and the lever arm) is no test of it: its estimate is as weak as its linearised
+        // variance is unreliable.
+        let even = 2.0 * covariance[(k, k)].max(0.0);
+        compared[k] =
+            c1[(k, k)] <= HALF_VARIANCE_LIMIT * even && c2[(k, k)] <= HALF_VARIANCE_LIMIT * even;
+        let z = d[k].abs() / difference_std[k];
+        if compared[k] && z > 3.0 {
+            inflation[k] = z;
+        }
+    }
+    for k in 0..NPARAM {
+        for j in 0..NPARAM {
+            covariance[(k, j)] *= inflation[k] * inflation[j];
+        }
+    }
+    let split_t = 0.5 * (obs[first_idx[n - 1]].t + obs[second_idx[0]].t);
+    Ok(Some(HalvesCheck {
+        split_t,
+        first,
+        second,
+        difference,
+        difference_std,
+        compared,
+        inflation,
+    }))
+}
+
+/// A half whose variance of a parameter exceeds this many times what half the data would give
+/// on average (twice the whole's) does not take part in the comparison of that parameter.
+const HALF_VARIANCE_LIMIT: f64 = 9.0;
+
+/// Names of the parameters in the covariance's order, with the factor to a display unit.
+const PARAM_NAMES: [(&str, f64, &str); NPARAM] = [
+    ("rotation about x", 57.295_779_513_082_32, "deg"),
+    ("rotation about y", 57.295_779_513_082_32, "deg"),
+    ("rotation about z", 57.295_779_513_082_32, "deg"),
+    ("lever arm x", 1e3, "mm"),
+    ("lever arm y", 1e3, "mm"),
+    ("lever arm z", 1e3, "mm"),
+    ("velocity scale", 1.0, ""),
+    ("clock offset", 1e3, "ms"),
+];
+
+/// A warning per parameter whose halves disagree.
+fn halves_notes(h: &HalvesCheck) -> Vec<String> {
+    (0..NPARAM)
+        .filter(|&k| h.inflation[k] > 1.0)
+        .map(|k| {
+            let (name, f, unit) = PARAM_NAMES[k];
+            format!(
+                "the two halves of the recording disagree on the {name}: {:+.4} {unit} apart, \
+                 {:.1} standard deviations; its standard deviation is inflated {:.1} times to \
+                 cover the difference (correlated DVL errors, motion the model does not capture, \
+                 or a calibration that changed during the recording)",
+                h.difference[k] * f,
+                h.z(k),
+                h.inflation[k]
+            )
+        })
+        .collect()
+}
+
+/// Verdicts of the parameters whose halves disagree, turned weak with the reason.
+fn flag_inconsistent(v: &mut Verdicts, h: &HalvesCheck) {
+    let groups: [(&mut Verdict, std::ops::Range<usize>, &str); 4] = [
+        (&mut v.rotation, 0..3, "rotation"),
+        (&mut v.lever_arm, 3..6, "lever arm"),
+        (&mut v.velocity_scale, 6..7, "velocity scale"),
+        (&mut v.time_offset, 7..8, "clock offset"),
+    ];
+    for (verdict, range, what) in groups {
+        let worst = range.clone().map(|k| h.z(k)).fold(0.0, f64::max);
+        if range.clone().any(|k| h.inflation[k] > 1.0) {
+            verdict.ok = false;
+            let reason = format!(
+                "the {what} of the two halves of the recording differ by {worst:.1} standard \
+                 deviations (the standard deviation was inflated to cover it)"
+            );
+            verdict.reason = if verdict.reason.is_empty() {
+                reason
+            } else {
+                format!("{}; {reason}", verdict.reason)
+            };
+        }
+    }
 }
 
 /// For each prior, whether it or the data determined its parameter: the prior did when its

@@ -74,7 +74,7 @@ impl<'a> JointProblem<'a> {
     }
 
     /// The kept system storage, if any.
-    fn take_storage(&self) -> Option<BlockTridiagonal> {
+    pub(crate) fn take_storage(&self) -> Option<BlockTridiagonal> {
         self.storage.lock().ok().and_then(|mut s| s.take())
     }
 

@@ -173,6 +173,58 @@ pub fn result_file(o: &CalibrationOutcome, log: &DvlLog) -> CalibrationFile {
         put("clock_alignment_ambiguous", a.ambiguous.into());
         put("calm_samples", o.counts.calm.into());
     }
+    put("loss", o.robust.loss.name().into());
+    put(
+        "dvl_spikes_screened_from_init",
+        o.counts.dvl_spikes_screened.into(),
+    );
+    put("dvl_downweighted", o.counts.dvl_downweighted.into());
+    put("poses_downweighted", o.counts.poses_downweighted.into());
+    let worst = |w: &[crate::calib::robust::Outlier]| -> serde_yaml::Value {
+        w.iter()
+            .map(|x| {
+                let mut m = serde_yaml::Mapping::new();
+                m.insert("t_s".into(), x.t.into());
+                m.insert("variances_out".into(), x.s.into());
+                m.insert("weight".into(), x.weight.into());
+                serde_yaml::Value::Mapping(m)
+            })
+            .collect::<Vec<_>>()
+            .into()
+    };
+    if !o.robust.dvl.worst.is_empty() {
+        put("dvl_worst_residuals", worst(&o.robust.dvl.worst));
+    }
+    if !o.robust.poses.worst.is_empty() {
+        put("poses_worst_residuals", worst(&o.robust.poses.worst));
+    }
+    put(
+        "dvl_noise_over_stated_variance",
+        o.robust.dvl.noise_scale.into(),
+    );
+    let wh = &o.whiteness;
+    put(
+        "dvl_residual_autocorrelation_time_samples",
+        wh.tau.to_vec().into(),
+    );
+    put("dvl_residuals_correlated", wh.correlated.into());
+    put("dvl_information_divided_by", wh.inflation.into());
+    if let Some(h) = &o.halves {
+        put("halves_split_dvl_time_s", h.split_t.into());
+        put(
+            "halves_difference_in_std",
+            (0..crate::calib::model::NPARAM)
+                .map(|k| if h.compared[k] { h.z(k) } else { f64::NAN })
+                .collect::<Vec<_>>()
+                .into(),
+        );
+        put("halves_std_inflation", h.inflation.to_vec().into());
+    }
+    put(
+        "lever_arm_from_default_prior",
+        o.lever_arm_from_default_prior.into(),
+    );
+    put("usable_fraction", o.usable_fraction().into());
     if let Some(d) = &o.drift {
         put("clock_offset_first_third_s", d.first_third_s.into());
         put("clock_offset_last_third_s", d.last_third_s.into());
@@ -399,6 +451,7 @@ impl CalibrationRun {
             o.normalized_cost,
             o.iterations.len()
         );
+        let _ = writeln!(out, "data      {}", o.usable_words());
         for w in self.file.info.iter().flat_map(|i| i.warnings.iter()) {
             let _ = writeln!(out, "warning: {w}");
         }

@@ -21,6 +21,8 @@ pub(super) struct Sample {
     /// `|v|` and `|w x p|` of the camera at the final parameters, m/s.
     pub speed: f64,
     pub lever: f64,
+    /// Weight of the sample in the result (below 1: down-weighted by the robust loss).
+    pub weight: f64,
 }
 
 /// Everything computed from the input before rendering.
@@ -44,6 +46,10 @@ pub(super) struct Derived {
     pub fitted_path: Vec<Vector3<f64>>,
     /// The two world axes of the top view (those with the largest spread of positions).
     pub plane: (usize, usize),
+    /// Stretches without valid DVL reports (DVL clock): bottom lock lost, reports invalid.
+    pub dvl_gaps: Vec<(f64, f64)>,
+    /// Gaps between camera poses, on the DVL clock at the final offset.
+    pub pose_gaps: Vec<(f64, f64)>,
 }
 
 fn rms(v: impl Iterator<Item = Vector3<f64>>) -> Option<Vector3<f64>> {
@@ -87,6 +93,7 @@ impl Derived {
                 after: predict(p, &q.twist),
                 speed: v.norm(),
                 lever: w.cross(&p.lever_arm_cam_m()).norm(),
+                weight: o.robust.dvl_weights.get(i).copied().unwrap_or(1.0),
             });
         }
         if samples.is_empty() {
@@ -145,6 +152,12 @@ impl Derived {
         }
         let measured_path: Vec<Vector3<f64>> = input.poses.iter().map(|m| m.pose.trans).collect();
         let plane = top_view_plane(&measured_path);
+        let valid_t: Vec<f64> = o.observations.iter().map(|x| x.t).collect();
+        let dvl_gaps = time_gaps(&valid_t);
+        let pose_gaps = crate::calib::pose_gaps(traj.times())
+            .into_iter()
+            .map(|(a, b)| (a - p.time_offset_s, b - p.time_offset_s))
+            .collect();
         Ok(Derived {
             samples,
             skipped,
@@ -157,8 +170,20 @@ impl Derived {
             measured_path,
             fitted_path,
             plane,
+            dvl_gaps,
+            pose_gaps,
         })
     }
+}
+
+/// Stretches between consecutive sorted times longer than four median periods and half a
+/// second (the DVL log's own gap rule).
+fn time_gaps(t: &[f64]) -> Vec<(f64, f64)> {
+    let limit = (4.0 * median_period(t)).max(0.5);
+    t.windows(2)
+        .filter(|w| w[1] - w[0] >= limit)
+        .map(|w| (w[0], w[1]))
+        .collect()
 }
 
 /// Median spacing of sorted times (0.1 s when there are fewer than two).

@@ -16,6 +16,7 @@ const BEFORE: &str = "#e8710a";
 const AFTER: &str = "#1a63c2";
 const NOISE: &str = "#2a9d3a";
 const LEVER: &str = "#c2185b";
+const OUTLIER: &str = "#d62728";
 const AXES: [&str; 3] = ["x", "y", "z"];
 const AXIS_COLORS: [&str; 3] = ["#d62728", "#2ca02c", "#1f77b4"];
 
@@ -132,6 +133,7 @@ pub(super) fn render(input: &ReportInput, d: &Derived) -> String {
     results(&mut s, o, input.dvl_stats.and_then(|st| st.sound_speed_mps));
     warnings(&mut s, input);
     velocity(&mut s, d);
+    robustness(&mut s, o);
     residuals(&mut s, o, d);
     motion(&mut s, o, d);
     clock_offset(&mut s, o);
@@ -421,7 +423,9 @@ fn velocity(s: &mut String, d: &Derived) {
         "<p>Each panel shows one axis of the DVL frame against the DVL clock: the measured \
          velocity (grey dots) and the velocity the camera trajectory predicts through the \
          calibration. On the left with the parameters the refinement started from, on the right \
-         with the final ones. Both panels of an axis share the same scale.</p>\n<div class=\"grid\">",
+         with the final ones. Both panels of an axis share the same scale. Red dots are reports \
+         the robust loss down-weighted (less than half their weight); shaded stretches have no \
+         valid DVL report or no camera pose.</p>\n<div class=\"grid\">",
     );
     for (k, axis) in AXES.iter().enumerate() {
         let measured: Vec<(f64, f64)> =
@@ -432,6 +436,12 @@ fn velocity(s: &mut String, d: &Derived) {
             .map(|x| (x.t_dvl, x.before.map_or(f64::NAN, |b| b[k])))
             .collect();
         let after: Vec<(f64, f64)> = d.samples.iter().map(|x| (x.t_dvl, x.after[k])).collect();
+        let downweighted: Vec<(f64, f64)> = d
+            .samples
+            .iter()
+            .filter(|x| x.weight < 0.5)
+            .map(|x| (x.t_dvl, x.measured[k]))
+            .collect();
         let (lo, hi) = measured
             .iter()
             .chain(&before)
@@ -462,6 +472,16 @@ fn velocity(s: &mut String, d: &Derived) {
             .series(Series::dots("measured", MEASURED, measured.clone()).size(3.5))
             .series(Series::line("predicted", color, pred).size(1.2))
             .empty_note("no samples");
+            if !downweighted.is_empty() {
+                plot = plot
+                    .series(Series::dots("down-weighted", OUTLIER, downweighted.clone()).size(5.0));
+            }
+            if !d.dvl_gaps.is_empty() {
+                plot = plot.spans("no valid DVL report", d.dvl_gaps.clone());
+            }
+            if !d.pose_gaps.is_empty() {
+                plot = plot.spans("no camera pose", d.pose_gaps.clone());
+            }
             if lo.is_finite() && hi.is_finite() {
                 plot = plot.y_range(lo - pad, hi + pad);
             }
@@ -476,6 +496,165 @@ fn velocity(s: &mut String, d: &Derived) {
              are not shown.</p>\n",
             d.skipped
         );
+    }
+    s.push_str("</section>\n");
+}
+
+fn robustness(s: &mut String, o: &CalibrationOutcome) {
+    section(
+        s,
+        "robustness",
+        "Outliers, correlated errors and consistency",
+    );
+    put!(
+        s,
+        "<p>{}. Loss: <b>{}</b>{}.</p>\n",
+        escape(&o.usable_words()),
+        o.robust.loss.name(),
+        match (&o.robust.dvl.applied, &o.robust.poses.applied) {
+            (None, None) => " (not applied: no residual was an outlier)",
+            _ => "",
+        }
+    );
+    for (what, sum, clock) in [
+        ("DVL reports", &o.robust.dvl, "DVL"),
+        ("camera poses", &o.robust.poses, "camera"),
+    ] {
+        if sum.worst.is_empty() {
+            continue;
+        }
+        put!(
+            s,
+            "<p>The worst {what} ({} outliers of {}; threshold {:.1} variances, noise {:.2} times \
+             the stated variance):</p>\n<table><tr><th>time ({clock} clock, s)</th>\
+             <th>squared residual (variances)</th><th>weight</th></tr>",
+            sum.outliers,
+            sum.factors,
+            sum.threshold,
+            sum.noise_scale
+        );
+        for w in &sum.worst {
+            put!(
+                s,
+                "<tr><td>{:.3}</td><td>{:.0}</td><td>{:.3}</td></tr>",
+                w.t,
+                w.s,
+                w.weight
+            );
+        }
+        s.push_str("</table>\n");
+    }
+    let wh = &o.whiteness;
+    if !wh.lag_s.is_empty() {
+        let shown = wh
+            .lag_s
+            .len()
+            .min(((10.0 * wh.window.max(10) as f64) as usize).max(20));
+        let mut plot = Plot::new(
+            "residual-acf",
+            "Autocorrelation of the DVL residuals",
+            "lag (s)",
+            "autocorrelation",
+        )
+        .size(WIDE, 260.0);
+        for (k, axis) in AXES.iter().enumerate() {
+            let pts: Vec<(f64, f64)> = wh.lag_s[..shown]
+                .iter()
+                .zip(&wh.acf[k])
+                .map(|(&l, &r)| (l, r))
+                .collect();
+            plot = plot.series(
+                Series::line(
+                    &format!("{axis} (tau {:.1})", wh.tau[k]),
+                    AXIS_COLORS[k],
+                    pts,
+                )
+                .size(1.2),
+            );
+        }
+        let n = o.used.len().max(1) as f64;
+        let band = 2.0 / n.sqrt();
+        let end = wh.lag_s[shown - 1];
+        plot = plot
+            .series(
+                Series::line("white-noise band", NOISE, vec![(0.0, band), (end, band)]).dashed(),
+            )
+            .series(Series::line("", NOISE, vec![(0.0, -band), (end, -band)]).dashed());
+        figure(
+            s,
+            &plot,
+            &if wh.correlated {
+                format!(
+                    "The residuals are correlated: an integrated autocorrelation time of {:.1} \
+                     samples ({:.2} s) where white noise gives 1 ± {:.2}. The DVL reports' \
+                     information was divided by {:.1} (an effective sample size) before the \
+                     standard deviations were computed.",
+                    wh.inflation,
+                    wh.inflation * wh.sample_interval_s,
+                    wh.tau_noise,
+                    wh.inflation
+                )
+            } else {
+                format!(
+                    "The residuals are white within what chance allows (integrated \
+                     autocorrelation times {:.1}, {:.1}, {:.1} samples; white noise gives \
+                     1 ± {:.2}): the standard deviations need no inflation for correlation.",
+                    wh.tau[0], wh.tau[1], wh.tau[2], wh.tau_noise
+                )
+            },
+        );
+    }
+    if let Some(h) = &o.halves {
+        put!(
+            s,
+            "<p>The recording split at DVL time {:.2} s and each half calibrated on its own. A \
+             parameter whose halves differ by more than three standard deviations has its \
+             standard deviation inflated to cover the difference; one that a half does not \
+             determine is not compared.</p>\n<table><tr><th>parameter</th><th>first half</th>\
+             <th>second half</th><th>difference</th><th>std of difference</th>\
+             <th>difference / std</th><th>std inflated by</th></tr>",
+            h.split_t
+        );
+        let names = [
+            ("rotation about x (deg)", 180.0 / std::f64::consts::PI),
+            ("rotation about y (deg)", 180.0 / std::f64::consts::PI),
+            ("rotation about z (deg)", 180.0 / std::f64::consts::PI),
+            ("lever arm x (mm)", 1e3),
+            ("lever arm y (mm)", 1e3),
+            ("lever arm z (mm)", 1e3),
+            ("velocity scale", 1.0),
+            ("clock offset (ms)", 1e3),
+        ];
+        let value = |p: &crate::types::CalibrationParams, k: usize| -> String {
+            match k {
+                3..=5 => format!("{:.1}", 1e3 * p.lever_arm_cam_m()[k - 3]),
+                6 => format!("{:.5}", p.velocity_scale),
+                7 => format!("{:.2}", 1e3 * p.time_offset_s),
+                _ => "".into(),
+            }
+        };
+        for (k, (name, f)) in names.iter().enumerate() {
+            let z = if h.compared[k] {
+                format!("{:.1}", h.z(k))
+            } else {
+                "not compared".into()
+            };
+            put!(
+                s,
+                "<tr><td>{name}</td><td>{}</td><td>{}</td><td>{:+.4}</td><td>{:.4}</td>\
+                 <td>{z}</td><td>{}</td></tr>",
+                value(&h.first, k),
+                value(&h.second, k),
+                h.difference[k] * f,
+                h.difference_std[k] * f,
+                if h.inflation[k] > 1.0 {
+                    format!("<b>{:.1}</b>", h.inflation[k])
+                } else {
+                    "1".into()
+                }
+            );
+        }
+        s.push_str("</table>\n");
     }
     s.push_str("</section>\n");
 }

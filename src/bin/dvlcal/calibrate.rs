@@ -8,6 +8,7 @@ use crate::dataset::{DatasetArgs, load};
 use crate::dvl_info::DvlInputArgs;
 
 use dvlcal::calib::prior::{LeverArmPrior, Priors, RotationPrior};
+use dvlcal::calib::robust::Loss;
 use dvlcal::calib::{CalibOptions, Method, Status};
 use dvlcal::io::calib_yaml::{read_calibration_guess, rotation_from_rpy_deg};
 use dvlcal::pipeline::{calibrate_dataset, write_report, write_results};
@@ -51,6 +52,19 @@ pub struct EstimatorArgs {
         value_name = "ROLL,PITCH,YAW[:SIGMA_DEG]"
     )]
     pub rotation_prior: Option<String>,
+    /// Loss on the DVL and pose residuals: `cauchy` (outliers lose their pull), `huber`
+    /// (outliers keep a bounded pull) or `l2` (least squares, every sample at full weight). The
+    /// loss applies only when some residual is an outlier.
+    #[arg(long, default_value = "cauchy", value_name = "cauchy|huber|l2")]
+    pub loss: String,
+    /// Standard deviation, metres, of the broad prior that keeps an unobserved lever arm near
+    /// zero when no --lever-arm-prior is given; `none` turns it off.
+    #[arg(long, default_value = "1", value_name = "SIGMA_M|none")]
+    pub default_lever_arm_sigma: String,
+    /// Keep the standard deviations as the noise model states them: no inflation for
+    /// correlated DVL residuals or for halves of the recording that disagree.
+    #[arg(long)]
+    pub model_covariance: bool,
 }
 
 /// `a,b,c[:sigma]` as three finite numbers and a sigma (`default` when none is given).
@@ -167,6 +181,14 @@ pub fn options(
         dvl_sigma: est.dvl_sigma,
         bias_corrected: !biased,
         priors: est.priors()?,
+        loss: Loss::parse(&est.loss)?,
+        default_lever_arm_sigma_m: match est.default_lever_arm_sigma.trim() {
+            "none" => None,
+            t => Some(t.parse::<f64>().map_err(|_| {
+                anyhow::anyhow!("--default-lever-arm-sigma takes metres or `none`, got `{t}`")
+            })?),
+        },
+        honest_covariance: !est.model_covariance,
         ..CalibOptions::default()
     };
     opts.offset.range = range;
