@@ -35,6 +35,18 @@ pub struct ClosedForm {
     /// Smallest eigenvalue of the angular-velocity block of the (corrected) normal matrix divided
     /// by the number of rows: the mean squared angular rate along the least excited axis.
     pub min_rotation_excitation: f64,
+    /// Mean variance of one component of the camera's angular velocity as the trajectory
+    /// estimates it, (rad/s)^2: the noise that excitation has to stand out from.
+    pub angular_noise_variance: f64,
+}
+
+impl ClosedForm {
+    /// The least excited axis's mean squared angular rate over the angular velocity's noise
+    /// variance: below a few, the angular velocity is mostly noise and the lever arm, seen only
+    /// through `w x p`, is not observed.
+    pub fn rotation_snr(&self) -> f64 {
+        self.min_rotation_excitation / self.angular_noise_variance.max(1e-300)
+    }
 }
 
 /// Nearest rotation matrix to `m` (SVD projection with the determinant forced to +1).
@@ -134,6 +146,11 @@ pub fn closed_form(rows: &[ClosedFormRow], bias_corrected: bool) -> Result<Close
         params: CalibrationParams::from_r_dvl_cam(r, lever_arm, scale, 0.0),
         lever_arm_solved,
         min_rotation_excitation: excitation.max(0.0),
+        angular_noise_variance: rows
+            .iter()
+            .map(|r| (r.twist_cov[(3, 3)] + r.twist_cov[(4, 4)] + r.twist_cov[(5, 5)]) / 3.0)
+            .sum::<f64>()
+            / n,
     })
 }
 

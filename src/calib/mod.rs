@@ -586,7 +586,7 @@ pub fn calibrate(
     if let Some(i) = &init {
         counts.calm = i.offset.calm.len();
     }
-    let free = free_parameters(&opts.method);
+    let mut free = free_parameters(&opts.method);
 
     // Samples kept for every offset the refinement may reach.
     let margin = opts.offset.window_s.min(0.5);
@@ -617,7 +617,7 @@ pub fn calibrate(
     }
 
     // 4. Block-coordinate refinement of the parameters and the trajectory.
-    let mask = free.mask();
+    let mut mask = free.mask();
     let priors = effective_priors(opts);
     let mut jp = JointProblem::new(poses, &traj, &obs, &idx)?;
     jp.priors = priors;
@@ -629,6 +629,45 @@ pub fn calibrate(
     // The pose-only trajectory, for the drift check: the refined one has absorbed part of the
     // DVL's misfit under a constant offset. Kept only when the offset is estimated.
     let pose_only = free.time_offset.then(|| traj.clone());
+    // A lever arm the motion does not observe is held at its prior: free, it would wander to
+    // metres, the trajectory's angular velocity bending to fit the DVL noise through `w x p`,
+    // and take the other parameters with it.
+    let mut start = start;
+    let lever_held = match (opts.priors.lever_arm, priors.lever_arm) {
+        (None, Some(l)) if free.lever_arm => {
+            let taken = std::mem::take(&mut jp.priors);
+            let (data_only, _) = joint_covariance(&jp, &traj, &start, &mask)?;
+            jp.priors = taken;
+            let worst = (3..6)
+                .map(|k| data_only[(k, k)].max(0.0).sqrt())
+                .fold(0.0, f64::max);
+            // The linearised std misses how far the lever arm can run when the angular
+            // velocity is mostly noise; the closed form's excitation over that noise sees it.
+            let noise_only = init
+                .as_ref()
+                .is_some_and(|i| i.closed_form.rotation_snr() < LEVER_HOLD_SNR);
+            (noise_only || worst.is_nan() || worst > LEVER_HOLD_FRACTION * l.sigma_m)
+                .then_some((worst, l))
+        }
+        _ => None,
+    };
+    if let Some((worst, l)) = lever_held {
+        free.lever_arm = false;
+        mask = free.mask();
+        start = CalibrationParams::from_r_dvl_cam(
+            start.r_dvl_cam(),
+            l.lever_arm_cam_m,
+            start.velocity_scale,
+            start.time_offset_s,
+        );
+        warnings.push(format!(
+            "the motion does not observe the lever arm (the data alone determine it only to \
+             {worst:.2} m at the start, and the angular velocity is mostly noise): it is held at \
+             the broad default prior's value, zero, and \
+             the other parameters are estimated around it; measure the lever arm and give \
+             --lever-arm-prior, or record strong rotations about several axes"
+        ));
+    }
     let mut refined = refine_jointly(
         &jp,
         traj,
@@ -757,8 +796,14 @@ pub fn calibrate(
     if let Some(h) = &halves {
         warnings.extend(halves_notes(h));
     }
+    if let Some((_, l)) = lever_held {
+        // Held, the lever arm is known as well as its prior says.
+        for k in 3..6 {
+            covariance[(k, k)] = l.sigma_m * l.sigma_m;
+        }
+    }
     let std = param_std(&covariance);
-    let mut lever_arm_from_default_prior = false;
+    let mut lever_arm_from_default_prior = lever_held.is_some();
     if opts.priors.any() || (priors.any() && free.lever_arm && std.lever_arm_m.max() > 0.05) {
         // What the data alone would say, to tell which parameters the priors determined.
         let taken = std::mem::take(&mut jp.priors);
@@ -785,7 +830,16 @@ pub fn calibrate(
     }
     let (residual_rms, excitation) = residuals_and_excitation(&traj, &obs, &idx, &params)?;
     let mut verdicts = verdicts(&std, &opts.weak, &excitation, init.as_ref(), &mask);
-    if lever_arm_from_default_prior {
+    if let Some((worst, _)) = lever_held {
+        verdicts.lever_arm = Verdict {
+            ok: false,
+            reason: format!(
+                "not observed by the motion (the data alone determine it only to {worst:.2} m): \
+                 held at the broad default prior's value, zero; measure the lever arm and give \
+                 --lever-arm-prior"
+            ),
+        };
+    } else if lever_arm_from_default_prior {
         verdicts.lever_arm = Verdict {
             ok: false,
             reason: "not observed by the motion: the value is the broad default prior's \
@@ -1431,6 +1485,13 @@ fn residual_whiteness(
     let t: Vec<f64> = kept.iter().map(|&i| obs[i].t).collect();
     Ok(whiteness::whiteness(&t, &r))
 }
+
+/// A lever arm whose data-only standard deviation exceeds this fraction of the default prior's
+/// is held at the prior's value.
+const LEVER_HOLD_FRACTION: f64 = 0.25;
+/// ... and so is one whose least excited rotation axis's mean squared rate is below this many
+/// times the angular velocity's noise variance.
+const LEVER_HOLD_SNR: f64 = 4.0;
 
 /// Fewest samples in each half for the halves check.
 const HALF_MIN: usize = 50;
