@@ -5,7 +5,6 @@
 //! does not observe at all should be held by the broad default prior (ignored: it is not).
 
 use dvlcal::calib::model::difference;
-use dvlcal::calib::prior::{LeverArmPrior, Priors};
 use dvlcal::calib::robust::Loss;
 use dvlcal::calib::{CalibOptions, CalibrationOutcome, calibrate};
 use dvlcal::lie::so3;

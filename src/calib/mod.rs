@@ -634,6 +634,12 @@ pub fn calibrate(
     // and take the other parameters with it.
     let mut start = start;
     let lever_held = match (opts.priors.lever_arm, priors.lever_arm) {
+        // With a closed form its excitation decides (the linearised std cannot see the runaway
+        // anyway); without one, the data's own std at the guess.
+        (None, Some(l)) if free.lever_arm && init.is_some() => init
+            .as_ref()
+            .filter(|i| i.closed_form.rotation_snr() < LEVER_HOLD_SNR)
+            .map(|_| (f64::INFINITY, l)),
         (None, Some(l)) if free.lever_arm => {
             let taken = std::mem::take(&mut jp.priors);
             let (data_only, _) = joint_covariance(&jp, &traj, &start, &mask)?;
@@ -641,13 +647,7 @@ pub fn calibrate(
             let worst = (3..6)
                 .map(|k| data_only[(k, k)].max(0.0).sqrt())
                 .fold(0.0, f64::max);
-            // The linearised std misses how far the lever arm can run when the angular
-            // velocity is mostly noise; the closed form's excitation over that noise sees it.
-            let noise_only = init
-                .as_ref()
-                .is_some_and(|i| i.closed_form.rotation_snr() < LEVER_HOLD_SNR);
-            (noise_only || worst.is_nan() || worst > LEVER_HOLD_FRACTION * l.sigma_m)
-                .then_some((worst, l))
+            (worst.is_nan() || worst > LEVER_HOLD_FRACTION * l.sigma_m).then_some((worst, l))
         }
         _ => None,
     };
@@ -661,11 +661,10 @@ pub fn calibrate(
             start.time_offset_s,
         );
         warnings.push(format!(
-            "the motion does not observe the lever arm (the data alone determine it only to \
-             {worst:.2} m at the start, and the angular velocity is mostly noise): it is held at \
-             the broad default prior's value, zero, and \
-             the other parameters are estimated around it; measure the lever arm and give \
-             --lever-arm-prior, or record strong rotations about several axes"
+            "the motion does not observe the lever arm ({}): it is held at the broad default \
+             prior's value, zero, and the other parameters are estimated around it; measure the \
+             lever arm and give --lever-arm-prior, or record strong rotations about several axes",
+            unobserved_why(worst)
         ));
     }
     let mut refined = refine_jointly(
@@ -834,9 +833,9 @@ pub fn calibrate(
         verdicts.lever_arm = Verdict {
             ok: false,
             reason: format!(
-                "not observed by the motion (the data alone determine it only to {worst:.2} m): \
-                 held at the broad default prior's value, zero; measure the lever arm and give \
-                 --lever-arm-prior"
+                "not observed by the motion ({}): held at the broad default prior's value, zero; \
+                 measure the lever arm and give --lever-arm-prior",
+                unobserved_why(worst)
             ),
         };
     } else if lever_arm_from_default_prior {
@@ -1486,6 +1485,15 @@ fn residual_whiteness(
     Ok(whiteness::whiteness(&t, &r))
 }
 
+/// Why the lever arm was held: the rotation is noise (no std computed), or the data's std.
+fn unobserved_why(data_std_m: f64) -> String {
+    if data_std_m.is_finite() {
+        format!("the data alone determine it only to {data_std_m:.2} m")
+    } else {
+        "the camera's rotation rate is mostly noise".into()
+    }
+}
+
 /// A lever arm whose data-only standard deviation exceeds this fraction of the default prior's
 /// is held at the prior's value.
 const LEVER_HOLD_FRACTION: f64 = 0.25;
@@ -1501,7 +1509,7 @@ const HALF_MIN: usize = 50;
 /// `covariance` are scaled so that the difference is one (the variance the difference itself
 /// estimates).
 ///
-/// Each half's estimate is two Gauss-Newton steps on its joint problem (all poses, the half's
+/// Each half's estimate is one Gauss-Newton step on its joint problem (all poses, the half's
 /// DVL reports) from the result, and its covariance that problem's marginal one (times
 /// `noise_factor`, the inflation of the whole's for residuals above the stated noise): a half
 /// that does not excite a parameter (a calm first half) gives it a large variance and no false
@@ -1537,7 +1545,7 @@ fn halves_check(
             jh.keep_storage(st);
         }
         let (mut t, mut p) = (traj.clone(), *params);
-        for _ in 0..2 {
+        for _ in 0..1 {
             match joint_step(&jh, &t, &p, &mask)? {
                 Some(js) => (t, p) = (js.trajectory, js.params),
                 None => break,

@@ -14,6 +14,8 @@ use nalgebra::Vector3;
 
 /// Lags beyond this many samples are not examined (about 3 minutes at 10 Hz).
 const MAX_LAG: usize = 2000;
+/// Lags always computed (for the report's plot) when the data allow.
+const PLOT_LAGS: usize = 50;
 /// Sokal's window constant.
 const WINDOW_C: f64 = 5.0;
 
@@ -57,7 +59,6 @@ pub fn whiteness(t: &[f64], r: &[Vector3<f64>]) -> Whiteness {
     let max_lag = MAX_LAG.min(n / 10);
     let mut out = Whiteness {
         sample_interval_s: step,
-        lag_s: (0..=max_lag).map(|k| k as f64 * step).collect(),
         ..Whiteness::default()
     };
     let mut window = 0;
@@ -67,7 +68,14 @@ pub fn whiteness(t: &[f64], r: &[Vector3<f64>]) -> Whiteness {
         let var = x.iter().map(|v| v * v).sum::<f64>() / n as f64;
         let mut acf = Vec::with_capacity(max_lag + 1);
         acf.push(1.0);
+        // Lags are computed until Sokal's window closes, and a margin beyond for the plot: the
+        // cost is O(n M), not O(n max_lag).
+        let mut tau_run = 1.0;
+        let mut stop = max_lag;
         for k in 1..=max_lag {
+            if k > stop {
+                break;
+            }
             let limit = 1.5 * k as f64 * step;
             let (mut sum, mut count) = (0.0, 0usize);
             for i in 0..n - k {
@@ -76,11 +84,16 @@ pub fn whiteness(t: &[f64], r: &[Vector3<f64>]) -> Whiteness {
                     count += 1;
                 }
             }
-            acf.push(if count > 0 && var > 0.0 {
+            let rho = if count > 0 && var > 0.0 {
                 sum / count as f64 / var
             } else {
                 0.0
-            });
+            };
+            acf.push(rho);
+            tau_run += 2.0 * rho;
+            if stop == max_lag && k as f64 >= WINDOW_C * tau_run {
+                stop = (3 * k).max(PLOT_LAGS).min(max_lag);
+            }
         }
         // Sokal's window.
         let mut tau = 1.0;
@@ -97,6 +110,11 @@ pub fn whiteness(t: &[f64], r: &[Vector3<f64>]) -> Whiteness {
         out.acf[axis] = acf;
     }
     out.window = window;
+    let lags = out.acf.iter().map(Vec::len).min().unwrap_or(0);
+    for a in out.acf.iter_mut() {
+        a.truncate(lags);
+    }
+    out.lag_s = (0..lags).map(|k| k as f64 * step).collect();
     out.tau_noise = (2.0 * (2.0 * window as f64 + 1.0) / n as f64).sqrt();
     // The mean over the axes: each axis's estimate is noisy (its standard deviation grows with
     // tau), and the information lost is an average over the directions the motion excites.

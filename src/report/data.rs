@@ -239,6 +239,31 @@ mod tests {
     }
 
     #[test]
+    fn report_gaps_are_the_dvl_logs_gaps_on_the_real_logs() {
+        // The real A50 recordings hold dropouts (128 invalid of 1423 reports in dvl.bag): the
+        // report's shaded stretches must be the gaps `dvl-info` lists.
+        let dir =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/a50-ros-driver");
+        for name in ["dvl.bag", "dvl_circle.jsonl", "dvl_slow_rectangle.jsonl"] {
+            let log = crate::io::dvl::read_dvl_log(&dir.join(name), &Default::default())
+                .expect("real log");
+            let valid: Vec<f64> = log
+                .samples
+                .iter()
+                .filter(|s| s.valid)
+                .map(|s| s.t)
+                .collect();
+            let ours = time_gaps(&valid);
+            let theirs = log.gaps(log.gap_threshold_s());
+            assert!(!theirs.is_empty(), "{name}");
+            assert_eq!(ours.len(), theirs.len(), "{name}");
+            for (a, b) in ours.iter().zip(&theirs) {
+                assert_eq!((a.0, a.1), (b.start_s, b.end_s), "{name}");
+            }
+        }
+    }
+
+    #[test]
     fn median_period_ignores_gaps() {
         assert_eq!(median_period(&[0.0, 0.1, 0.2, 5.0, 5.1]), 0.1);
         assert_eq!(median_period(&[1.0]), 0.1);
