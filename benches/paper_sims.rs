@@ -16,9 +16,11 @@
 //! Every RMSE comes with a 95% bootstrap confidence interval over the seeds (2000 resamples,
 //! percentile interval).
 
-use std::sync::Mutex;
-use std::sync::atomic::{AtomicUsize, Ordering};
+mod common;
+
 use std::time::Instant;
+
+use common::{par_map, threads};
 
 use dvlcal::calib::closed_form::{ClosedFormRow, closed_form};
 use dvlcal::calib::{CalibOptions, Method, calibrate};
@@ -33,39 +35,6 @@ const DVL_SIGMA: f64 = 0.01;
 
 fn quick() -> bool {
     std::env::var("DVLCAL_BENCH_QUICK").is_ok_and(|v| !v.is_empty() && v != "0")
-}
-
-fn threads() -> usize {
-    std::env::var("DVLCAL_BENCH_THREADS")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
-        .max(1)
-}
-
-/// Runs `f(seed)` for seeds `0..n` on a few threads; results in seed order.
-fn par_map<T: Send>(n: usize, f: impl Fn(u64) -> T + Sync) -> Vec<T> {
-    let next = AtomicUsize::new(0);
-    let out: Mutex<Vec<Option<T>>> = Mutex::new((0..n).map(|_| None).collect());
-    std::thread::scope(|s| {
-        for _ in 0..threads().min(n) {
-            s.spawn(|| {
-                loop {
-                    let i = next.fetch_add(1, Ordering::Relaxed);
-                    if i >= n {
-                        break;
-                    }
-                    let r = f(i as u64);
-                    out.lock().unwrap()[i] = Some(r);
-                }
-            });
-        }
-    });
-    out.into_inner()
-        .unwrap()
-        .into_iter()
-        .map(|r| r.expect("every seed ran"))
-        .collect()
 }
 
 /// RMSE of values whose squares are `sq`, with a 95% percentile-bootstrap interval.

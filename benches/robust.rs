@@ -12,9 +12,9 @@
 //!
 //! `DVLCAL_BENCH_THREADS` sets the worker threads (default: all CPUs).
 
-use std::sync::Mutex;
-use std::sync::atomic::{AtomicUsize, Ordering};
+mod common;
 
+use common::par_map;
 use dvlcal::calib::model::difference;
 use dvlcal::calib::robust::Loss;
 use dvlcal::calib::{CalibOptions, calibrate};
@@ -22,39 +22,6 @@ use dvlcal::sim::rng::Rng;
 use dvlcal::sim::{Corruption, MotionKind, SimConfig, corrupt, simulate};
 
 const DVL_SIGMA: f64 = 0.01;
-
-fn threads() -> usize {
-    std::env::var("DVLCAL_BENCH_THREADS")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
-        .max(1)
-}
-
-/// Runs `f(seed)` for seeds `0..n` on a few threads; results in seed order.
-fn par_map<T: Send>(n: usize, f: impl Fn(u64) -> T + Sync) -> Vec<T> {
-    let next = AtomicUsize::new(0);
-    let out: Mutex<Vec<Option<T>>> = Mutex::new((0..n).map(|_| None).collect());
-    std::thread::scope(|s| {
-        for _ in 0..threads().min(n) {
-            s.spawn(|| {
-                loop {
-                    let i = next.fetch_add(1, Ordering::Relaxed);
-                    if i >= n {
-                        break;
-                    }
-                    let r = f(i as u64);
-                    if let Ok(mut o) = out.lock() {
-                        o[i] = Some(r);
-                    }
-                }
-            });
-        }
-    });
-    out.into_inner()
-        .map(|v| v.into_iter().flatten().collect())
-        .unwrap_or_default()
-}
 
 /// Errors and normalised errors of one run, per component (`[dphi; dp; dkappa; ddelta]`).
 #[derive(Clone, Copy)]
