@@ -580,9 +580,9 @@ pub fn calibrate(
             opts.default_dvl_sigma
         ));
     }
-    counts.dvl_spikes_screened = obs.len() - screen_spikes(&obs, opts).1.len();
     // 2-3. Where the refinement starts.
-    let (start, init) = initialise(&traj, &obs, opts, &mut warnings)?;
+    let (start, init, spikes_screened) = initialise(&traj, &obs, opts, &mut warnings)?;
+    counts.dvl_spikes_screened = spikes_screened;
     if let Some(i) = &init {
         counts.calm = i.offset.calm.len();
     }
@@ -908,13 +908,14 @@ pub fn calibrate(
 /// Stages 2 and 3: the parameters the refinement starts from. For UIC the clock offset and
 /// scale from speed magnitudes ([`estimate_offset`]), then rotation, lever arm and scale in closed
 /// form at that offset ([`closed_form()`]); for BCD and fixed extrinsics the user's guess. The
-/// offset search's notes go to `warnings`.
+/// offset search's notes go to `warnings`. Also returns how many velocity spikes were left out
+/// of the initialisation.
 pub fn initialise(
     traj: &Trajectory,
     obs: &[DvlObs],
     opts: &CalibOptions,
     warnings: &mut Vec<String>,
-) -> Result<(CalibrationParams, Option<InitReport>)> {
+) -> Result<(CalibrationParams, Option<InitReport>, usize)> {
     // A DVL that measured nothing explains every later failure: say so first.
     let still = obs.iter().filter(|o| o.v.norm() < 1e-4).count();
     if !obs.is_empty() && still == obs.len() {
@@ -928,8 +929,9 @@ pub fn initialise(
     // Velocities that jump away from their neighbours are left out of the initialisation: the
     // speed search and the closed form are least squares and would follow them.
     let (screened, keep) = screen_spikes(obs, opts);
+    let spikes_screened = obs.len() - keep.len();
     let obs = &screened[..];
-    Ok(match &opts.method {
+    let (params, init) = match &opts.method {
         Method::Uic => {
             let mut off = estimate_offset(traj, obs, &opts.offset)?;
             warnings.extend(off.notes.iter().cloned());
@@ -968,7 +970,8 @@ pub fn initialise(
             estimate_offset: true,
         } => (clock_checked(traj, obs, opts, guess, warnings), None),
         Method::Fixed { guess, .. } => (*guess, None),
-    })
+    };
+    Ok((params, init, spikes_screened))
 }
 
 /// The observations without the velocity spikes [`robust::velocity_spikes`] finds (none are
@@ -1604,8 +1607,9 @@ fn halves_check(
 /// on average (twice the whole's) does not take part in the comparison of that parameter.
 const HALF_VARIANCE_LIMIT: f64 = 9.0;
 
-/// Names of the parameters in the covariance's order, with the factor to a display unit.
-const PARAM_NAMES: [(&str, f64, &str); NPARAM] = [
+/// Names of the parameters in the covariance's order, with the factor to their display unit
+/// and the unit (empty for the scale).
+pub const PARAM_NAMES: [(&str, f64, &str); NPARAM] = [
     ("rotation about x", 57.295_779_513_082_32, "deg"),
     ("rotation about y", 57.295_779_513_082_32, "deg"),
     ("rotation about z", 57.295_779_513_082_32, "deg"),

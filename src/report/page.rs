@@ -615,16 +615,6 @@ fn robustness(s: &mut String, o: &CalibrationOutcome) {
              <th>difference / std</th><th>std inflated by</th></tr>",
             h.split_t
         );
-        let names = [
-            ("rotation about x (deg)", 180.0 / std::f64::consts::PI),
-            ("rotation about y (deg)", 180.0 / std::f64::consts::PI),
-            ("rotation about z (deg)", 180.0 / std::f64::consts::PI),
-            ("lever arm x (mm)", 1e3),
-            ("lever arm y (mm)", 1e3),
-            ("lever arm z (mm)", 1e3),
-            ("velocity scale", 1.0),
-            ("clock offset (ms)", 1e3),
-        ];
         let value = |p: &crate::types::CalibrationParams, k: usize| -> String {
             match k {
                 3..=5 => format!("{:.1}", 1e3 * p.lever_arm_cam_m()[k - 3]),
@@ -633,7 +623,12 @@ fn robustness(s: &mut String, o: &CalibrationOutcome) {
                 _ => "".into(),
             }
         };
-        for (k, (name, f)) in names.iter().enumerate() {
+        for (k, &(name, f, unit)) in crate::calib::PARAM_NAMES.iter().enumerate() {
+            let name = if unit.is_empty() {
+                name.to_string()
+            } else {
+                format!("{name} ({unit})")
+            };
             let z = if h.compared[k] {
                 format!("{:.1}", h.z(k))
             } else {
