@@ -270,3 +270,19 @@ fn bad_time_files_name_file_and_line() {
     ]);
     expect_failure(&out, s(&missing));
 }
+
+#[test]
+fn robustness_options_refuse_bad_values_by_name() {
+    for (option, value) in [
+        ("--loss", "tukey"),
+        ("--default-lever-arm-sigma", "-1"),
+        ("--default-lever-arm-sigma", "0"),
+        ("--default-lever-arm-sigma", "abc"),
+    ] {
+        let out = dvlcal(&["calibrate", "/nonexistent", option, value]);
+        assert!(!out.status.success(), "{option} {value}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(option), "{option} {value}: {err}");
+        assert!(!err.contains("panicked"), "{err}");
+    }
+}

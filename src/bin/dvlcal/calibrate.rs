@@ -59,7 +59,12 @@ pub struct EstimatorArgs {
     pub loss: String,
     /// Standard deviation, metres, of the broad prior that keeps an unobserved lever arm near
     /// zero when no --lever-arm-prior is given; `none` turns it off.
-    #[arg(long, default_value = "1", value_name = "SIGMA_M|none")]
+    #[arg(
+        long,
+        default_value = "1",
+        allow_negative_numbers = true,
+        value_name = "SIGMA_M|none"
+    )]
     pub default_lever_arm_sigma: String,
     /// Keep the standard deviations as the noise model states them: no inflation for
     /// correlated DVL residuals or for halves of the recording that disagree.
@@ -184,9 +189,10 @@ pub fn options(
         loss: Loss::parse(&est.loss)?,
         default_lever_arm_sigma_m: match est.default_lever_arm_sigma.trim() {
             "none" => None,
-            t => Some(t.parse::<f64>().map_err(|_| {
-                anyhow::anyhow!("--default-lever-arm-sigma takes metres or `none`, got `{t}`")
-            })?),
+            t => match t.parse::<f64>() {
+                Ok(v) if v.is_finite() && v > 0.0 => Some(v),
+                _ => bail!("--default-lever-arm-sigma takes positive metres or `none`, got `{t}`"),
+            },
         },
         honest_covariance: !est.model_covariance,
         ..CalibOptions::default()
