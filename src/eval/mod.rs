@@ -1,6 +1,8 @@
-//! Accuracy of estimates against known truth.
+//! Accuracy of estimates against known truth, and an independent reference estimator
+//! ([`spline_baseline`]) to compare the calibration with.
 
 pub mod odometry;
+pub mod spline_baseline;
 
 use nalgebra::{Vector3, Vector6};
 

@@ -6,6 +6,7 @@
 //!   calibration.
 //! - [`corrupt`](mod@corrupt): damage to a simulated dataset as real recordings suffer it (DVL
 //!   spikes, bad poses, coloured DVL noise, gaps).
+//! - [`track`]: a recorded vehicle track (motion capture, INS) replayed as a motion.
 //! - [`a50`]: simulated DVL samples as the A50's json_v3 reports.
 //! - [`render`]: camera images of a board, rendered from libapriltag's own tag patterns.
 //! - [`image_dataset`]: the stereo images of a simulated recording, written as a dataset folder.
@@ -17,6 +18,7 @@ pub mod image_dataset;
 pub mod motion;
 pub mod render;
 pub mod rng;
+pub mod track;
 
 pub use corrupt::{Corruption, CorruptionLog, corrupt};
 pub use dataset::{
@@ -27,3 +29,4 @@ pub use motion::{
     SinusoidTerm,
 };
 pub use rng::Rng;
+pub use track::{TrackMotion, TrackOptions, replay_track};

@@ -440,10 +440,8 @@ impl SampledMotion {
         let l22 = 0.5 * dt.sqrt();
 
         let mut rng = Rng::stream(cfg.seed, STREAM_MOTION_STEPS);
-        let mut poses = Vec::with_capacity(steps + 1);
         let mut twists = Vec::with_capacity(steps + 1);
         let mut rates = Vec::with_capacity(steps + 1);
-        poses.push(cfg.initial_pose);
         twists.push(cfg.initial_twist);
         rates.push(cfg.initial_twist_rate);
         let mut phase = 0;
@@ -466,11 +464,61 @@ impl SampledMotion {
             }
             twists.push(w1);
             rates.push(r1);
-            let omega = magnus4(dt, |s| hermite(&w0, &r0, &w1, &r1, dt, s).0);
-            poses.push((poses[k] * Se3::exp(&omega)).renormalized());
         }
+        let poses = integrate_twists(cfg.initial_pose, &twists, &rates, dt);
         Ok(SampledMotion {
             duration_s: cfg.duration_s,
+            dt,
+            poses,
+            twists,
+            rates,
+        })
+    }
+
+    /// The motion whose body twist and twist rate at grid point `k` (time `k * dt`) are
+    /// `twists[k]` and `rates[k]`, starting at `initial_pose`: the twist between grid points is
+    /// their cubic Hermite interpolant and the poses are its exact integral, so poses, twists and
+    /// rates agree at every time. Used to replay a recorded vehicle's twists
+    /// ([`crate::sim::track`]). The span is `[0, duration_s]`; the grid must cover it.
+    pub fn from_twists(
+        initial_pose: Se3,
+        twists: Vec<Vector6<f64>>,
+        rates: Vec<Vector6<f64>>,
+        dt: f64,
+        duration_s: f64,
+    ) -> Result<SampledMotion> {
+        check_duration(duration_s)?;
+        check_pose("initial pose", &initial_pose)?;
+        if !(dt.is_finite() && dt > 0.0) {
+            return Err(input(format!("grid step must be positive, got {dt}")));
+        }
+        if twists.len() != rates.len() || twists.len() < 2 {
+            return Err(input(format!(
+                "need as many twists as rates, at least 2 (got {} and {})",
+                twists.len(),
+                rates.len()
+            )));
+        }
+        if twists.len() > Self::MAX_GRID_POINTS {
+            return Err(input(format!(
+                "{} grid points exceed the limit of {}",
+                twists.len(),
+                Self::MAX_GRID_POINTS
+            )));
+        }
+        if (twists.len() - 1) as f64 * dt < duration_s * (1.0 - 1e-12) {
+            return Err(input(format!(
+                "the grid ({} points of {dt} s) ends before the duration {duration_s} s",
+                twists.len()
+            )));
+        }
+        for (k, (w, r)) in twists.iter().zip(&rates).enumerate() {
+            check_finite_vec(&format!("twist {k}"), w)?;
+            check_finite_vec(&format!("twist rate {k}"), r)?;
+        }
+        let poses = integrate_twists(initial_pose, &twists, &rates, dt);
+        Ok(SampledMotion {
+            duration_s,
             dt,
             poses,
             twists,
@@ -574,6 +622,24 @@ impl SampledMotion {
             twist_rate: r,
         }
     }
+}
+
+/// Poses at every grid point from the first one: each step multiplies by the exponential of the
+/// Magnus expansion of the Hermite-interpolated twist.
+fn integrate_twists(
+    initial_pose: Se3,
+    twists: &[Vector6<f64>],
+    rates: &[Vector6<f64>],
+    dt: f64,
+) -> Vec<Se3> {
+    let mut poses = Vec::with_capacity(twists.len());
+    poses.push(initial_pose);
+    for k in 0..twists.len().saturating_sub(1) {
+        let (w0, r0, w1, r1) = (&twists[k], &rates[k], &twists[k + 1], &rates[k + 1]);
+        let omega = magnus4(dt, |s| hermite(w0, r0, w1, r1, dt, s).0);
+        poses.push((poses[k] * Se3::exp(&omega)).renormalized());
+    }
+    poses
 }
 
 /// Cubic Hermite interpolant on `[0, dt]` of values `w0, w1` and slopes `r0, r1`: value and
