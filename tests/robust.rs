@@ -485,3 +485,32 @@ fn an_unobserved_lever_arm_comes_from_the_default_prior() {
         }
     }
 }
+
+#[test]
+fn a_recording_that_is_mostly_outliers_fails_instead_of_being_down_weighted() {
+    // 3 % spikes are outliers; 40 % are a DVL that does not describe the camera's motion.
+    let (few, _) = damaged(21, &spikes_and_bad_poses());
+    let o = run(&few, &CalibOptions::default());
+    assert!(o.status.is_ok(), "{:?}", o.status);
+    let many = Corruption {
+        dvl_spike_fraction: 0.4,
+        dvl_spike_mps: 0.3,
+        ..Corruption::default()
+    };
+    let (bad, log) = damaged(21, &many);
+    for opts in [CalibOptions::default(), with_loss(Loss::L2)] {
+        let o = run(&bad, &opts);
+        let share = o.robust.dvl.outliers as f64 / o.robust.dvl.factors as f64;
+        assert!(
+            share > 0.25,
+            "{} of {}",
+            o.robust.dvl.outliers,
+            log.dvl_spiked.len()
+        );
+        let reasons = match &o.status {
+            dvlcal::calib::Status::Failed(r) => r.join(" "),
+            dvlcal::calib::Status::Ok => panic!("{:?}: passed with {share} outliers", opts.loss),
+        };
+        assert!(reasons.contains("outliers to the fit"), "{reasons}");
+    }
+}

@@ -94,6 +94,11 @@ pub struct SanityLimits {
     /// Physical range of the velocity scale: the ratio of the sound speed the DVL assumes to the
     /// water's (0.9..1.1 covers water from 0 to 35 C, fresh to salt).
     pub scale_range: (f64, f64),
+    /// Largest share of the DVL reports that may be outliers (down-weighted by the robust loss,
+    /// or only found under least squares). Beyond it the disagreement is not a few outliers but
+    /// a model that does not fit (a drifting clock, poses of another body, a log of another
+    /// recording), and the loss would only hide it.
+    pub max_outlier_fraction: f64,
 }
 
 impl Default for SanityLimits {
@@ -101,6 +106,7 @@ impl Default for SanityLimits {
         SanityLimits {
             max_normalized_cost: 10.0,
             scale_range: (0.9, 1.1),
+            max_outlier_fraction: 0.25,
         }
     }
 }
@@ -849,7 +855,27 @@ pub fn calibrate(
     if let Some(h) = &halves {
         flag_inconsistent(&mut verdicts, h);
     }
-    let status = sanity(&params, normalized_cost, init.as_ref(), free, opts);
+    let mut status = sanity(&params, normalized_cost, init.as_ref(), free, opts);
+    let share = dvl_robust.outliers as f64 / dvl_robust.factors.max(1) as f64;
+    if share > opts.sanity.max_outlier_fraction {
+        let reason = format!(
+            "{} of {} DVL reports are outliers to the fit ({:.0} %; at most {:.0} % are \
+             credible as outliers): the camera and the DVL disagree throughout, not in a few \
+             reports. Likely causes: a drifting clock, camera poses of another body or in the \
+             wrong frame, or a DVL log of another recording",
+            dvl_robust.outliers,
+            dvl_robust.factors,
+            100.0 * share,
+            100.0 * opts.sanity.max_outlier_fraction
+        );
+        status = match status {
+            Status::Ok => Status::Failed(vec![reason]),
+            Status::Failed(mut r) => {
+                r.push(reason);
+                Status::Failed(r)
+            }
+        };
+    }
     let drift = match &pose_only {
         // At the stated weights: a drifting clock makes the ends of the recording look like
         // outliers to a constant offset, and down-weighting them would hide the drift.
