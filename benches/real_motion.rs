@@ -7,7 +7,9 @@
 //! 0.1 deg and 10 Hz DVL reports of 1 cm/s from the simulator's default calibration. Each seed is
 //! calibrated by dvlcal (defaults) and by the independent smoothing-spline estimator
 //! (`dvlcal::eval::spline_baseline`). Printed per parameter group: RMSE of each with a 95 %
-//! percentile-bootstrap interval, their ratio, and the RMS of dvlcal's `err / std`.
+//! percentile-bootstrap interval, their ratio, and the RMS of dvlcal's `err / std`. A last table
+//! per time scale refits with the jerk density `Qc` fixed at 1, 3, 10 and 30 times the one the
+//! hyperparameter search chooses from the poses, and prints the mean lever-arm error (its bias).
 //!
 //! `DVLCAL_BENCH_THREADS` sets the worker threads (default: all CPUs).
 
@@ -92,6 +94,26 @@ fn run(seed: u64, track: &TrackMotion, damage: &Corruption) -> Option<Run> {
         r.z[k] = d[k] / o.covariance[(k, k)].max(1e-300).sqrt();
     }
     Some(r)
+}
+
+/// Lever-arm error vector, offset error and scale error of dvlcal with the jerk density fixed at
+/// `factor` times the one it chooses itself (white DVL noise).
+fn run_qc(seed: u64, track: &TrackMotion, factor: f64) -> Option<([f64; 3], f64, f64)> {
+    let cfg = SimConfig {
+        seed: 3000 + seed,
+        duration_s: track.duration_s,
+        dvl_sigma: DVL_SIGMA,
+        pose_sigma_pos_m: POSE_SIGMA_M,
+        pose_sigma_rot_rad: POSE_SIGMA_DEG.to_radians(),
+        ..SimConfig::default()
+    };
+    let ds = simulate_with(&cfg, &track.motion).ok()?;
+    let mut opts = CalibOptions::default();
+    let chosen = calibrate(&ds.poses, &ds.dvl, &opts).ok()?.trajectory.qc;
+    opts.fit.qc = Some(chosen * factor);
+    let o = calibrate(&ds.poses, &ds.dvl, &opts).ok()?;
+    let d = difference(&o.params, &ds.truth);
+    Some(([d[3], d[4], d[5]], d[7], d[6]))
 }
 
 /// RMS over the runs of a group's error norm and a 95 % percentile-bootstrap interval.
@@ -223,5 +245,40 @@ fn main() {
             }
             println!();
         }
+        println!(
+            "### Jerk density: dvlcal with Qc fixed at a multiple of the one it chooses (white DVL \
+             noise)\n"
+        );
+        println!(
+            "| Qc factor | mean lever-arm error x, y, z (mm) | lever-arm RMSE (mm) | scale RMSE (1e-3) | offset RMSE (ms) |"
+        );
+        println!("|---|---|---|---|---|");
+        for factor in [1.0, 3.0, 10.0, 30.0] {
+            let runs: Vec<_> = par_map(seeds, |s| run_qc(s, &track, factor))
+                .into_iter()
+                .flatten()
+                .collect();
+            let n = runs.len().max(1) as f64;
+            let mut mean = [0.0; 3];
+            let (mut lever2, mut off2, mut scale2) = (0.0, 0.0, 0.0);
+            for (p, off, sc) in &runs {
+                for k in 0..3 {
+                    mean[k] += p[k] / n;
+                    lever2 += p[k] * p[k] / n;
+                }
+                off2 += off * off / n;
+                scale2 += sc * sc / n;
+            }
+            println!(
+                "| {factor} | {:.1}, {:.1}, {:.1} | {:.2} | {:.3} | {:.3} |",
+                mean[0] * 1e3,
+                mean[1] * 1e3,
+                mean[2] * 1e3,
+                lever2.sqrt() * 1e3,
+                scale2.sqrt() * 1e3,
+                off2.sqrt() * 1e3
+            );
+        }
+        println!();
     }
 }
