@@ -8,8 +8,9 @@
 //! calibrated by dvlcal (defaults) and by the independent smoothing-spline estimator
 //! (`dvlcal::eval::spline_baseline`). Printed per parameter group: RMSE of each with a 95 %
 //! percentile-bootstrap interval, their ratio, and the RMS of dvlcal's `err / std`. A last table
-//! per time scale refits with the jerk density `Qc` fixed at 1, 3, 10 and 30 times the one the
-//! hyperparameter search chooses from the poses, and prints the mean lever-arm error (its bias).
+//! per time scale refits with the jerk density `Qc` fixed at 0.3, 1, 3, 10 and 30 times the one
+//! the hyperparameter search chooses from the poses, and prints the mean lever-arm error (its
+//! bias) and the marginal likelihood of poses and DVL together at each factor.
 //!
 //! `DVLCAL_BENCH_THREADS` sets the worker threads (default: all CPUs).
 
@@ -19,7 +20,7 @@ use std::path::Path;
 
 use common::par_map;
 use dvlcal::calib::model::difference;
-use dvlcal::calib::{CalibOptions, calibrate};
+use dvlcal::calib::{CalibOptions, calibrate, jerk_density_evidence};
 use dvlcal::eval::spline_baseline::{BaselineOptions, spline_baseline};
 use dvlcal::io::tum::read_tum;
 use dvlcal::sim::rng::Rng;
@@ -47,15 +48,20 @@ struct Run {
     lever_held: bool,
 }
 
-fn run(seed: u64, track: &TrackMotion, damage: &Corruption) -> Option<Run> {
-    let cfg = SimConfig {
+/// The simulation of seed `seed` on the replayed track.
+fn config(seed: u64, track: &TrackMotion) -> SimConfig {
+    SimConfig {
         seed: 3000 + seed,
         duration_s: track.duration_s,
         dvl_sigma: DVL_SIGMA,
         pose_sigma_pos_m: POSE_SIGMA_M,
         pose_sigma_rot_rad: POSE_SIGMA_DEG.to_radians(),
         ..SimConfig::default()
-    };
+    }
+}
+
+fn run(seed: u64, track: &TrackMotion, damage: &Corruption) -> Option<Run> {
+    let cfg = config(seed, track);
     let mut ds = simulate_with(&cfg, &track.motion).ok()?;
     corrupt(&mut ds, damage, DVL_SIGMA, 7000 + seed).ok()?;
     let o = match calibrate(&ds.poses, &ds.dvl, &CalibOptions::default()) {
@@ -98,22 +104,17 @@ fn run(seed: u64, track: &TrackMotion, damage: &Corruption) -> Option<Run> {
 
 /// Lever-arm error vector, offset error and scale error of dvlcal with the jerk density fixed at
 /// `factor` times the one it chooses itself (white DVL noise).
-fn run_qc(seed: u64, track: &TrackMotion, factor: f64) -> Option<([f64; 3], f64, f64)> {
-    let cfg = SimConfig {
-        seed: 3000 + seed,
-        duration_s: track.duration_s,
-        dvl_sigma: DVL_SIGMA,
-        pose_sigma_pos_m: POSE_SIGMA_M,
-        pose_sigma_rot_rad: POSE_SIGMA_DEG.to_radians(),
-        ..SimConfig::default()
-    };
+fn run_qc(seed: u64, track: &TrackMotion, factor: f64) -> Option<([f64; 3], f64, f64, f64)> {
+    let cfg = config(seed, track);
     let ds = simulate_with(&cfg, &track.motion).ok()?;
     let mut opts = CalibOptions::default();
-    let chosen = calibrate(&ds.poses, &ds.dvl, &opts).ok()?.trajectory.qc;
-    opts.fit.qc = Some(chosen * factor);
+    let own = calibrate(&ds.poses, &ds.dvl, &opts).ok()?;
+    let evidence = jerk_density_evidence(&ds.poses, &own, factor).ok()?
+        - jerk_density_evidence(&ds.poses, &own, 1.0).ok()?;
+    opts.fit.qc = Some(own.trajectory.qc * factor);
     let o = calibrate(&ds.poses, &ds.dvl, &opts).ok()?;
     let d = difference(&o.params, &ds.truth);
-    Some(([d[3], d[4], d[5]], d[7], d[6]))
+    Some(([d[3], d[4], d[5]], d[7], d[6], evidence))
 }
 
 /// RMS over the runs of a group's error norm and a 95 % percentile-bootstrap interval.
@@ -250,18 +251,19 @@ fn main() {
              noise)\n"
         );
         println!(
-            "| Qc factor | mean lever-arm error x, y, z (mm) | lever-arm RMSE (mm) | scale RMSE (1e-3) | offset RMSE (ms) |"
+            "| Qc factor | mean lever-arm error x, y, z (mm) | lever-arm RMSE (mm) | scale RMSE (1e-3) | offset RMSE (ms) | log evidence - factor 1's (mean) |"
         );
-        println!("|---|---|---|---|---|");
-        for factor in [1.0, 3.0, 10.0, 30.0] {
+        println!("|---|---|---|---|---|---|");
+        for factor in [0.3, 1.0, 3.0, 10.0, 30.0] {
             let runs: Vec<_> = par_map(seeds, |s| run_qc(s, &track, factor))
                 .into_iter()
                 .flatten()
                 .collect();
             let n = runs.len().max(1) as f64;
             let mut mean = [0.0; 3];
-            let (mut lever2, mut off2, mut scale2) = (0.0, 0.0, 0.0);
-            for (p, off, sc) in &runs {
+            let (mut lever2, mut off2, mut scale2, mut ev) = (0.0, 0.0, 0.0, 0.0);
+            for (p, off, sc, e) in &runs {
+                ev += e / n;
                 for k in 0..3 {
                     mean[k] += p[k] / n;
                     lever2 += p[k] * p[k] / n;
@@ -270,13 +272,14 @@ fn main() {
                 scale2 += sc * sc / n;
             }
             println!(
-                "| {factor} | {:.1}, {:.1}, {:.1} | {:.2} | {:.3} | {:.3} |",
+                "| {factor} | {:.1}, {:.1}, {:.1} | {:.2} | {:.3} | {:.3} | {:.0} |",
                 mean[0] * 1e3,
                 mean[1] * 1e3,
                 mean[2] * 1e3,
                 lever2.sqrt() * 1e3,
                 scale2.sqrt() * 1e3,
-                off2.sqrt() * 1e3
+                off2.sqrt() * 1e3,
+                ev
             );
         }
         println!();

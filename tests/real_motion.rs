@@ -6,7 +6,7 @@
 use std::path::Path;
 
 use dvlcal::calib::model::difference;
-use dvlcal::calib::{CalibOptions, calibrate};
+use dvlcal::calib::{CalibOptions, calibrate, jerk_density_evidence};
 use dvlcal::eval::spline_baseline::{BaselineOptions, SplineTrack, spline_baseline};
 use dvlcal::io::tum::read_tum;
 use dvlcal::sim::{Motion, SimConfig, TrackOptions, replay_track, simulate_with};
@@ -99,4 +99,22 @@ fn on_real_motion_dvlcal_matches_the_spline_estimator_with_honest_std() {
         assert!(ratio <= 1.5, "{name}: dvlcal / spline RMSE {ratio}");
         assert!(z <= 2.0, "{name}: RMS err/std {z}");
     }
+}
+
+#[test]
+fn the_poses_and_the_dvl_together_prefer_the_jerk_density_chosen_from_the_poses() {
+    let rec = recorded();
+    let track = replay_track(&rec, &TrackOptions::default()).expect("replay");
+    let cfg = SimConfig {
+        seed: 3000,
+        duration_s: track.duration_s,
+        pose_sigma_rot_rad: 0.1f64.to_radians(),
+        ..SimConfig::default()
+    };
+    let ds = simulate_with(&cfg, &track.motion).expect("simulate");
+    let o = calibrate(&ds.poses, &ds.dvl, &CalibOptions::default()).expect("dvlcal");
+    let ev = |f: f64| jerk_density_evidence(&ds.poses, &o, f).expect("evidence");
+    let (low, own, high) = (ev(0.5), ev(1.0), ev(2.0));
+    assert!(own > low + 10.0 && own > high + 10.0, "{low} {own} {high}");
+    assert!(jerk_density_evidence(&ds.poses, &o, 0.0).is_err());
 }

@@ -1270,6 +1270,38 @@ fn drift_check(
     }))
 }
 
+/// The Laplace approximation of the log marginal likelihood of the poses and the DVL reports
+/// (up to a constant) if the trajectory's jerk density were `qc_factor` times the one `outcome`
+/// used, at `outcome`'s calibration and the stated DVL covariances: the trajectory is refitted
+/// with the DVL factors for that jerk density, and the evidence combines the cost there with the
+/// log-determinants of the joint information and of the prior. Comparing factors tells whether
+/// the poses and the DVL together ask for a looser or tighter motion prior than the poses alone
+/// chose (docs/accuracy.md, "Real vehicle motion").
+pub fn jerk_density_evidence(
+    poses: &[PoseMeasurement],
+    outcome: &CalibrationOutcome,
+    qc_factor: f64,
+) -> Result<f64> {
+    if !(qc_factor.is_finite() && qc_factor > 0.0) {
+        return Err(Error::Input(format!(
+            "jerk density factor must be positive, got {qc_factor}"
+        )));
+    }
+    let mut free = [false; NPARAM];
+    for (k, f) in free.iter_mut().enumerate() {
+        *f = outcome.covariance[(k, k)] > 0.0;
+    }
+    state::joint_log_evidence(
+        poses,
+        &outcome.fitted,
+        &outcome.observations,
+        &outcome.used,
+        &outcome.params,
+        &free,
+        qc_factor,
+    )
+}
+
 /// The sanity checks of a result: residuals near the stated DVL noise, a physical velocity
 /// scale, and a clock offset inside the offsets searched. Each failure names its likely cause.
 fn sanity(

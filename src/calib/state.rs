@@ -571,3 +571,33 @@ pub fn joint_step(
 #[cfg(test)]
 #[path = "state_jacobian_tests.rs"]
 mod jacobian_tests;
+
+/// Laplace approximation of the log marginal likelihood of the poses and the DVL reports (up to
+/// a constant that does not depend on `qc_factor`) when the jerk density is `qc_factor` times the
+/// trajectory's: the trajectory is refitted with the DVL factors at the calibration `p`, and
+/// `-1/2 [cost + log det H + (N - 1) * 18 log qc_factor]` is evaluated there (`H` the joint
+/// information of trajectory and free parameters, `N` the knots; the `Q_k` of the prior scale
+/// with `Qc`, and `log det (Q(dt) (x) Qc)` has `3 log` of each of Qc's six values).
+pub fn joint_log_evidence(
+    poses: &[PoseMeasurement],
+    traj: &Trajectory,
+    obs: &[DvlObs],
+    idx: &[usize],
+    p: &CalibrationParams,
+    free: &[bool; NPARAM],
+    qc_factor: f64,
+) -> Result<f64> {
+    let mut jp = JointProblem::new(poses, traj, obs, idx)?;
+    jp.qc_inv /= qc_factor;
+    let (fitted, _) = state_update(&jp, traj, p, 20)?;
+    let js = joint_system(&jp, &fitted, p, free)?;
+    let (reduction, _) = js.factor.quadratic_forms(&js.cross);
+    let schur = js.theta - reduction;
+    let mut schur = (schur + schur.transpose()) * 0.5;
+    pin_fixed(&mut schur, free);
+    let log_det_theta = schur.cholesky().map_or(f64::INFINITY, |c| {
+        2.0 * c.l().diagonal().iter().map(|d| d.ln()).sum::<f64>()
+    });
+    let n = fitted.knots().len() as f64;
+    Ok(-0.5 * (js.cost + js.factor.log_det() + log_det_theta + (n - 1.0) * 18.0 * qc_factor.ln()))
+}

@@ -269,7 +269,7 @@ impl SmoothingSpline {
                 }
             }
         }
-        let (mut lo, mut hi) = match best {
+        let (lo, hi) = match best {
             Some((e, _)) => (e - 0.25, e + 0.25),
             None => {
                 return Err(Error::Input(
@@ -278,17 +278,8 @@ impl SmoothingSpline {
             }
         };
         let risk_at = |e: f64| solve(base * 10f64.powf(e)).map_or(f64::INFINITY, |s| s.2);
-        let phi = 0.5 * (5f64.sqrt() - 1.0);
-        for _ in 0..30 {
-            let a = hi - phi * (hi - lo);
-            let b = lo + phi * (hi - lo);
-            if risk_at(a) < risk_at(b) {
-                hi = b;
-            } else {
-                lo = a;
-            }
-        }
-        let (g, gamma, _) = solve(base * 10f64.powf(0.5 * (lo + hi))).ok_or_else(|| {
+        let e = golden_section(risk_at, lo, hi, 30);
+        let (g, gamma, _) = solve(base * 10f64.powf(e)).ok_or_else(|| {
             Error::Input("smoothing spline: the chosen smoothing weight is not solvable".into())
         })?;
         Ok(SmoothingSpline {
@@ -316,6 +307,22 @@ impl SmoothingSpline {
             (g1 - g0) / h + (-(3.0 * b * b - h * h) * c0 + (3.0 * a * a - h * h) * c1) / (6.0 * h);
         (value, slope)
     }
+}
+
+/// The minimiser of `f` on `[lo, hi]` by `iterations` golden-section steps (the middle of the
+/// last bracket).
+fn golden_section(f: impl Fn(f64) -> f64, mut lo: f64, mut hi: f64, iterations: usize) -> f64 {
+    let phi = 0.5 * (5f64.sqrt() - 1.0);
+    for _ in 0..iterations {
+        let a = hi - phi * (hi - lo);
+        let b = lo + phi * (hi - lo);
+        if f(a) < f(b) {
+            hi = b;
+        } else {
+            lo = a;
+        }
+    }
+    0.5 * (lo + hi)
 }
 
 /// Splines of one stretch of poses.
@@ -544,18 +551,7 @@ pub fn spline_baseline(
             "spline baseline: too few DVL reports inside the pose stretches".into(),
         ));
     }
-    let (mut lo, mut hi) = ((best.0 - step).max(a), (best.0 + step).min(b));
-    let phi = 0.5 * (5f64.sqrt() - 1.0);
-    for _ in 0..40 {
-        let x1 = hi - phi * (hi - lo);
-        let x2 = lo + phi * (hi - lo);
-        if score(x1) < score(x2) {
-            hi = x2;
-        } else {
-            lo = x1;
-        }
-    }
-    let offset = 0.5 * (lo + hi);
+    let offset = golden_section(score, (best.0 - step).max(a), (best.0 + step).min(b), 40);
     let rows = rows_at(offset);
     let (r_dvl_cam, p, kappa, ss) = fit_fixed_offset(&rows).ok_or_else(|| {
         Error::Input("spline baseline: the least-squares fit failed at the best offset".into())
