@@ -40,15 +40,6 @@ const GROUPS: [(&str, std::ops::Range<usize>, f64, &str); 4] = [
 ];
 
 fn run(seed: u64, duration: f64, damage: &Corruption, after: bool) -> Option<Run> {
-    let cfg = SimConfig {
-        seed: 1000 + seed,
-        duration_s: duration,
-        motion: MotionKind::CalmThenRotate,
-        dvl_sigma: DVL_SIGMA,
-        ..SimConfig::default()
-    };
-    let mut ds = simulate(&cfg).ok()?;
-    corrupt(&mut ds, damage, DVL_SIGMA, 5000 + seed).ok()?;
     let opts = if after {
         CalibOptions::default()
     } else {
@@ -59,7 +50,20 @@ fn run(seed: u64, duration: f64, damage: &Corruption, after: bool) -> Option<Run
             ..CalibOptions::default()
         }
     };
-    let o = match calibrate(&ds.poses, &ds.dvl, &opts) {
+    run_with(seed, duration, damage, &opts)
+}
+
+fn run_with(seed: u64, duration: f64, damage: &Corruption, opts: &CalibOptions) -> Option<Run> {
+    let cfg = SimConfig {
+        seed: 1000 + seed,
+        duration_s: duration,
+        motion: MotionKind::CalmThenRotate,
+        dvl_sigma: DVL_SIGMA,
+        ..SimConfig::default()
+    };
+    let mut ds = simulate(&cfg).ok()?;
+    corrupt(&mut ds, damage, DVL_SIGMA, 5000 + seed).ok()?;
+    let o = match calibrate(&ds.poses, &ds.dvl, opts) {
         Ok(o) => o,
         Err(e) => {
             eprintln!("seed {seed}: {e}");
@@ -158,6 +162,7 @@ fn main() {
         "{seeds} seeds of {duration} s, calm-then-rotate, DVL 1 cm/s at 10 Hz, poses 2 mm / 0.11 deg at 10 Hz\n"
     );
     let mut clean_rmse = [0.0; 4];
+    let outlier_case = scenarios[1].1.clone();
     for (si, (name, damage)) in scenarios.iter().enumerate() {
         let start = std::time::Instant::now();
         let before: Vec<Run> = par_map(seeds, |s| run(s, duration, damage, false))
@@ -207,4 +212,38 @@ fn main() {
         }
         println!();
     }
+    // The two robust losses on the outlier scenario, with the rest of the defaults.
+    println!("### Cauchy against Huber loss ({})\n", scenarios[1].0);
+    println!(
+        "| parameter | Cauchy RMSE [95 % CI] | Huber RMSE [95 % CI] | Huber / Cauchy | RMS err/std Cauchy | RMS err/std Huber |"
+    );
+    println!("|---|---|---|---|---|---|");
+    let by_loss = |loss: Loss| -> Vec<Run> {
+        let opts = CalibOptions {
+            loss,
+            ..CalibOptions::default()
+        };
+        par_map(seeds, |s| run_with(s, duration, &outlier_case, &opts))
+            .into_iter()
+            .flatten()
+            .collect()
+    };
+    let (cauchy, huber) = (by_loss(Loss::Cauchy), by_loss(Loss::Huber));
+    for (label, range, f, unit) in GROUPS.iter() {
+        let (c, cl, ch) = rmse(&cauchy, range, 500);
+        let (h, hl, hh) = rmse(&huber, range, 600);
+        println!(
+            "| {label} ({unit}) | {:.3} [{:.3}, {:.3}] | {:.3} [{:.3}, {:.3}] | {:.2} | {:.2} | {:.2} |",
+            c * f,
+            cl * f,
+            ch * f,
+            h * f,
+            hl * f,
+            hh * f,
+            h / c.max(1e-300),
+            rms_z(&cauchy, range),
+            rms_z(&huber, range)
+        );
+    }
+    println!();
 }
