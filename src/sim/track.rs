@@ -237,6 +237,27 @@ mod tests {
     }
 
     #[test]
+    fn twists_that_cannot_make_a_motion_are_refused() {
+        let w = vec![Vector6::zeros(); 11];
+        let ok = SampledMotion::from_twists(Se3::identity(), w.clone(), w.clone(), 0.1, 1.0);
+        assert!(ok.is_ok());
+        let short = SampledMotion::from_twists(Se3::identity(), w.clone(), w.clone(), 0.1, 1.5);
+        assert!(
+            short
+                .expect_err("short")
+                .to_string()
+                .contains("ends before")
+        );
+        let mismatch =
+            SampledMotion::from_twists(Se3::identity(), w.clone(), w[..5].to_vec(), 0.1, 0.4);
+        assert!(mismatch.is_err());
+        let mut bad = w.clone();
+        bad[3][2] = f64::NAN;
+        let e = SampledMotion::from_twists(Se3::identity(), bad, w, 0.1, 1.0).expect_err("nan");
+        assert!(e.to_string().contains("twist 3"), "{e}");
+    }
+
+    #[test]
     fn a_tracking_loss_is_refused_with_its_time() {
         let xi = Vector6::new(0.1, 0.0, 0.0, 0.0, 0.0, 0.1);
         let mut track: Vec<_> = (0..50).map(|k| pose_at(k as f64 * 0.05, xi)).collect();
