@@ -450,7 +450,7 @@ fn kalibr_saddles(gray: &image::GrayImage, c: &mut [Vector2<f64>; 4]) {
     let cells = KALIBR_CELLS_ACROSS as f64;
     let side = (0..4).map(|i| (c[(i + 1) % 4] - c[i]).norm()).sum::<f64>() / 4.0;
     let cell = side / cells;
-    let radius = (1.2 * cell).clamp(2.0, 8.0);
+    let radius = (1.6 * cell).clamp(2.0, 10.0);
     for p in c.iter_mut() {
         if let Some(x) = saddle_point(gray, p, radius) {
             if (x - *p).norm() <= cell / 3.0 {

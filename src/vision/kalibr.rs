@@ -37,7 +37,7 @@ use apriltag_sys as sys;
 use image::GrayImage;
 use nalgebra::{Matrix3, SMatrix, SVector, Vector2, Vector3};
 
-use crate::vision::family::FamilyCodes;
+use crate::vision::family::{FamilyCodes, TagCells, TagFamily, tags_cells};
 use crate::vision::refine::bilinear;
 
 /// Width of a Kalibr tag's black border, in bits.
@@ -66,6 +66,36 @@ pub(crate) unsafe fn widen_border(tf: *mut sys::apriltag_family_t) -> bool {
         }
         true
     }
+}
+
+/// The cells of tag36h11 tags as Kalibr prints them (`true` = black), row 0 at the top, in the
+/// canonical orientation: 10 x 10 cells over the black square, the 6 x 6 code in the middle and a
+/// black border two cells wide. `None` for an id tag36h11 does not have. (libapriltag's own
+/// pattern is the same code in a one-cell border inside a white ring, also 10 x 10: the ring
+/// becomes the outer border cell.)
+pub fn kalibr_tag_cells(ids: &[u32]) -> Option<Vec<Option<TagCells>>> {
+    let (layout, cells) = tags_cells(TagFamily::Tag36h11, ids)?;
+    if layout.total_width != KALIBR_CELLS_ACROSS || layout.width_at_border != 8 {
+        return None;
+    }
+    let n = KALIBR_CELLS_ACROSS as usize;
+    Some(
+        cells
+            .into_iter()
+            .map(|c| {
+                c.map(|mut c| {
+                    for (r, row) in c.iter_mut().enumerate() {
+                        for (k, cell) in row.iter_mut().enumerate() {
+                            if r == 0 || k == 0 || r == n - 1 || k == n - 1 {
+                                *cell = true;
+                            }
+                        }
+                    }
+                    c
+                })
+            })
+            .collect(),
+    )
 }
 
 /// A half-resolution image in which each pixel is the brightest of its 2x2 block (odd last
@@ -545,9 +575,13 @@ pub(crate) fn saddle_point(img: &GrayImage, c: &Vector2<f64>, radius: f64) -> Op
     let at = |x: i64, y: i64| buf[(y * w + x) as usize] as f64;
     let r = radius.max(1.0);
     let ri = r.ceil() as i64;
+    // Gaussian weight with a standard deviation of half the window.
     let s2 = 2.0 * (0.5 * r) * (0.5 * r);
     let mut x = *c;
     for _ in 0..10 {
+        if !x.iter().all(|v| v.is_finite()) {
+            return None;
+        }
         let (cx, cy) = (x.x.round() as i64, x.y.round() as i64);
         if cx - ri - 1 < 0 || cy - ri - 1 < 0 || cx + ri + 1 >= w || cy + ri + 1 >= h {
             return None;
