@@ -566,3 +566,204 @@ fn both_kinds_of_board_in_one_image() {
         }
     }
 }
+
+/// One printed tag: its cells (row 0 at the top, `true` = black) and the page transform of its
+/// cell grid (`matrix(a b c d e f)`, mm).
+struct PrintedTag {
+    cells: Vec<Vec<bool>>,
+    m: [f64; 6],
+}
+
+/// The tags and the corner squares (x, y, width, height in mm) of an SVG `dvlcal board` wrote.
+fn parse_svg(svg: &str) -> (BTreeMap<u32, PrintedTag>, Vec<[f64; 4]>) {
+    let attr = |line: &str, name: &str| -> Option<String> {
+        let start = line.find(&format!(" {name}=\""))? + name.len() + 3;
+        let end = line[start..].find('"')? + start;
+        Some(line[start..end].to_string())
+    };
+    let num = |line: &str, name: &str| attr(line, name).unwrap().parse::<f64>().unwrap();
+    let (mut tags, mut squares) = (BTreeMap::new(), Vec::new());
+    let mut current: Option<(u32, PrintedTag)> = None;
+    let mut in_squares = false;
+    for line in svg.lines() {
+        if let Some(id) = attr(line, "id").and_then(|i| i.strip_prefix("tag").map(str::to_owned)) {
+            let m: Vec<f64> = attr(line, "transform")
+                .unwrap()
+                .trim_start_matches("matrix(")
+                .trim_end_matches(')')
+                .split(' ')
+                .map(|v| v.parse().unwrap())
+                .collect();
+            let cells = vec![vec![false; 10]; 10];
+            current = Some((
+                id.parse().unwrap(),
+                PrintedTag {
+                    cells,
+                    m: std::array::from_fn(|k| m[k]),
+                },
+            ));
+        } else if line.contains("id=\"corner-squares\"") {
+            in_squares = true;
+        } else if line.starts_with("</g>") {
+            if let Some((id, t)) = current.take() {
+                tags.insert(id, t);
+            }
+            in_squares = false;
+        } else if line.starts_with("<rect") {
+            if let Some((_, t)) = &mut current {
+                let (x, y, w) = (
+                    num(line, "x") as usize,
+                    num(line, "y") as usize,
+                    num(line, "width") as usize,
+                );
+                for c in x..x + w {
+                    t.cells[y][c] = true;
+                }
+            } else if in_squares {
+                squares.push([
+                    num(line, "x"),
+                    num(line, "y"),
+                    num(line, "width"),
+                    num(line, "height"),
+                ]);
+            }
+        }
+    }
+    (tags, squares)
+}
+
+fn print_board(yaml: &str, name: &str) -> String {
+    let d = vision_seq::fresh_dir(name);
+    let (target, out) = (d.join("target.yaml"), d.join("board.svg"));
+    std::fs::write(&target, yaml).unwrap();
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_dvlcal"))
+        .args(["board", "--target"])
+        .arg(&target)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let svg = std::fs::read_to_string(&out).unwrap();
+    let _ = std::fs::remove_dir_all(&d);
+    svg
+}
+
+#[test]
+fn a_kalibr_yaml_prints_kalibrs_layout_and_dvlcals_yaml_todays() {
+    use dvlcal::vision::family::tag_cells;
+    // 4 rows x 5 cols of 60 mm tags, spacing 0.25: Kalibr's YAML and dvlcal's of the same grid.
+    let kalibr = print_board(
+        "target_type: 'aprilgrid'\ntagCols: 5\ntagRows: 4\ntagSize: 0.06\ntagSpacing: 0.25\n",
+        "print-kalibr",
+    );
+    let ours = print_board(
+        "family: tag36h11\nrows: 4\ncols: 5\ntag_size: 0.06\nspacing: 0.25\n",
+        "print-dvlcal",
+    );
+    let (kt, ks) = parse_svg(&kalibr);
+    let (ot, os) = parse_svg(&ours);
+    assert_eq!((kt.len(), ot.len()), (20, 20));
+    assert!(
+        kalibr.contains("Kalibr aprilgrid"),
+        "the legend names the print"
+    );
+    for id in 0..20u32 {
+        // libapriltag's pattern of the tag: a white ring, a one-cell border, the code.
+        let code = tag_cells(TagFamily::Tag36h11, id).unwrap();
+        let (k, o) = (&kt[&id], &ot[&id]);
+        for r in 0..10 {
+            for c in 0..10 {
+                let ring = r == 0 || c == 0 || r == 9 || c == 9;
+                let border = !ring && (r == 1 || c == 1 || r == 8 || c == 8);
+                // Today's print: the library's pattern as it is.
+                assert_eq!(o.cells[r][c], code[r][c], "tag {id} cell {r},{c}");
+                if ring {
+                    assert!(!o.cells[r][c], "today's print has a white ring");
+                }
+                // Kalibr's: the ring black too (a border two cells wide), the same code inside.
+                if ring || border {
+                    assert!(k.cells[r][c], "tag {id}: Kalibr border cell {r},{c} white");
+                } else {
+                    assert_eq!(k.cells[r][c], code[r][c], "tag {id} code cell {r},{c}");
+                }
+            }
+        }
+        // Kalibr's bit is a tenth of the tag (the whole black square is 10 bits); today's an
+        // eighth (the black square is 8 cells; the ring lies outside it).
+        assert!(
+            (k.m[0] - 6.0).abs() < 1e-6 && (o.m[0] - 7.5).abs() < 1e-6,
+            "{} {}",
+            k.m[0],
+            o.m[0]
+        );
+    }
+    // Corner squares: none in today's print; in Kalibr's, one at every crossing of the gaps,
+    // of edge spacing x tag size (15 mm), each touching the corners of the tags around it.
+    assert!(os.is_empty() && !ours.contains("corner-squares"));
+    assert_eq!(ks.len(), 5 * 6);
+    for s in &ks {
+        assert!(
+            (s[2] - 15.0).abs() < 1e-3 && (s[3] - 15.0).abs() < 1e-3,
+            "{s:?}"
+        );
+    }
+    let touches = |p: (f64, f64)| {
+        ks.iter().any(|s| {
+            [
+                (s[0], s[1]),
+                (s[0] + s[2], s[1]),
+                (s[0], s[1] + s[3]),
+                (s[0] + s[2], s[1] + s[3]),
+            ]
+            .iter()
+            .any(|q| (q.0 - p.0).abs() < 1e-3 && (q.1 - p.1).abs() < 1e-3)
+        })
+    };
+    for (id, t) in &kt {
+        // The black square's corners on the page: the cell grid's corners (no ring outside).
+        let (x0, y0, side) = (t.m[4], t.m[5], 10.0 * t.m[0]);
+        for p in [
+            (x0, y0),
+            (x0 + side, y0),
+            (x0, y0 + side),
+            (x0 + side, y0 + side),
+        ] {
+            assert!(touches(p), "tag {id}: no corner square at {p:?}");
+        }
+        // And no square overlaps the tag.
+        for s in &ks {
+            let overlap_x = s[0] < x0 + side - 1e-6 && s[0] + s[2] > x0 + 1e-6;
+            let overlap_y = s[1] < y0 + side - 1e-6 && s[1] + s[3] > y0 + 1e-6;
+            assert!(!(overlap_x && overlap_y), "tag {id} overlaps {s:?}");
+        }
+    }
+    // Tag 0 at the bottom left, ids along the rows (Kalibr's numbering): tag 1 right of tag 0,
+    // tag 5 above it.
+    let (t0, t1, t5) = (&kt[&0], &kt[&1], &kt[&5]);
+    assert!((t1.m[4] - t0.m[4] - 75.0).abs() < 1e-3 && (t1.m[5] - t0.m[5]).abs() < 1e-3);
+    assert!((t0.m[5] - t5.m[5] - 75.0).abs() < 1e-3 && (t5.m[4] - t0.m[4]).abs() < 1e-3);
+}
+
+#[test]
+fn a_kalibr_board_reads_back_as_a_kalibr_print() {
+    let yaml =
+        "target_type: 'aprilgrid'\ntagCols: 6\ntagRows: 6\ntagSize: 0.088\ntagSpacing: 0.3\n";
+    let b = Board::parse(yaml, Path::new("t.yaml")).unwrap();
+    assert_eq!(b.print, TagPrint::Kalibr);
+    let back = Board::parse(&b.to_yaml(), Path::new("t.yaml")).unwrap();
+    assert_eq!(back, b);
+    assert!(b.to_yaml().contains("target_type: 'aprilgrid'"));
+    let ours = Board::parse(
+        "rows: 6\ncols: 6\ntag_size: 0.088\nspacing: 0.3\n",
+        Path::new("o.yaml"),
+    )
+    .unwrap();
+    assert_eq!(ours.print, TagPrint::Apriltag);
+    // The same tag corners either way: one printed board, one geometry.
+    assert_eq!(ours.tags, b.tags);
+}
