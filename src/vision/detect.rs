@@ -32,8 +32,8 @@ use nalgebra::Vector2;
 use crate::vision::camera::Camera;
 use crate::vision::family::{Destroy, FamilyCodes, TagFamily, family_codes};
 use crate::vision::kalibr::{
-    KALIBR_BORDER_BITS, KALIBR_CELLS_ACROSS, coarse_fit, decode_quad, grow, max_decimate, max3,
-    quads, saddle_point, widen_border,
+    KALIBR_BORDER_BITS, KALIBR_CELLS_ACROSS, coarse_fit, decode_quad, grow, has_light_code_cell,
+    max_decimate, max3, quads, saddle_point, widen_border,
 };
 use crate::vision::refine::refine_corners;
 use crate::{Error, Result};
@@ -333,6 +333,13 @@ impl Detector {
                 let Some(q) = grow(&q, *growth) else {
                     continue;
                 };
+                // Too small to read (under 1.5 px per cell), or nothing light inside.
+                let side = (0..4)
+                    .map(|i| (q[(i + 1) % 4] - q[i]).norm())
+                    .fold(f64::MAX, f64::min);
+                if side < 1.5 * KALIBR_CELLS_ACROSS as f64 || !has_light_code_cell(gray, &q) {
+                    continue;
+                }
                 let Some(refined) = settle_kalibr(gray, &q, cam) else {
                     continue;
                 };

@@ -426,6 +426,42 @@ pub(crate) fn decode_quad(
     })
 }
 
+/// A quick test before a rough quad is refined and decoded: some cell of the code area is
+/// clearly lighter than the border. Quads that are not tags (the corner squares, solid dark
+/// shapes) fail it and cost no refinement. Sampled through the rough quad's homography, so it
+/// holds for quads a pixel or two off.
+pub(crate) fn has_light_code_cell(img: &GrayImage, quad: &[Vector2<f64>; 4]) -> bool {
+    let n = KALIBR_CELLS_ACROSS as f64;
+    let tag = [
+        Vector2::new(0.0, n),
+        Vector2::new(n, n),
+        Vector2::new(n, 0.0),
+        Vector2::new(0.0, 0.0),
+    ];
+    let Some(h) = homography(&tag, quad) else {
+        return false;
+    };
+    let at = |u: f64, v: f64| apply(&h, u, v).and_then(|p| bilinear(img, p.x, p.y));
+    let (mut border, mut count) = (0.0, 0usize);
+    for i in 0..KALIBR_CELLS_ACROSS {
+        let t = i as f64 + 0.5;
+        for (u, v) in [(1.0, t), (n - 1.0, t), (t, 1.0), (t, n - 1.0)] {
+            if let Some(g) = at(u, v) {
+                border += g;
+                count += 1;
+            }
+        }
+    }
+    if count == 0 {
+        return false;
+    }
+    let border = border / count as f64;
+    (2..KALIBR_CELLS_ACROSS - 2).any(|r| {
+        (2..KALIBR_CELLS_ACROSS - 2)
+            .any(|c| at(c as f64 + 0.5, r as f64 + 0.5).is_some_and(|g| g - border >= MIN_CONTRAST))
+    })
+}
+
 /// The quad with every side moved outward (away from the centre) by `d` pixels.
 pub(crate) fn grow(q: &[Vector2<f64>; 4], d: f64) -> Option<[Vector2<f64>; 4]> {
     let centre = q.iter().sum::<Vector2<f64>>() / 4.0;
