@@ -676,6 +676,7 @@ fn a_kalibr_yaml_prints_kalibrs_layout_and_dvlcals_yaml_todays() {
         // libapriltag's pattern of the tag: a white ring, a one-cell border, the code.
         let code = tag_cells(TagFamily::Tag36h11, id).unwrap();
         let (k, o) = (&kt[&id], &ot[&id]);
+        #[allow(clippy::needless_range_loop)] // the same cell of three grids at once
         for r in 0..10 {
             for c in 0..10 {
                 let ring = r == 0 || c == 0 || r == 9 || c == 9;

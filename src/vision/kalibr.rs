@@ -16,20 +16,22 @@
 //!    (`width_at_border` 10, every bit one cell further in): it decodes every Kalibr tag whose
 //!    quad its segmentation finds in the image as it is (on sharp, high-resolution photos, all).
 //! 2. When that pass found no tag at all, or at least one Kalibr tag, libapriltag's segmentation
-//!    runs again on a half-resolution image in which every pixel is the brightest of its 2x2
-//!    block ([`max_decimate`]). That widens every white region by about half a pixel of the full
-//!    image, which opens the diagonal contacts; the black squares of the tags become separate
-//!    quads. Each quad is decoded here ([`decode_quad`]) on the full-resolution image: the bits
-//!    are read through the quad's homography and compared with a threshold that is the midpoint
-//!    of a plane fitted to the black border and a plane fitted to the white just outside it. A
-//!    quad is a tag when the border is black, the outside white, the contrast clear and the code
-//!    within the allowed number of corrected bits of a tag36h11 code (in one of its four
-//!    rotations). Its sides are then moved out by the half pixel the brighter image took off
-//!    and re-located on the full-resolution image by `vision::refine`; a tag whose sides
-//!    cannot be located is dropped, so every corner that comes out is a refined one.
+//!    runs again on two half-resolution images in which every pixel is the brightest of its 2x2
+//!    block ([`max_decimate`]), the second after a 3x3 brightest filter ([`max3`]). That widens
+//!    every white region by about half a pixel (one and a half) of the full image, which opens
+//!    the diagonal contacts; the black squares of the tags become separate quads. Each quad is
+//!    moved out by what the brightening took off, refined on the full-resolution image
+//!    (`vision::refine`, after a wider re-fit of its sides when a corner kept a piece of a
+//!    corner square), and decoded there: the bits are read through the refined corners'
+//!    homography against a threshold halfway between a plane fitted to the black border and a
+//!    plane fitted to the white just outside it. A quad is a tag when the border is black, the
+//!    outside white, the contrast clear and the code within the allowed number of corrected bits
+//!    of a tag36h11 code (in one of its four rotations).
 //!
-//! Tags found twice (by both passes, or by both families) are kept once: same id, centres closer
-//! than a quarter of the tag's side.
+//! The corners of every Kalibr tag end on the saddle points of the X-junctions between the tag
+//! and its corner squares, which the ink spread of a printer does not move. Tags found twice (by
+//! both passes, or by both families) are kept once: same id, centres closer than a quarter of the
+//! tag's side. docs/method.md ("Board detection") has the figures.
 
 use std::os::raw::{c_char, c_int, c_void};
 
