@@ -1,5 +1,10 @@
 //! AprilTag detection through the system libapriltag (Debian 3.3) and its `apriltag-sys` bindings.
 //!
+//! With tag36h11 (the default) the detector also reads boards printed by Kalibr (two-bit
+//! borders, black squares at the tag corners), which libapriltag alone does not: a widened copy
+//! of the family in libapriltag, and a second pass of its own (`vision::kalibr`).
+//! [`TagDetection::border_bits`] says which print a tag came from.
+//!
 //! The grey image is handed to the library without a copy: an `image_u8_t` header is built around
 //! the [`image::GrayImage`] buffer (stride = width). Debian's `libapriltag.so` does not export the
 //! `image_u8_*` functions (they live in `libapriltag-utils.so`), so none of them is called here.
@@ -57,7 +62,10 @@ pub struct DetectorSettings {
     /// After libapriltag, re-locate each side of the black square on the full-resolution image
     /// and intersect straight-line fits of the sides (`vision::refine`). Removes the
     /// corner bias libapriltag 3.3 leaves; a tag whose sides cannot be located keeps
-    /// libapriltag's corners.
+    /// libapriltag's corners. Kalibr-printed tags are refined this way and then put on the
+    /// saddle points of their corner junctions; one whose sides cannot be located is dropped
+    /// (its quad may have kept a piece of a corner square). Without it, second-pass Kalibr
+    /// tags still come with line-fit corners (their bits are read off them).
     pub refine_corners: bool,
     /// Worker threads of the detector (`nthreads`, >= 1).
     pub threads: usize,
