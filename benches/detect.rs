@@ -1,5 +1,6 @@
 //! Throughput of `detect` (decode + tag detection + stereo PnP) on rendered 752x480 stereo frames,
-//! against Debian's `apriltag` CLI on the same frames as PGM.
+//! against Debian's `apriltag` CLI on the same frames as PGM; then the same frames with the board
+//! printed the way Kalibr prints it.
 //!
 //! `cargo bench --bench detect [-- FRAMES]` (default 60 stereo frames). Prints a table; the
 //! apriltag rows are skipped when the CLI is not installed.
@@ -183,6 +184,58 @@ fn main() {
         println!("(apriltag CLI not installed: no comparison)");
     }
     let _ = std::fs::remove_dir_all(Path::new(&dir));
+
+    // The same frames with the board printed the way Kalibr prints it (two-bit borders, corner
+    // squares): found by the detector's two passes.
+    let kdir = vision_seq::fresh_dir("bench-kalibr");
+    let kboard = vision_seq::board().printed_by_kalibr();
+    vision_seq::write_sequence_of(&kdir, n, &RenderSettings::default(), 7, &kboard);
+    let (kframes, _) = scan_images(&kdir, 2, 1_000_000).expect("scan");
+    let kgray: Vec<_> = kframes
+        .iter()
+        .flat_map(|f| f.paths.iter().flatten())
+        .map(|p| load_gray(p).expect("png"))
+        .collect();
+    println!("| Kalibr-printed board: | | | | |");
+    for threads in [1, cores] {
+        let p = pool(threads);
+        let secs = best_of(3, || {
+            let s = Instant::now();
+            let (_, st) = p
+                .install(|| detect_frames(&kframes, &kboard, &chain, &settings, &opts, false))
+                .expect("detect");
+            assert_eq!(st.poses, n);
+            s.elapsed().as_secs_f64()
+        });
+        row(
+            "dvlcal detect, Kalibr print (PNG decode + detect + PnP)",
+            &threads.to_string(),
+            secs,
+        );
+        let secs = best_of(3, || {
+            let s = Instant::now();
+            let total: usize = p.install(|| {
+                kgray
+                    .par_iter()
+                    .map_init(
+                        || Detector::new(&settings).expect("detector"),
+                        |d, g| d.detect(g).len(),
+                    )
+                    .sum()
+            });
+            assert!(total > 0);
+            s.elapsed().as_secs_f64()
+        });
+        row(
+            "dvlcal detection alone, Kalibr print (decoded images)",
+            &threads.to_string(),
+            secs,
+        );
+        if threads == cores {
+            break;
+        }
+    }
+    let _ = std::fs::remove_dir_all(&kdir);
 }
 
 fn best_of_opt<F: FnMut() -> Option<f64>>(reps: usize, mut f: F) -> Option<f64> {

@@ -405,15 +405,17 @@ fn bad_image_files_are_errors_naming_the_file() {
     let lines: Vec<&str> = stdout.lines().collect();
     assert_eq!(
         lines[0],
-        "file,id,hamming,decision_margin,x0,y0,x1,y1,x2,y2,x3,y3"
+        "file,id,hamming,decision_margin,x0,y0,x1,y1,x2,y2,x3,y3,border_bits"
     );
     assert_eq!(lines.len(), 5, "{stdout}");
     for (id, line) in lines[1..].iter().enumerate() {
         let f: Vec<&str> = line.split(',').collect();
-        assert_eq!(f.len(), 12);
+        assert_eq!(f.len(), 13);
         assert_eq!(f[0], good.display().to_string());
         assert_eq!(f[1], id.to_string());
-        assert!(f[4..].iter().all(|v| v.parse::<f64>().is_ok()));
+        assert!(f[4..12].iter().all(|v| v.parse::<f64>().is_ok()));
+        // Tags drawn the way libapriltag draws them: a one-bit border.
+        assert_eq!(f[12], "1");
     }
     // Nothing readable: non-zero exit.
     let out = Command::new(exe)

@@ -94,6 +94,7 @@ fn detections(
                         hamming: 0,
                         decision_margin: 80.0,
                         corners,
+                        border_bits: 1,
                     })
                 })
                 .collect()

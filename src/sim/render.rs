@@ -9,7 +9,8 @@
 //! so an image is a deterministic function of its inputs and the generator's state.
 //!
 //! Tag bit patterns are libapriltag's own family data (codes and bit positions), so a rendered tag
-//! is exactly the tag libapriltag decodes.
+//! is exactly the tag libapriltag decodes. A board printed the Kalibr way ([`TagPrint::Kalibr`])
+//! is drawn with Kalibr's two-bit borders and its corner squares.
 
 use std::sync::{Arc, Mutex};
 
@@ -18,9 +19,10 @@ use nalgebra::{Matrix2, Vector2, Vector3};
 
 use crate::lie::Se3;
 use crate::sim::rng::Rng;
-use crate::vision::board::{Board, grid_paper};
+use crate::vision::board::{Board, TagPrint, grid_paper};
 use crate::vision::camera::Camera;
 use crate::vision::family::tags_cells;
+use crate::vision::kalibr::{KALIBR_CELLS_ACROSS, kalibr_tag_cells};
 
 /// Image formation settings.
 #[derive(Clone, Debug, PartialEq)]
@@ -143,11 +145,26 @@ impl Plane {
 /// Splits the board into planes (tags whose corners lie in a common plane) with their paper.
 fn prepare(board: &Board, t_cam_board: &Se3) -> Vec<Plane> {
     let ids: Vec<u32> = board.tags.iter().map(|t| t.id).collect();
-    let Some((layout, cells)) = tags_cells(board.family, &ids) else {
-        return vec![];
+    // Cells across the whole pattern and across the black square, and each tag's cells.
+    let (tw, wab, cells) = match board.print {
+        TagPrint::Apriltag => {
+            let Some((layout, cells)) = tags_cells(board.family, &ids) else {
+                return vec![];
+            };
+            (
+                layout.total_width as usize,
+                layout.width_at_border.max(1) as f64,
+                cells,
+            )
+        }
+        TagPrint::Kalibr => {
+            let Some(cells) = kalibr_tag_cells(&ids) else {
+                return vec![];
+            };
+            let n = KALIBR_CELLS_ACROSS as usize;
+            (n, n as f64, cells)
+        }
     };
-    let tw = layout.total_width as usize;
-    let wab = layout.width_at_border.max(1) as f64;
     let offset = (tw as f64 - wab) / 2.0;
     // (T_board_plane, tags) with tag indices.
     let mut groups: Vec<(Se3, Vec<usize>)> = vec![];
@@ -209,6 +226,26 @@ fn prepare(board: &Board, t_cam_board: &Se3) -> Vec<Plane> {
                 tw,
                 cells: c,
             });
+        }
+        if let (TagPrint::Kalibr, Some(g)) = (board.print, &board.grid) {
+            // Kalibr's corner squares: a one-cell black "tag" at every crossing of the gaps.
+            let gap = g.spacing * g.tag_size_m;
+            let pitch = g.tag_size_m + gap;
+            if gap > 0.0 {
+                for r in 0..=g.rows {
+                    for c in 0..=g.cols {
+                        tags.push(PreparedTag {
+                            origin: Vector2::new(c as f64 * pitch - gap, r as f64 * pitch - gap),
+                            ax: Vector2::new(1.0, 0.0),
+                            ay: Vector2::new(0.0, 1.0),
+                            cell: gap,
+                            offset: 0.0,
+                            tw: 1,
+                            cells: vec![vec![true]],
+                        });
+                    }
+                }
+            }
         }
         if let Some(g) = &board.grid {
             let (lo, hi) = grid_paper(board, g);

@@ -48,7 +48,9 @@
 //!   A tag's own frame has its origin at the centre of the black square, x to the right and y up
 //!   when the tag is upright, z out of the tag.
 //! - Kalibr's aprilgrid target YAML, unchanged (`target_type: 'aprilgrid'`, `tagCols`,
-//!   `tagRows`, `tagSize`, `tagSpacing`), with tag ids from 0.
+//!   `tagRows`, `tagSize`, `tagSpacing`), with tag ids from 0. Such a board is printed the way
+//!   Kalibr prints it ([`TagPrint::Kalibr`]: two-bit borders, corner squares); the other forms
+//!   as libapriltag draws its tags.
 
 use nalgebra::{Matrix4, Vector2, Vector3};
 use serde::Deserialize;
@@ -103,6 +105,20 @@ impl BoardTag {
     }
 }
 
+/// How a board's tags are printed (the detector reads both; the printer and the renderer draw
+/// the one the board says).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TagPrint {
+    /// As libapriltag draws its tags: the family's own pattern, for tag36h11 a black border one
+    /// bit wide inside a white ring. dvlcal's own board YAML prints this way.
+    Apriltag,
+    /// As Kalibr prints an aprilgrid (`kalibr_create_target_pdf`): tag36h11 codes inside a black
+    /// border two bits wide (bit = tag size / 10), no white ring, and a black square of edge
+    /// `spacing * tag size` in the gap at every tag corner, touching it diagonally. A Kalibr
+    /// aprilgrid YAML prints this way, so that one printed board serves Kalibr and dvlcal.
+    Kalibr,
+}
+
 /// A calibration board: a set of tags of one family at known positions.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Board {
@@ -115,6 +131,10 @@ pub struct Board {
     /// For grid boards: rows, cols, spacing (gap / tag size) and first id; `None` for list
     /// boards.
     pub grid: Option<GridLayout>,
+    /// How the tags are printed: [`TagPrint::Kalibr`] for a board read from a Kalibr aprilgrid
+    /// YAML, [`TagPrint::Apriltag`] otherwise. The tag corners (the outer black squares) are the
+    /// same either way.
+    pub print: TagPrint,
 }
 
 /// The layout of a grid board.
@@ -319,6 +339,7 @@ impl Board {
                 k.tag_spacing,
                 0,
             )
+            .printed_by_kalibr()
         } else if has("tags") {
             let l: ListFile = serde_yaml::from_str(text).map_err(|e| yaml_err(path, e))?;
             let family = family_of(&l.family)?;
@@ -386,6 +407,7 @@ impl Board {
                 tags,
                 description,
                 grid: None,
+                print: TagPrint::Apriltag,
             }
         } else {
             let g: GridFile = serde_yaml::from_str(text).map_err(|e| yaml_err(path, e))?;
@@ -465,7 +487,28 @@ impl Board {
                 spacing,
                 first_id,
             }),
+            print: TagPrint::Apriltag,
         }
+    }
+
+    /// The same board printed the way Kalibr prints an aprilgrid ([`TagPrint::Kalibr`]). Only a
+    /// tag36h11 grid with ids from 0 is a Kalibr aprilgrid; any other board is returned as it is.
+    pub fn printed_by_kalibr(mut self) -> Board {
+        if let (TagFamily::Tag36h11, Some(g)) = (self.family, &self.grid)
+            && g.first_id == 0
+        {
+            self.print = TagPrint::Kalibr;
+            self.description = format!(
+                "Kalibr aprilgrid {} rows x {} cols (tag36h11, two-bit border, corner squares), \
+                 tag {:.1} mm, spacing {}, ids 0..{}",
+                g.rows,
+                g.cols,
+                g.tag_size_m * 1e3,
+                g.spacing,
+                g.rows * g.cols - 1
+            );
+        }
+        self
     }
 
     /// The tag with this id.
@@ -480,6 +523,15 @@ impl Board {
         s.push_str(&format!("# {}\n", self.description.replace('\n', " ")));
         s.push_str(&format!("family: {}\n", self.family.name()));
         match &self.grid {
+            Some(g) if self.print == TagPrint::Kalibr => {
+                // Kalibr's own target YAML: `load` reads it back as a Kalibr print.
+                s.clear();
+                s.push_str(&format!("# {}\n", self.description.replace('\n', " ")));
+                s.push_str(&format!(
+                    "target_type: 'aprilgrid'\ntagCols: {}\ntagRows: {}\ntagSize: {}\ntagSpacing: {}\n",
+                    g.cols, g.rows, g.tag_size_m, g.spacing
+                ));
+            }
             Some(g) => {
                 s.push_str(&format!(
                     "rows: {}\ncols: {}\ntag_size: {}\nspacing: {}\nfirst_id: {}\n",
@@ -504,14 +556,19 @@ impl Board {
 
 /// The white paper of a grid board in the board plane: lower-left and upper-right corners. The
 /// margin around the outer tags' black squares is the gap between tags, and at least the pattern's
-/// own white ring plus one cell.
+/// own white ring plus one cell; for a Kalibr print, the gap (where the outer corner squares
+/// end) plus two bits.
 pub fn grid_paper(board: &Board, g: &GridLayout) -> (Vector2<f64>, Vector2<f64>) {
     let layout = crate::vision::family::family_layout(board.family);
     let (tw, wab) = layout
         .map(|l| (l.total_width as f64, l.width_at_border.max(1) as f64))
         .unwrap_or((10.0, 8.0));
     let cell = g.tag_size_m / wab;
-    let margin = (g.spacing * g.tag_size_m).max(((tw - wab) / 2.0 + 1.0) * cell);
+    let margin = match board.print {
+        TagPrint::Apriltag => (g.spacing * g.tag_size_m).max(((tw - wab) / 2.0 + 1.0) * cell),
+        // The outer corner squares reach `spacing * tag size` out; two bits of white beyond.
+        TagPrint::Kalibr => (g.spacing + 0.2) * g.tag_size_m,
+    };
     let d = g.tag_size_m * (1.0 + g.spacing);
     let w = (g.cols as f64 - 1.0) * d + g.tag_size_m;
     let h = (g.rows as f64 - 1.0) * d + g.tag_size_m;

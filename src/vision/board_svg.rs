@@ -1,10 +1,13 @@
 //! A board as an SVG to print at exact scale: each tag's cells from libapriltag's family data,
-//! the paper around them, and the board definition printed underneath.
+//! the paper around them, and the board definition printed underneath. A board read from a
+//! Kalibr aprilgrid YAML is printed as Kalibr prints it ([`TagPrint::Kalibr`]): two-bit borders
+//! and the corner squares (group `corner-squares`), so that Kalibr reads the same sheet.
 
 use std::fmt::Write as _;
 
-use crate::vision::board::{Board, grid_paper};
+use crate::vision::board::{Board, TagPrint, grid_paper};
 use crate::vision::family::tags_cells;
+use crate::vision::kalibr::{KALIBR_CELLS_ACROSS, kalibr_tag_cells};
 use crate::{Error, Result};
 
 /// Lines of the board definition printed under the board.
@@ -26,14 +29,28 @@ fn escape(s: &str) -> String {
 /// The SVG text of a board. Tags must lie in the board's z = 0 plane (grid boards always do).
 pub fn board_svg(board: &Board, source: &str) -> Result<String> {
     let ids: Vec<u32> = board.tags.iter().map(|t| t.id).collect();
-    let (layout, cells) = tags_cells(board.family, &ids).ok_or_else(|| {
+    let family_err = || {
         Error::Input(format!(
             "libapriltag could not read the family {}",
             board.family
         ))
-    })?;
-    let tw = layout.total_width as f64;
-    let wab = layout.width_at_border.max(1) as f64;
+    };
+    // Cells across the whole pattern and across the black square, and each tag's cells.
+    let (tw, wab, cells) = match board.print {
+        TagPrint::Apriltag => {
+            let (layout, cells) = tags_cells(board.family, &ids).ok_or_else(family_err)?;
+            (
+                layout.total_width as f64,
+                layout.width_at_border.max(1) as f64,
+                cells,
+            )
+        }
+        TagPrint::Kalibr => {
+            let cells = kalibr_tag_cells(&ids).ok_or_else(family_err)?;
+            let n = KALIBR_CELLS_ACROSS as f64;
+            (n, n, cells)
+        }
+    };
     let off = (tw - wab) / 2.0;
     if let Some(t) = board
         .tags
@@ -127,6 +144,28 @@ pub fn board_svg(board: &Board, source: &str) -> Result<String> {
                 } else {
                     col += 1;
                 }
+            }
+        }
+        s.push_str("</g>\n");
+    }
+    // Kalibr's corner squares: one at every crossing of the gaps between tags (each touches the
+    // corners of up to four tags), edge `spacing * tag size`.
+    if let (TagPrint::Kalibr, Some(g)) = (board.print, &board.grid) {
+        let s_mm = g.tag_size_m * 1e3;
+        let gap = g.spacing * s_mm;
+        let pitch = s_mm + gap;
+        s.push_str("<g id=\"corner-squares\" fill=\"black\" shape-rendering=\"crispEdges\">\n");
+        for r in 0..=g.rows {
+            for c in 0..=g.cols {
+                // Board-plane lower-left corner of the square, then its top-left on the page.
+                let x = c as f64 * pitch - gap;
+                let y_top = r as f64 * pitch;
+                let px = x - lo.0 * 1e3 + margin;
+                let py = hi.1 * 1e3 - y_top + margin;
+                let _ = writeln!(
+                    s,
+                    r#"<rect x="{px:.4}" y="{py:.4}" width="{gap:.4}" height="{gap:.4}"/>"#
+                );
             }
         }
         s.push_str("</g>\n");

@@ -1,5 +1,10 @@
 //! AprilTag detection through the system libapriltag (Debian 3.3) and its `apriltag-sys` bindings.
 //!
+//! With tag36h11 (the default) the detector also reads boards printed by Kalibr (two-bit
+//! borders, black squares at the tag corners), which libapriltag alone does not: a widened copy
+//! of the family in libapriltag, and a second pass of its own (`vision::kalibr`).
+//! [`TagDetection::border_bits`] says which print a tag came from.
+//!
 //! The grey image is handed to the library without a copy: an `image_u8_t` header is built around
 //! the [`image::GrayImage`] buffer (stride = width). Debian's `libapriltag.so` does not export the
 //! `image_u8_*` functions (they live in `libapriltag-utils.so`), so none of them is called here.
@@ -30,7 +35,11 @@ use apriltag_sys as sys;
 use nalgebra::Vector2;
 
 use crate::vision::camera::Camera;
-use crate::vision::family::{Destroy, TagFamily};
+use crate::vision::family::{Destroy, FamilyCodes, TagFamily, family_codes};
+use crate::vision::kalibr::{
+    KALIBR_BORDER_BITS, KALIBR_CELLS_ACROSS, coarse_fit, decode_quad, grow, has_light_code_cell,
+    max_decimate, max3, quads, saddle_point, widen_border,
+};
 use crate::vision::refine::refine_corners;
 use crate::{Error, Result};
 
@@ -53,12 +62,19 @@ pub struct DetectorSettings {
     /// After libapriltag, re-locate each side of the black square on the full-resolution image
     /// and intersect straight-line fits of the sides (`vision::refine`). Removes the
     /// corner bias libapriltag 3.3 leaves; a tag whose sides cannot be located keeps
-    /// libapriltag's corners.
+    /// libapriltag's corners. Kalibr-printed tags are refined this way and then put on the
+    /// saddle points of their corner junctions; one whose sides cannot be located is dropped
+    /// (its quad may have kept a piece of a corner square). Without it, second-pass Kalibr
+    /// tags still come with line-fit corners (their bits are read off them).
     pub refine_corners: bool,
     /// Worker threads of the detector (`nthreads`, >= 1).
     pub threads: usize,
     /// Largest number of corrected bits of an accepted code (0..=3; more needs huge tables).
     pub max_hamming: u32,
+    /// With [`TagFamily::Tag36h11`], also find tags printed by Kalibr (two-bit black border,
+    /// black squares at the tag corners; see `vision::kalibr`). On by default; ignored for the
+    /// other families.
+    pub kalibr_layout: bool,
 }
 
 impl Default for DetectorSettings {
@@ -72,6 +88,7 @@ impl Default for DetectorSettings {
             refine_corners: true,
             threads: 1,
             max_hamming: 1,
+            kalibr_layout: true,
         }
     }
 }
@@ -126,6 +143,10 @@ pub struct TagDetection {
     /// libapriltag's p[0..4], converted to the OpenCV pixel convention (minus 0.5): bottom-left,
     /// bottom-right, top-right, top-left of the black square of the upright tag.
     pub corners: [Vector2<f64>; 4],
+    /// Width of the tag's black border in bits: 1 for tags printed the way libapriltag draws
+    /// them, 2 for tags printed by Kalibr ([`crate::vision::kalibr`]). The corners are those of
+    /// the outer black square either way.
+    pub border_bits: u32,
 }
 
 /// An AprilTag detector for one family. Owns the libapriltag detector and family and frees both
@@ -137,6 +158,15 @@ pub struct Detector {
     settings: DetectorSettings,
     /// Pattern cells across the square the corners belong to (the family's `width_at_border`).
     cells_across: f64,
+    /// The Kalibr-layout part (tag36h11 with a two-bit border), when enabled.
+    kalibr: Option<KalibrPart>,
+}
+
+/// What the detector needs to read Kalibr-printed tags: the widened copy of tag36h11 given to
+/// libapriltag, and tag36h11's codes for decoding the second pass's quads.
+struct KalibrPart {
+    tf: *mut sys::apriltag_family_t,
+    book: FamilyCodes,
 }
 
 // SAFETY: the detector and family are owned exclusively by this value and libapriltag keeps no
@@ -169,12 +199,13 @@ impl Detector {
         // SAFETY: tf is a valid family (checked non-null above).
         let cells_across = unsafe { (*tf).width_at_border }.max(1) as f64;
         // Owned from here on: Drop frees both on any early return.
-        let det = Detector {
+        let mut det = Detector {
             td,
             tf,
             destroy_family,
             settings: s.clone(),
             cells_across,
+            kalibr: None,
         };
         // SAFETY: td and tf are valid; the family outlives the detector (Drop destroys the detector
         // first). The settings fields are plain values.
@@ -193,7 +224,37 @@ impl Detector {
             (*td).refine_edges = s.refine_edges;
             (*td).nthreads = s.threads as c_int;
         }
+        if s.kalibr_layout && s.family == TagFamily::Tag36h11 {
+            det.add_kalibr_layout()?;
+        }
         Ok(det)
+    }
+
+    /// Adds tag36h11 with Kalibr's two-bit border to the libapriltag detector (first pass) and
+    /// keeps the codes for the second pass (`vision::kalibr`).
+    fn add_kalibr_layout(&mut self) -> Result<()> {
+        let err =
+            || Error::Input("libapriltag could not make tag36h11 with a two-bit border".into());
+        let book = family_codes(TagFamily::Tag36h11).ok_or_else(err)?;
+        // SAFETY: a fresh family from its constructor, checked non-null, changed before any
+        // detector sees it; once added, it is owned by `self.kalibr` and destroyed in Drop after
+        // the detector.
+        unsafe {
+            let tf = sys::tag36h11_create();
+            if tf.is_null() {
+                return Err(err());
+            }
+            if !widen_border(tf) {
+                sys::tag36h11_destroy(tf);
+                return Err(err());
+            }
+            self.kalibr = Some(KalibrPart { tf, book });
+            sys::apriltag_detector_add_family_bits(self.td, tf, self.settings.max_hamming as c_int);
+            if (*(*self.td).tag_families).size != 2 {
+                return Err(err());
+            }
+        }
+        Ok(())
     }
 
     /// The settings this detector was made with.
@@ -216,11 +277,95 @@ impl Detector {
         cam: Option<&Camera>,
     ) -> Vec<TagDetection> {
         let mut out = self.detect_raw(gray);
+        let kalibr_seen = out.iter().any(|d| d.border_bits == KALIBR_BORDER_BITS);
         if self.settings.refine_corners {
-            for d in &mut out {
-                if let Some(c) = refine_corners(gray, &d.corners, self.cells_across, cam) {
-                    d.corners = c;
+            out.retain_mut(|d| {
+                if d.border_bits == KALIBR_BORDER_BITS {
+                    // A Kalibr tag's quad may have kept a bit of a corner square: refined
+                    // corners or none (the second pass may still find the tag).
+                    match settle_kalibr(gray, &d.corners, cam) {
+                        Some(mut c) => {
+                            kalibr_saddles(gray, &mut c);
+                            d.corners = c;
+                            true
+                        }
+                        None => false,
+                    }
+                } else {
+                    if let Some(c) = refine_corners(gray, &d.corners, self.cells_across, cam) {
+                        d.corners = c;
+                    }
+                    true
                 }
+            });
+        }
+        let second = self.kalibr.is_some() && (out.is_empty() || kalibr_seen);
+        if second {
+            let more = self.kalibr_second_pass(gray, cam, &out);
+            out.extend(more);
+            sort_detections(&mut out);
+        }
+        out
+    }
+
+    /// The second pass for Kalibr tags (see `vision::kalibr`): quads of the brightened
+    /// half-resolution images, refined and decoded on `gray`. Quads on a tag already in `known`
+    /// are skipped, and so are quads whose sides cannot be re-located (the bits of a small tag
+    /// are read right only off accurate corners).
+    fn kalibr_second_pass(
+        &mut self,
+        gray: &image::GrayImage,
+        cam: Option<&Camera>,
+        known: &[TagDetection],
+    ) -> Vec<TagDetection> {
+        let Some(k) = &self.kalibr else {
+            return Vec::new();
+        };
+        let mut out: Vec<TagDetection> = Vec::new();
+        for (level, growth) in SECOND_PASS_LEVELS.iter().enumerate() {
+            let half = if level == 0 {
+                max_decimate(gray)
+            } else {
+                max_decimate(&max3(gray))
+            };
+            // SAFETY: the detector is ours and used by this thread only.
+            let found = unsafe { quads(self.td, &half) };
+            for q in found {
+                // Half-resolution pixels (libapriltag's convention) to full-resolution OpenCV
+                // pixels.
+                let q = q.map(|p| Vector2::new(2.0 * p[0] - 0.5, 2.0 * p[1] - 0.5));
+                let centre = q.iter().sum::<Vector2<f64>>() / 4.0;
+                if known.iter().chain(&out).any(|d| covers(d, &centre)) {
+                    continue;
+                }
+                let Some(q) = grow(&q, *growth) else {
+                    continue;
+                };
+                // Too small to read (under 1.5 px per cell), or nothing light inside.
+                let side = (0..4)
+                    .map(|i| (q[(i + 1) % 4] - q[i]).norm())
+                    .fold(f64::MAX, f64::min);
+                if side < 1.5 * KALIBR_CELLS_ACROSS as f64 || !has_light_code_cell(gray, &q) {
+                    continue;
+                }
+                let Some(refined) = settle_kalibr(gray, &q, cam) else {
+                    continue;
+                };
+                let Some(t) = decode_quad(gray, &refined, &k.book, self.settings.max_hamming)
+                else {
+                    continue;
+                };
+                let mut corners = t.corners;
+                if self.settings.refine_corners {
+                    kalibr_saddles(gray, &mut corners);
+                }
+                out.push(TagDetection {
+                    id: t.id,
+                    hamming: t.hamming,
+                    decision_margin: t.margin,
+                    corners,
+                    border_bits: KALIBR_BORDER_BITS,
+                });
             }
         }
         out
@@ -268,23 +413,96 @@ impl Detector {
                     let d = &*d;
                     let corners =
                         std::array::from_fn(|k| Vector2::new(d.p[k][0] - 0.5, d.p[k][1] - 0.5));
+                    let kalibr = self.kalibr.as_ref().is_some_and(|k| k.tf == d.family);
                     out.push(TagDetection {
                         id: d.id.max(0) as u32,
                         hamming: d.hamming.max(0) as u32,
                         decision_margin: d.decision_margin,
                         corners,
+                        border_bits: if kalibr { KALIBR_BORDER_BITS } else { 1 },
                     });
                 }
             }
             sys::apriltag_detections_destroy(dets);
         }
-        out.sort_by(|a, b| {
-            a.id.cmp(&b.id)
-                .then(a.corners[0].x.total_cmp(&b.corners[0].x))
-                .then(a.corners[0].y.total_cmp(&b.corners[0].y))
-        });
-        out
+        sort_detections(&mut out);
+        // A quad decoded by both layouts (not seen in practice): keep the first.
+        let mut kept: Vec<TagDetection> = Vec::with_capacity(out.len());
+        for d in out {
+            if !kept.iter().any(|o| same_tag(o, &d)) {
+                kept.push(d);
+            }
+        }
+        kept
     }
+}
+
+/// The second pass's images, and how far each moves the sides of its quads out before
+/// refinement (full-resolution pixels: about what the brightening took off every black region):
+/// the 2x2-brightest half-resolution image, and the same after a 3x3 brightest filter at full
+/// resolution (for the blurred photos whose corner contacts are wider).
+const SECOND_PASS_LEVELS: [f64; 2] = [0.5, 1.5];
+
+/// The refined corners of a Kalibr tag from a rough quad: refined as they are, or, when that
+/// fails, after its sides are re-fitted with a wider reach (`vision::kalibr::coarse_fit`).
+fn settle_kalibr(
+    gray: &image::GrayImage,
+    q: &[Vector2<f64>; 4],
+    cam: Option<&Camera>,
+) -> Option<[Vector2<f64>; 4]> {
+    let cells = KALIBR_CELLS_ACROSS as f64;
+    let side = (0..4).map(|i| (q[(i + 1) % 4] - q[i]).norm()).sum::<f64>() / 4.0;
+    refine_corners(gray, q, cells, cam).or_else(|| {
+        let c = coarse_fit(gray, q, (0.18 * side).clamp(1.5, 12.0))?;
+        refine_corners(gray, &c, cells, cam)
+    })
+}
+
+/// A Kalibr tag's corners moved to the saddle points of their X-junctions with the corner
+/// squares (`vision::kalibr::saddle_point`); a corner without a clear junction within a third
+/// of a cell keeps its line-fit position.
+fn kalibr_saddles(gray: &image::GrayImage, c: &mut [Vector2<f64>; 4]) {
+    let cells = KALIBR_CELLS_ACROSS as f64;
+    let side = (0..4).map(|i| (c[(i + 1) % 4] - c[i]).norm()).sum::<f64>() / 4.0;
+    let cell = side / cells;
+    let radius = (1.6 * cell).clamp(2.0, 10.0);
+    for p in c.iter_mut() {
+        if let Some(x) = saddle_point(gray, p, radius) {
+            if (x - *p).norm() <= cell / 3.0 {
+                *p = x;
+            }
+        }
+    }
+}
+
+/// By id, then by the first corner, so that results do not depend on thread counts.
+fn sort_detections(v: &mut [TagDetection]) {
+    v.sort_by(|a, b| {
+        a.id.cmp(&b.id)
+            .then(a.corners[0].x.total_cmp(&b.corners[0].x))
+            .then(a.corners[0].y.total_cmp(&b.corners[0].y))
+    });
+}
+
+/// Whether `p` lies within a quarter of a detection's side from its centre (on the same tag).
+fn covers(d: &TagDetection, p: &Vector2<f64>) -> bool {
+    let centre = d.corners.iter().sum::<Vector2<f64>>() / 4.0;
+    let side = (d.corners[1] - d.corners[0])
+        .norm()
+        .max((d.corners[2] - d.corners[1]).norm());
+    (centre - p).norm() < 0.25 * side
+}
+
+/// Two detections of one tag: same id, centres closer than a quarter of the tag's side.
+fn same_tag(a: &TagDetection, b: &TagDetection) -> bool {
+    if a.id != b.id {
+        return false;
+    }
+    let centre = |d: &TagDetection| d.corners.iter().sum::<Vector2<f64>>() / 4.0;
+    let side = (a.corners[1] - a.corners[0])
+        .norm()
+        .max((a.corners[2] - a.corners[1]).norm());
+    (centre(a) - centre(b)).norm() < 0.25 * side
 }
 
 impl Drop for Detector {
@@ -294,6 +512,9 @@ impl Drop for Detector {
         unsafe {
             sys::apriltag_detector_destroy(self.td);
             (self.destroy_family)(self.tf);
+            if let Some(k) = self.kalibr.take() {
+                sys::tag36h11_destroy(k.tf);
+            }
         }
     }
 }

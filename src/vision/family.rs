@@ -249,6 +249,44 @@ fn with_family<T>(
     }
 }
 
+/// A family's codes and the cell of each code bit, read from libapriltag: `codes[id]` holds
+/// `bits.len()` bits, most significant first; bit `i` (1 = white) sits in the cell column
+/// `bits[i].0`, row `bits[i].1` (row 0 at the top), counted from the corner of the
+/// `width_at_border` square.
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct FamilyCodes {
+    pub codes: Vec<u64>,
+    pub bits: Vec<(u32, u32)>,
+}
+
+/// The codes and bit cells of a family (see [`FamilyCodes`]).
+pub(crate) fn family_codes(family: TagFamily) -> Option<FamilyCodes> {
+    let entry = family.entry();
+    let (create, destroy) = (entry.create, entry.destroy);
+    // SAFETY: as in `with_family`: the family is read while alive, through the counts it states,
+    // and freed with its own destructor.
+    unsafe {
+        let tf = create();
+        if tf.is_null() {
+            return None;
+        }
+        let fam = &*tf;
+        let nbits = fam.nbits as usize;
+        let ok = !fam.codes.is_null() && !fam.bit_x.is_null() && !fam.bit_y.is_null();
+        let out = ok.then(|| {
+            let codes = std::slice::from_raw_parts(fam.codes, fam.ncodes as usize).to_vec();
+            let bx = std::slice::from_raw_parts(fam.bit_x, nbits);
+            let by = std::slice::from_raw_parts(fam.bit_y, nbits);
+            FamilyCodes {
+                codes,
+                bits: bx.iter().zip(by).map(|(&x, &y)| (x, y)).collect(),
+            }
+        });
+        destroy(tf);
+        out
+    }
+}
+
 /// The layout of a family, from libapriltag.
 pub fn family_layout(family: TagFamily) -> Option<FamilyLayout> {
     with_family(family, |l, _| l.clone())

@@ -7,5 +7,6 @@ pub mod detect;
 pub mod family;
 pub mod frames;
 pub mod images;
+pub mod kalibr;
 pub mod pnp;
 pub(crate) mod refine;

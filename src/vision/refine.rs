@@ -81,7 +81,7 @@ impl Space<'_> {
 
 /// Bilinear interpolation, pixel centres at integers; `None` off the image.
 #[inline]
-fn bilinear(img: &GrayImage, x: f64, y: f64) -> Option<f64> {
+pub(crate) fn bilinear(img: &GrayImage, x: f64, y: f64) -> Option<f64> {
     let (w, h) = (img.width() as usize, img.height() as usize);
     if !(x >= 0.0 && y >= 0.0) {
         return None;

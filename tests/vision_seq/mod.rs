@@ -87,8 +87,19 @@ pub fn write_sequence(
     settings: &RenderSettings,
     seed: u64,
 ) -> (Vec<Se3>, Vec<i64>) {
+    write_sequence_of(dir, n, settings, seed, &board())
+}
+
+/// [`write_sequence`] of another printing of the same board geometry (tags drawn as
+/// libapriltag draws them, or as Kalibr prints them).
+pub fn write_sequence_of(
+    dir: &Path,
+    n: usize,
+    settings: &RenderSettings,
+    seed: u64,
+    board: &Board,
+) -> (Vec<Se3>, Vec<i64>) {
     let chain = chain();
-    let board = board();
     let mut rng = Rng::new(seed);
     let mut poses = Vec::new();
     let mut times = Vec::new();
@@ -100,7 +111,7 @@ pub fn write_sequence(
         let t_ns = T0_NS + k as i64 * DT_NS;
         for c in 0..2 {
             let t_cn_b = chain.t_cn_c0[c] * t_b_c0.inverse();
-            let img = render(&board, &chain.cams[c], &t_cn_b, settings, &mut rng);
+            let img = render(board, &chain.cams[c], &t_cn_b, settings, &mut rng);
             img.save(image_path(dir, c, t_ns)).unwrap();
         }
         poses.push(t_b_c0);

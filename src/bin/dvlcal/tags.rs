@@ -1,4 +1,5 @@
-//! `dvlcal tags`: AprilTag detections of images as CSV (corners in the OpenCV pixel convention).
+//! `dvlcal tags`: AprilTag detections of images as CSV (corners in the OpenCV pixel convention;
+//! the last column is the border width in bits: 1 as libapriltag prints tags, 2 as Kalibr does).
 
 use std::io::Write as _;
 use std::path::PathBuf;
@@ -65,13 +66,14 @@ pub fn run(a: TagsArgs) -> Result<()> {
         refine_corners: !a.no_refine_corners,
         threads: a.threads,
         max_hamming: a.max_hamming,
+        kalibr_layout: true,
     };
     let mut det = Detector::new(&settings)?;
     let stdout = std::io::stdout();
     let mut out = std::io::BufWriter::new(stdout.lock());
     writeln!(
         out,
-        "file,id,hamming,decision_margin,x0,y0,x1,y1,x2,y2,x3,y3"
+        "file,id,hamming,decision_margin,x0,y0,x1,y1,x2,y2,x3,y3,border_bits"
     )?;
     let mut failed = 0usize;
     for path in &a.images {
@@ -89,7 +91,7 @@ pub fn run(a: TagsArgs) -> Result<()> {
             for c in &d.corners {
                 write!(out, ",{},{}", c.x, c.y)?;
             }
-            writeln!(out)?;
+            writeln!(out, ",{}", d.border_bits)?;
         }
     }
     out.flush()?;

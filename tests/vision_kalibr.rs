@@ -1,0 +1,770 @@
+//! Kalibr-printed aprilgrids (two-bit borders, corner squares): found on real photographs (against
+//! an independent detector's output committed in `tests/fixtures/kalibr_photos/reference.csv`),
+//! found on renders with the corners and poses of today's boards, nothing invented on images
+//! without a board, and printed by `dvlcal board` the way Kalibr prints them.
+
+#[path = "vision_seq/mod.rs"]
+mod vision_seq;
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use dvlcal::lie::Se3;
+use dvlcal::sim::render::{RenderSettings, render};
+use dvlcal::sim::rng::Rng;
+use dvlcal::vision::board::{Board, TagFamily, TagPrint};
+use dvlcal::vision::camera::{Camera, Distortion};
+use dvlcal::vision::detect::{Detector, DetectorSettings, TagDetection, load_gray};
+use nalgebra::{DMatrix, DVector, Matrix3, Vector2, Vector3, Vector6};
+
+fn fixtures() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/kalibr_photos")
+}
+
+fn camera() -> Camera {
+    Camera {
+        fu: 460.0,
+        fv: 458.0,
+        pu: 371.3,
+        pv: 244.6,
+        distortion: Distortion::RadTan {
+            k1: -0.28,
+            k2: 0.07,
+            p1: 2e-4,
+            p2: -1.5e-5,
+        },
+        width: 752,
+        height: 480,
+    }
+}
+
+/// The board upright in front of the camera at `dist` m, centred, turned by `tilt` (rotation
+/// vector, board frame).
+fn facing(board: &Board, dist: f64, tilt: Vector3<f64>) -> Se3 {
+    let (mut lo, mut hi) = (Vector3::repeat(f64::MAX), Vector3::repeat(f64::MIN));
+    for t in &board.tags {
+        for c in &t.corners {
+            lo = lo.inf(c);
+            hi = hi.sup(c);
+        }
+    }
+    let centre = (lo + hi) / 2.0;
+    let upright = Se3::new(
+        Matrix3::from_diagonal(&Vector3::new(1.0, -1.0, -1.0)),
+        Vector3::new(0.0, 0.0, dist),
+    );
+    let turn = Se3::exp(&Vector6::new(0.0, 0.0, 0.0, tilt.x, tilt.y, tilt.z));
+    upright * turn * Se3::new(Matrix3::identity(), -centre)
+}
+
+fn kalibr_board() -> Board {
+    Board::grid(TagFamily::Tag36h11, 6, 6, 0.088, 0.3, 0).printed_by_kalibr()
+}
+
+fn apriltag_board() -> Board {
+    Board::grid(TagFamily::Tag36h11, 6, 6, 0.088, 0.3, 0)
+}
+
+/// Corner errors (px) of the tags detected on one render: RMS, max, signed mean, tags.
+fn render_errors(
+    board: &Board,
+    t: &Se3,
+    s: &RenderSettings,
+    seed: u64,
+) -> (f64, f64, Vector2<f64>, usize) {
+    let cam = camera();
+    let img = render(board, &cam, t, s, &mut Rng::new(seed));
+    let dets = Detector::new(&DetectorSettings::default())
+        .unwrap()
+        .detect_with_camera(&img, Some(&cam));
+    let (mut sq, mut max, mut signed) = (0.0, 0.0f64, Vector2::zeros());
+    for d in &dets {
+        let tag = board
+            .tag(d.id)
+            .unwrap_or_else(|| panic!("unknown id {}", d.id));
+        for (got, c) in d.corners.iter().zip(&tag.corners) {
+            let e = got - cam.project(&t.transform_point(c)).unwrap();
+            sq += e.norm_squared();
+            max = max.max(e.norm());
+            signed += e;
+        }
+    }
+    let n = (4 * dets.len().max(1)) as f64;
+    ((sq / n).sqrt(), max, signed / n, dets.len())
+}
+
+/// One tag's four corners (OpenCV pixels) by id, per photo.
+type PhotoTags = BTreeMap<String, BTreeMap<u32, [Vector2<f64>; 4]>>;
+
+/// The independent detector's tags (see `make_reference.py` beside the photos).
+fn reference() -> PhotoTags {
+    let text = std::fs::read_to_string(fixtures().join("reference.csv")).unwrap();
+    let mut out = PhotoTags::new();
+    for line in text.lines().skip(1) {
+        let f: Vec<&str> = line.split(',').collect();
+        assert_eq!(f.len(), 10, "{line}");
+        let v: Vec<f64> = f[2..].iter().map(|x| x.parse().unwrap()).collect();
+        let corners = std::array::from_fn(|k| Vector2::new(v[2 * k], v[2 * k + 1]));
+        out.entry(f[0].to_string())
+            .or_default()
+            .insert(f[1].parse().unwrap(), corners);
+    }
+    out
+}
+
+const PHOTOS: [&str; 7] = [
+    "TUM_VI.png",
+    "iphone.png",
+    "r45.png",
+    "right.png",
+    "top.png",
+    "top_right.png",
+    "two_boards.png",
+];
+
+fn detect_file(path: &Path) -> Vec<TagDetection> {
+    let img = load_gray(path).unwrap();
+    Detector::new(&DetectorSettings::default())
+        .unwrap()
+        .detect(&img)
+}
+
+/// Our tags on every photo (default settings, no camera model).
+fn ours() -> PhotoTags {
+    let mut out = PhotoTags::new();
+    for name in PHOTOS {
+        let dets = detect_file(&fixtures().join(name));
+        let m = out.entry(name.to_string()).or_default();
+        for d in dets {
+            assert_eq!(
+                d.border_bits, 2,
+                "{name}: tag {} with a one-bit border",
+                d.id
+            );
+            assert!(
+                m.insert(d.id, d.corners).is_none(),
+                "{name}: id {} twice",
+                d.id
+            );
+        }
+    }
+    out
+}
+
+/// Columns of the grid on each photo (the six TUM-VI photos show one 6 x 6 grid; the phone
+/// photo an 11 x 6 grid; `two_boards.png` two 6 x 6 grids, ids 0..35 and 36..71).
+fn layout(name: &str) -> (u32, u32) {
+    match name {
+        "iphone.png" => (11, 66),
+        "two_boards.png" => (6, 72),
+        _ => (6, 36),
+    }
+}
+
+/// The corners of tag `id` of a grid with `cols` columns, in tag sizes (Kalibr spacing 0.3);
+/// ids from 36 on are a second grid.
+fn grid_corners(id: u32, cols: u32) -> [Vector2<f64>; 4] {
+    let i = if cols == 11 { id } else { id % 36 };
+    let (r, c) = ((i / cols) as f64, (i % cols) as f64);
+    let d = 1.3;
+    let (x, y) = (c * d, r * d);
+    [
+        Vector2::new(x, y),
+        Vector2::new(x + 1.0, y),
+        Vector2::new(x + 1.0, y + 1.0),
+        Vector2::new(x, y + 1.0),
+    ]
+}
+
+#[test]
+fn sixteen_bit_photos_are_read_at_full_range() {
+    let path = fixtures().join("TUM_VI.png");
+    let wide = image::open(&path).unwrap().into_luma16();
+    let gray = load_gray(&path).unwrap();
+    assert_eq!(wide.dimensions(), gray.dimensions());
+    let mut worst = 0i32;
+    for (a, b) in wide.as_raw().iter().zip(gray.as_raw()) {
+        worst = worst.max(((*a as f64 / 257.0).round() as i32 - *b as i32).abs());
+    }
+    assert!(worst <= 1, "16-bit to 8-bit differs by {worst} grey levels");
+    let (lo, hi) = gray
+        .as_raw()
+        .iter()
+        .fold((255u8, 0u8), |(l, h), &v| (l.min(v), h.max(v)));
+    assert!(lo < 10 && hi > 250, "grey range {lo}..{hi}");
+}
+
+#[test]
+fn every_reference_tag_is_found_with_its_id_and_nothing_off_the_grid() {
+    let (refs, ours) = (reference(), ours());
+    for name in PHOTOS {
+        let (r, o) = (&refs[name], &ours[name]);
+        let (_, n_ids) = layout(name);
+        let missing: Vec<u32> = r.keys().filter(|id| !o.contains_key(id)).copied().collect();
+        let extra: Vec<u32> = o.keys().filter(|id| !r.contains_key(id)).copied().collect();
+        // Same tags, same corners: median corner distance to the reference's.
+        let mut dist: Vec<f64> = r
+            .iter()
+            .filter_map(|(id, rc)| o.get(id).map(|oc| (rc, oc)))
+            .flat_map(|(rc, oc)| (0..4).map(move |k| (rc[k] - oc[k]).norm()))
+            .collect();
+        dist.sort_by(f64::total_cmp);
+        let median = dist[dist.len() / 2];
+        eprintln!(
+            "{name}: {} tags (reference {}), missing {missing:?}, only ours {extra:?}, \
+             median corner distance {median:.3} px",
+            o.len(),
+            r.len()
+        );
+        assert!(
+            missing.is_empty(),
+            "{name}: reference tags {missing:?} not found"
+        );
+        assert!(o.keys().all(|&id| id < n_ids), "{name}: ids {:?}", o.keys());
+        assert!(median < 0.1, "{name}: median corner distance {median} px");
+    }
+    // Every visible tag of the 6 x 6 photos is found (the reference misses some of the more
+    // oblique and blurred ones).
+    for name in [
+        "TUM_VI.png",
+        "r45.png",
+        "right.png",
+        "top.png",
+        "top_right.png",
+    ] {
+        assert_eq!(ours[name].len(), 36, "{name}");
+    }
+    assert_eq!(ours["iphone.png"].len(), 66);
+    assert_eq!(ours["two_boards.png"].len(), 72);
+}
+
+/// Fits `image = f(board)` with `f` a polynomial of degree `deg` in both coordinates (least
+/// squares over all corners); returns each tag's largest corner residual, px.
+fn poly_residuals(
+    tags: &BTreeMap<u32, [Vector2<f64>; 4]>,
+    cols: u32,
+    deg: usize,
+) -> Vec<(u32, f64)> {
+    let mono = |p: &Vector2<f64>| -> Vec<f64> {
+        let mut v = Vec::new();
+        for i in 0..=deg {
+            for j in 0..=deg - i {
+                v.push(p.x.powi(i as i32) * p.y.powi(j as i32));
+            }
+        }
+        v
+    };
+    let pts: Vec<(Vector2<f64>, Vector2<f64>)> = tags
+        .iter()
+        .flat_map(|(&id, c)| {
+            let g = grid_corners(id, cols);
+            (0..4).map(move |k| (g[k], c[k]))
+        })
+        .collect();
+    let m = mono(&pts[0].0).len();
+    let a = DMatrix::from_fn(pts.len(), m, |r, c| mono(&pts[r].0)[c]);
+    let svd = a.clone().svd(true, true);
+    let fit = |sel: fn(&Vector2<f64>) -> f64| {
+        let b = DVector::from_iterator(pts.len(), pts.iter().map(|p| sel(&p.1)));
+        a.clone() * svd.solve(&b, 1e-12).unwrap()
+    };
+    let (fx, fy) = (fit(|v| v.x), fit(|v| v.y));
+    tags.keys()
+        .enumerate()
+        .map(|(t, &id)| {
+            let worst = (0..4)
+                .map(|k| {
+                    let r = 4 * t + k;
+                    (Vector2::new(fx[r], fy[r]) - pts[r].1).norm()
+                })
+                .fold(0.0, f64::max);
+            (id, worst)
+        })
+        .collect()
+}
+
+#[test]
+fn tags_beyond_the_reference_sit_where_the_grid_puts_them() {
+    // A tag read with a wrong id lands a whole grid pitch (over a tag side) away from where a
+    // smooth map of the board puts it; the fisheye photos need a cubic map.
+    let ours = ours();
+    for name in [
+        "TUM_VI.png",
+        "r45.png",
+        "right.png",
+        "top.png",
+        "top_right.png",
+    ] {
+        let o = &ours[name];
+        let res = poly_residuals(o, 6, 3);
+        for (id, r) in res {
+            let c = &o[&id];
+            let side = (0..4).map(|k| (c[(k + 1) % 4] - c[k]).norm()).sum::<f64>() / 4.0;
+            assert!(
+                r < 0.2 * side,
+                "{name}: tag {id} is {r:.1} px off the grid (side {side:.0} px)"
+            );
+        }
+    }
+}
+
+/// Reprojection RMS (px) of a homography fitted to the corners of a flat grid (normalised DLT).
+fn homography_rms(tags: &[(u32, [Vector2<f64>; 4])], cols: u32) -> f64 {
+    let pts: Vec<(Vector2<f64>, Vector2<f64>)> = tags
+        .iter()
+        .flat_map(|(id, c)| {
+            let g = grid_corners(*id, cols);
+            (0..4).map(move |k| (g[k], c[k]))
+        })
+        .collect();
+    let norm = |v: Vec<Vector2<f64>>| {
+        let mean = v.iter().sum::<Vector2<f64>>() / v.len() as f64;
+        let s = v.iter().map(|p| (p - mean).norm()).sum::<f64>() / v.len() as f64;
+        let k = std::f64::consts::SQRT_2 / s;
+        Matrix3::new(k, 0.0, -k * mean.x, 0.0, k, -k * mean.y, 0.0, 0.0, 1.0)
+    };
+    let tb = norm(pts.iter().map(|p| p.0).collect());
+    let ti = norm(pts.iter().map(|p| p.1).collect());
+    let mut a = DMatrix::zeros(2 * pts.len(), 9);
+    for (r, (b, i)) in pts.iter().enumerate() {
+        let b = tb * Vector3::new(b.x, b.y, 1.0);
+        let i = ti * Vector3::new(i.x, i.y, 1.0);
+        let row1 = [0.0, 0.0, 0.0, -b.x, -b.y, -1.0, i.y * b.x, i.y * b.y, i.y];
+        let row2 = [b.x, b.y, 1.0, 0.0, 0.0, 0.0, -i.x * b.x, -i.x * b.y, -i.x];
+        for c in 0..9 {
+            a[(2 * r, c)] = row1[c];
+            a[(2 * r + 1, c)] = row2[c];
+        }
+    }
+    let svd = a.svd(false, true);
+    let vt = svd.v_t.unwrap();
+    let (k, _) = svd
+        .singular_values
+        .iter()
+        .enumerate()
+        .min_by(|x, y| x.1.total_cmp(y.1))
+        .unwrap();
+    let h = vt.row(k);
+    let hn = Matrix3::new(h[0], h[1], h[2], h[3], h[4], h[5], h[6], h[7], h[8]);
+    let hm = ti.try_inverse().unwrap() * hn * tb;
+    let sq: f64 = pts
+        .iter()
+        .map(|(b, i)| {
+            let p = hm * Vector3::new(b.x, b.y, 1.0);
+            (Vector2::new(p.x / p.z, p.y / p.z) - i).norm_squared()
+        })
+        .sum();
+    (sq / pts.len() as f64).sqrt()
+}
+
+#[test]
+fn corners_fit_a_flat_board_no_worse_than_the_reference() {
+    let (refs, ours) = (reference(), ours());
+    // The phone photos are close to pinhole images of flat boards (the TUM-VI ones are fisheye).
+    for (name, ids, cols) in [
+        ("two_boards.png", 0..36, 6),
+        ("two_boards.png", 36..72, 6),
+        ("iphone.png", 0..66, 11),
+    ] {
+        let pick = |m: &BTreeMap<u32, [Vector2<f64>; 4]>| -> Vec<(u32, [Vector2<f64>; 4])> {
+            m.iter()
+                .filter(|(id, _)| ids.contains(*id))
+                .map(|(id, c)| (*id - ids.start, *c))
+                .collect()
+        };
+        let (o, r) = (pick(&ours[name]), pick(&refs[name]));
+        assert_eq!(o.len(), r.len(), "{name}");
+        let (eo, er) = (homography_rms(&o, cols), homography_rms(&r, cols));
+        eprintln!("{name} ids {ids:?}: homography RMS ours {eo:.4} px, reference {er:.4} px");
+        assert!(
+            eo <= er * 1.01 + 1e-3,
+            "{name}: ours {eo} px, reference {er} px"
+        );
+    }
+}
+
+#[test]
+fn no_tags_invented_without_a_board() {
+    // The photos mirrored (about 300 Kalibr tags read backwards, corner squares and all), and the
+    // left of right.png (a checkerboard, posters, a whiteboard, no aprilgrid).
+    let mut det = Detector::new(&DetectorSettings::default()).unwrap();
+    let mut seen = 0;
+    for name in PHOTOS {
+        let img = load_gray(&fixtures().join(name)).unwrap();
+        let mirrored = image::imageops::flip_horizontal(&img);
+        let d = det.detect(&mirrored);
+        assert!(
+            d.is_empty(),
+            "{name} mirrored: {:?}",
+            d.iter().map(|d| d.id).collect::<Vec<_>>()
+        );
+        seen += 1;
+    }
+    assert_eq!(seen, 7);
+    let right = load_gray(&fixtures().join("right.png")).unwrap();
+    let left = image::imageops::crop_imm(&right, 0, 0, 700, right.height()).to_image();
+    assert!(det.detect(&left).is_empty());
+    // And the board itself is still found in the same detector afterwards.
+    assert_eq!(det.detect(&right).len(), 36);
+}
+
+#[test]
+fn rendered_kalibr_boards_give_corners_close_to_todays() {
+    // The same geometry printed both ways, seen from the same poses; corners against the
+    // projected board corners (the camera model is given to the detector, as `detect` does).
+    let views = [
+        Vector3::zeros(),
+        Vector3::new(0.3, -0.4, 0.2),
+        Vector3::new(-0.5, 0.2, 0.8),
+        Vector3::new(0.6, 0.5, -0.3),
+    ];
+    for (s, label) in [
+        (RenderSettings::default(), "realistic"),
+        (RenderSettings::ideal(), "ideal"),
+    ] {
+        let (mut worst_k, mut worst_a) = (0.0f64, 0.0f64);
+        for (i, tilt) in views.iter().enumerate() {
+            let (kb, ab) = (kalibr_board(), apriltag_board());
+            let t = facing(&kb, 0.9, *tilt);
+            let (rk, mk, bk, nk) = render_errors(&kb, &t, &s, 3 + i as u64);
+            let (ra, _, _, na) = render_errors(&ab, &t, &s, 3 + i as u64);
+            eprintln!(
+                "{label} view {i}: Kalibr print {nk} tags, RMS {rk:.4} px (max {mk:.3}, mean \
+                 [{:.4}, {:.4}]); libapriltag print {na} tags, RMS {ra:.4} px",
+                bk.x, bk.y
+            );
+            // The same tags, except that a Kalibr tag has ten cells across its black square
+            // where today's has eight: in the most oblique view one tag, at 2.2 px per cell,
+            // is lost in the ideal image (the realistic one keeps it).
+            assert!(
+                nk + 1 >= na && nk <= na,
+                "{label} view {i}: {nk} tags, today's {na}"
+            );
+            assert!(mk < 0.25, "{label} view {i}: max corner error {mk} px");
+            assert!(
+                bk.norm() < 0.02,
+                "{label} view {i}: mean corner error {bk:?} px"
+            );
+            worst_k = worst_k.max(rk);
+            worst_a = worst_a.max(ra);
+        }
+        // Observed: Kalibr corners (X-junction saddles) 0.03-0.06 px RMS, today's (line fits)
+        // 0.005-0.03 px: both far below the noise of real images.
+        assert!(worst_k < 0.08, "{label}: Kalibr corner RMS {worst_k} px");
+        assert!(
+            worst_a < 0.08,
+            "{label}: libapriltag-print corner RMS {worst_a} px"
+        );
+    }
+}
+
+/// Translation (m) and rotation (rad) RMS of the poses of a rendered stereo sequence of `board`,
+/// and the number of frames posed.
+fn sequence_errors(board: &Board, n: usize, name: &str) -> (f64, f64, usize) {
+    use dvlcal::vision::camera::Camchain;
+    use dvlcal::vision::frames::detect_frames;
+    use dvlcal::vision::images::scan_images;
+    use dvlcal::vision::pnp::PnpOptions;
+    let d = vision_seq::fresh_dir(name);
+    let (truth, _) = vision_seq::write_sequence_of(&d, n, &RenderSettings::default(), 11, board);
+    let chain = Camchain::load(&d.join("camchain.yaml")).unwrap();
+    let target = Board::load(&d.join("target.yaml")).unwrap();
+    assert_eq!(
+        target.print,
+        TagPrint::Kalibr,
+        "a Kalibr YAML is a Kalibr print"
+    );
+    let (frames, _) = scan_images(&d, 2, 1_000_000).unwrap();
+    let (res, st) = detect_frames(
+        &frames,
+        &target,
+        &chain,
+        &DetectorSettings::default(),
+        &PnpOptions::default(),
+        false,
+    )
+    .unwrap();
+    let (mut st2, mut sr2) = (0.0, 0.0);
+    for (k, r) in res.iter().enumerate() {
+        if let Some(p) = &r.pose {
+            let e = (truth[k].inverse() * p.t_board_cam0).log();
+            st2 += e.fixed_rows::<3>(0).norm_squared();
+            sr2 += e.fixed_rows::<3>(3).norm_squared();
+        }
+    }
+    let _ = std::fs::remove_dir_all(&d);
+    let m = st.poses.max(1) as f64;
+    ((st2 / m).sqrt(), (sr2 / m).sqrt(), st.poses)
+}
+
+#[test]
+fn rendered_kalibr_sequence_poses_within_1_6_times_todays_errors() {
+    let n = 16;
+    let (tk, rk, nk) = sequence_errors(&vision_seq::board().printed_by_kalibr(), n, "kalibr-seq");
+    let (ta, ra, na) = sequence_errors(&vision_seq::board(), n, "apriltag-seq");
+    eprintln!(
+        "{n} stereo frames: Kalibr print {nk} poses, RMS {:.3} mm {:.4} deg; libapriltag print \
+         {na} poses, RMS {:.3} mm {:.4} deg",
+        tk * 1e3,
+        rk.to_degrees(),
+        ta * 1e3,
+        ra.to_degrees()
+    );
+    assert_eq!(nk, n, "every frame of the Kalibr print posed");
+    assert_eq!(na, n);
+    // Observed on these 16 frames: 0.166 mm and 0.0086 deg with the Kalibr print, 0.118 mm and
+    // 0.0056 deg with today's (the corners of Kalibr tags, at X-junctions with the corner
+    // squares, are 0.03-0.05 px off on these blurred renders against 0.02-0.03 px for today's
+    // line fits). Both far below what a real recording's pose noise allows for; held here to
+    // within 1.6 times today's, and to absolute bounds.
+    assert!(tk <= 1.6 * ta, "translation {tk} m vs {ta} m");
+    assert!(rk <= 1.6 * ra, "rotation {rk} rad vs {ra} rad");
+    assert!(tk < 3e-4 && rk < 0.015f64.to_radians(), "{tk} m, {rk} rad");
+}
+
+#[test]
+fn both_kinds_of_board_in_one_image() {
+    // A Kalibr-printed 6 x 6 grid (ids 0..35) on the left, a libapriltag-printed one (ids
+    // 100..135) on the right, in one image.
+    let cam = camera();
+    let kb = Board::grid(TagFamily::Tag36h11, 6, 6, 0.05, 0.3, 0).printed_by_kalibr();
+    let ab = Board::grid(TagFamily::Tag36h11, 6, 6, 0.05, 0.3, 100);
+    let mut tk = facing(&kb, 0.8, Vector3::new(0.1, 0.25, 0.05));
+    tk.trans.x -= 0.22;
+    let mut ta = facing(&ab, 0.8, Vector3::new(-0.1, -0.2, 0.0));
+    ta.trans.x += 0.22;
+    let s = RenderSettings::default();
+    let left = render(&kb, &cam, &tk, &s, &mut Rng::new(21));
+    let right = render(&ab, &cam, &ta, &s, &mut Rng::new(22));
+    let mut img = left.clone();
+    for (x, y, p) in img.enumerate_pixels_mut() {
+        if x >= cam.width / 2 {
+            *p = *right.get_pixel(x, y);
+        }
+    }
+    let dets = Detector::new(&DetectorSettings::default())
+        .unwrap()
+        .detect_with_camera(&img, Some(&cam));
+    let kalibr: Vec<u32> = dets
+        .iter()
+        .filter(|d| d.border_bits == 2)
+        .map(|d| d.id)
+        .collect();
+    let apriltag: Vec<u32> = dets
+        .iter()
+        .filter(|d| d.border_bits == 1)
+        .map(|d| d.id)
+        .collect();
+    assert_eq!(kalibr, (0..36).collect::<Vec<_>>());
+    assert_eq!(apriltag, (100..136).collect::<Vec<_>>());
+    for d in &dets {
+        let (board, t) = if d.id < 100 { (&kb, &tk) } else { (&ab, &ta) };
+        let tag = board.tag(d.id).unwrap();
+        for (got, c) in d.corners.iter().zip(&tag.corners) {
+            let e = (got - cam.project(&t.transform_point(c)).unwrap()).norm();
+            assert!(e < 0.25, "tag {}: corner {e} px off", d.id);
+        }
+    }
+}
+
+/// One printed tag: its cells (row 0 at the top, `true` = black) and the page transform of its
+/// cell grid (`matrix(a b c d e f)`, mm).
+struct PrintedTag {
+    cells: Vec<Vec<bool>>,
+    m: [f64; 6],
+}
+
+/// The tags and the corner squares (x, y, width, height in mm) of an SVG `dvlcal board` wrote.
+fn parse_svg(svg: &str) -> (BTreeMap<u32, PrintedTag>, Vec<[f64; 4]>) {
+    let attr = |line: &str, name: &str| -> Option<String> {
+        let start = line.find(&format!(" {name}=\""))? + name.len() + 3;
+        let end = line[start..].find('"')? + start;
+        Some(line[start..end].to_string())
+    };
+    let num = |line: &str, name: &str| attr(line, name).unwrap().parse::<f64>().unwrap();
+    let (mut tags, mut squares) = (BTreeMap::new(), Vec::new());
+    let mut current: Option<(u32, PrintedTag)> = None;
+    let mut in_squares = false;
+    for line in svg.lines() {
+        if let Some(id) = attr(line, "id").and_then(|i| i.strip_prefix("tag").map(str::to_owned)) {
+            let m: Vec<f64> = attr(line, "transform")
+                .unwrap()
+                .trim_start_matches("matrix(")
+                .trim_end_matches(')')
+                .split(' ')
+                .map(|v| v.parse().unwrap())
+                .collect();
+            let cells = vec![vec![false; 10]; 10];
+            current = Some((
+                id.parse().unwrap(),
+                PrintedTag {
+                    cells,
+                    m: std::array::from_fn(|k| m[k]),
+                },
+            ));
+        } else if line.contains("id=\"corner-squares\"") {
+            in_squares = true;
+        } else if line.starts_with("</g>") {
+            if let Some((id, t)) = current.take() {
+                tags.insert(id, t);
+            }
+            in_squares = false;
+        } else if line.starts_with("<rect") {
+            if let Some((_, t)) = &mut current {
+                let (x, y, w) = (
+                    num(line, "x") as usize,
+                    num(line, "y") as usize,
+                    num(line, "width") as usize,
+                );
+                for c in x..x + w {
+                    t.cells[y][c] = true;
+                }
+            } else if in_squares {
+                squares.push([
+                    num(line, "x"),
+                    num(line, "y"),
+                    num(line, "width"),
+                    num(line, "height"),
+                ]);
+            }
+        }
+    }
+    (tags, squares)
+}
+
+fn print_board(yaml: &str, name: &str) -> String {
+    let d = vision_seq::fresh_dir(name);
+    let (target, out) = (d.join("target.yaml"), d.join("board.svg"));
+    std::fs::write(&target, yaml).unwrap();
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_dvlcal"))
+        .args(["board", "--target"])
+        .arg(&target)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let svg = std::fs::read_to_string(&out).unwrap();
+    let _ = std::fs::remove_dir_all(&d);
+    svg
+}
+
+#[test]
+fn a_kalibr_yaml_prints_kalibrs_layout_and_dvlcals_yaml_todays() {
+    use dvlcal::vision::family::tag_cells;
+    // 4 rows x 5 cols of 60 mm tags, spacing 0.25: Kalibr's YAML and dvlcal's of the same grid.
+    let kalibr = print_board(
+        "target_type: 'aprilgrid'\ntagCols: 5\ntagRows: 4\ntagSize: 0.06\ntagSpacing: 0.25\n",
+        "print-kalibr",
+    );
+    let ours = print_board(
+        "family: tag36h11\nrows: 4\ncols: 5\ntag_size: 0.06\nspacing: 0.25\n",
+        "print-dvlcal",
+    );
+    let (kt, ks) = parse_svg(&kalibr);
+    let (ot, os) = parse_svg(&ours);
+    assert_eq!((kt.len(), ot.len()), (20, 20));
+    assert!(
+        kalibr.contains("Kalibr aprilgrid"),
+        "the legend names the print"
+    );
+    for id in 0..20u32 {
+        // libapriltag's pattern of the tag: a white ring, a one-cell border, the code.
+        let code = tag_cells(TagFamily::Tag36h11, id).unwrap();
+        let (k, o) = (&kt[&id], &ot[&id]);
+        #[allow(clippy::needless_range_loop)] // the same cell of three grids at once
+        for r in 0..10 {
+            for c in 0..10 {
+                let ring = r == 0 || c == 0 || r == 9 || c == 9;
+                let border = !ring && (r == 1 || c == 1 || r == 8 || c == 8);
+                // Today's print: the library's pattern as it is.
+                assert_eq!(o.cells[r][c], code[r][c], "tag {id} cell {r},{c}");
+                if ring {
+                    assert!(!o.cells[r][c], "today's print has a white ring");
+                }
+                // Kalibr's: the ring black too (a border two cells wide), the same code inside.
+                if ring || border {
+                    assert!(k.cells[r][c], "tag {id}: Kalibr border cell {r},{c} white");
+                } else {
+                    assert_eq!(k.cells[r][c], code[r][c], "tag {id} code cell {r},{c}");
+                }
+            }
+        }
+        // Kalibr's bit is a tenth of the tag (the whole black square is 10 bits); today's an
+        // eighth (the black square is 8 cells; the ring lies outside it).
+        assert!(
+            (k.m[0] - 6.0).abs() < 1e-6 && (o.m[0] - 7.5).abs() < 1e-6,
+            "{} {}",
+            k.m[0],
+            o.m[0]
+        );
+    }
+    // Corner squares: none in today's print; in Kalibr's, one at every crossing of the gaps,
+    // of edge spacing x tag size (15 mm), each touching the corners of the tags around it.
+    assert!(os.is_empty() && !ours.contains("corner-squares"));
+    assert_eq!(ks.len(), 5 * 6);
+    for s in &ks {
+        assert!(
+            (s[2] - 15.0).abs() < 1e-3 && (s[3] - 15.0).abs() < 1e-3,
+            "{s:?}"
+        );
+    }
+    let touches = |p: (f64, f64)| {
+        ks.iter().any(|s| {
+            [
+                (s[0], s[1]),
+                (s[0] + s[2], s[1]),
+                (s[0], s[1] + s[3]),
+                (s[0] + s[2], s[1] + s[3]),
+            ]
+            .iter()
+            .any(|q| (q.0 - p.0).abs() < 1e-3 && (q.1 - p.1).abs() < 1e-3)
+        })
+    };
+    for (id, t) in &kt {
+        // The black square's corners on the page: the cell grid's corners (no ring outside).
+        let (x0, y0, side) = (t.m[4], t.m[5], 10.0 * t.m[0]);
+        for p in [
+            (x0, y0),
+            (x0 + side, y0),
+            (x0, y0 + side),
+            (x0 + side, y0 + side),
+        ] {
+            assert!(touches(p), "tag {id}: no corner square at {p:?}");
+        }
+        // And no square overlaps the tag.
+        for s in &ks {
+            let overlap_x = s[0] < x0 + side - 1e-6 && s[0] + s[2] > x0 + 1e-6;
+            let overlap_y = s[1] < y0 + side - 1e-6 && s[1] + s[3] > y0 + 1e-6;
+            assert!(!(overlap_x && overlap_y), "tag {id} overlaps {s:?}");
+        }
+    }
+    // Tag 0 at the bottom left, ids along the rows (Kalibr's numbering): tag 1 right of tag 0,
+    // tag 5 above it.
+    let (t0, t1, t5) = (&kt[&0], &kt[&1], &kt[&5]);
+    assert!((t1.m[4] - t0.m[4] - 75.0).abs() < 1e-3 && (t1.m[5] - t0.m[5]).abs() < 1e-3);
+    assert!((t0.m[5] - t5.m[5] - 75.0).abs() < 1e-3 && (t5.m[4] - t0.m[4]).abs() < 1e-3);
+}
+
+#[test]
+fn a_kalibr_board_reads_back_as_a_kalibr_print() {
+    let yaml =
+        "target_type: 'aprilgrid'\ntagCols: 6\ntagRows: 6\ntagSize: 0.088\ntagSpacing: 0.3\n";
+    let b = Board::parse(yaml, Path::new("t.yaml")).unwrap();
+    assert_eq!(b.print, TagPrint::Kalibr);
+    let back = Board::parse(&b.to_yaml(), Path::new("t.yaml")).unwrap();
+    assert_eq!(back, b);
+    assert!(b.to_yaml().contains("target_type: 'aprilgrid'"));
+    let ours = Board::parse(
+        "rows: 6\ncols: 6\ntag_size: 0.088\nspacing: 0.3\n",
+        Path::new("o.yaml"),
+    )
+    .unwrap();
+    assert_eq!(ours.print, TagPrint::Apriltag);
+    // The same tag corners either way: one printed board, one geometry.
+    assert_eq!(ours.tags, b.tags);
+}
