@@ -5,6 +5,7 @@
 
 #[path = "vision_seq/mod.rs"]
 mod vision_seq;
+use vision_seq::facing;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -15,7 +16,7 @@ use dvlcal::sim::rng::Rng;
 use dvlcal::vision::board::{Board, TagFamily, TagPrint};
 use dvlcal::vision::camera::{Camera, Distortion};
 use dvlcal::vision::detect::{Detector, DetectorSettings, TagDetection, load_gray};
-use nalgebra::{DMatrix, DVector, Matrix3, Vector2, Vector3, Vector6};
+use nalgebra::{DMatrix, DVector, Matrix3, Vector2, Vector3};
 
 fn fixtures() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/kalibr_photos")
@@ -36,25 +37,6 @@ fn camera() -> Camera {
         width: 752,
         height: 480,
     }
-}
-
-/// The board upright in front of the camera at `dist` m, centred, turned by `tilt` (rotation
-/// vector, board frame).
-fn facing(board: &Board, dist: f64, tilt: Vector3<f64>) -> Se3 {
-    let (mut lo, mut hi) = (Vector3::repeat(f64::MAX), Vector3::repeat(f64::MIN));
-    for t in &board.tags {
-        for c in &t.corners {
-            lo = lo.inf(c);
-            hi = hi.sup(c);
-        }
-    }
-    let centre = (lo + hi) / 2.0;
-    let upright = Se3::new(
-        Matrix3::from_diagonal(&Vector3::new(1.0, -1.0, -1.0)),
-        Vector3::new(0.0, 0.0, dist),
-    );
-    let turn = Se3::exp(&Vector6::new(0.0, 0.0, 0.0, tilt.x, tilt.y, tilt.z));
-    upright * turn * Se3::new(Matrix3::identity(), -centre)
 }
 
 fn kalibr_board() -> Board {

@@ -2,6 +2,9 @@
 //! detector reports land where the board's corners project (which also fixes the corner order of
 //! `BoardTag::corners` to libapriltag's p[0..4]).
 
+#[path = "vision_seq/mod.rs"]
+mod vision_seq;
+
 use dvlcal::lie::Se3;
 use dvlcal::sim::render::{RenderSettings, render, render_exhaustive};
 use dvlcal::sim::rng::Rng;
@@ -9,7 +12,8 @@ use dvlcal::vision::board::{Board, TagFamily};
 use dvlcal::vision::camera::{Camera, Distortion};
 use dvlcal::vision::detect::{Detector, DetectorSettings};
 use dvlcal::vision::family::tag_cells;
-use nalgebra::{Matrix3, Vector3, Vector6};
+use nalgebra::{Matrix3, Vector3};
+use vision_seq::facing;
 
 fn camera(distortion: Distortion) -> Camera {
     Camera {
@@ -30,25 +34,6 @@ fn radtan() -> Distortion {
         p1: 2e-4,
         p2: -1.5e-5,
     }
-}
-
-/// The board upright in front of the camera at `dist` m, centred, turned by `tilt` (rotation
-/// vector, board frame).
-fn facing(board: &Board, dist: f64, tilt: Vector3<f64>) -> Se3 {
-    let (mut lo, mut hi) = (Vector3::repeat(f64::MAX), Vector3::repeat(f64::MIN));
-    for t in &board.tags {
-        for c in &t.corners {
-            lo = lo.inf(c);
-            hi = hi.sup(c);
-        }
-    }
-    let centre = (lo + hi) / 2.0;
-    let upright = Se3::new(
-        Matrix3::from_diagonal(&Vector3::new(1.0, -1.0, -1.0)),
-        Vector3::new(0.0, 0.0, dist),
-    );
-    let turn = Se3::exp(&Vector6::new(0.0, 0.0, 0.0, tilt.x, tilt.y, tilt.z));
-    upright * turn * Se3::new(Matrix3::identity(), -centre)
 }
 
 /// Detected against projected corners of one rendered image.

@@ -1,12 +1,13 @@
 //! A short rendered stereo sequence of an AprilTag board with known poses, written in the
 //! kalibr_bagcreater layout (DIR/cam0/<t_ns>.png, DIR/cam1/...), with its camchain and target.
-//! Shared by tests/vision_pipeline.rs and benches/detect.rs.
+//! Shared by tests/vision_pipeline.rs, tests/vision_render.rs, tests/vision_kalibr.rs and
+//! benches/detect.rs.
 
 #![allow(dead_code)]
 
 use std::path::{Path, PathBuf};
 
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::{Matrix3, Vector3, Vector6};
 
 use dvlcal::lie::{Se3, so3};
 use dvlcal::sim::render::{RenderSettings, render};
@@ -132,4 +133,23 @@ pub fn fresh_dir(name: &str) -> PathBuf {
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
     d
+}
+
+/// The board upright in front of the camera at `dist` m, centred, turned by `tilt` (rotation
+/// vector, board frame).
+pub fn facing(board: &Board, dist: f64, tilt: Vector3<f64>) -> Se3 {
+    let (mut lo, mut hi) = (Vector3::repeat(f64::MAX), Vector3::repeat(f64::MIN));
+    for t in &board.tags {
+        for c in &t.corners {
+            lo = lo.inf(c);
+            hi = hi.sup(c);
+        }
+    }
+    let centre = (lo + hi) / 2.0;
+    let upright = Se3::new(
+        Matrix3::from_diagonal(&Vector3::new(1.0, -1.0, -1.0)),
+        Vector3::new(0.0, 0.0, dist),
+    );
+    let turn = Se3::exp(&Vector6::new(0.0, 0.0, 0.0, tilt.x, tilt.y, tilt.z));
+    upright * turn * Se3::new(Matrix3::identity(), -centre)
 }
