@@ -182,31 +182,58 @@ pub struct FamilyLayout {
     pub reversed_border: bool,
 }
 
-/// Reads the family from libapriltag and calls `f` with its layout and a cell function.
-fn with_family<T>(
-    family: TagFamily,
-    f: impl FnOnce(&FamilyLayout, &dyn Fn(u32) -> Option<Vec<Vec<bool>>>) -> T,
-) -> Option<T> {
+/// A family as libapriltag holds it, borrowed while it is alive.
+struct RawFamily<'a> {
+    layout: FamilyLayout,
+    codes: &'a [u64],
+    nbits: usize,
+    bit_x: &'a [u32],
+    bit_y: &'a [u32],
+}
+
+/// Creates the family in libapriltag, calls `f` with it and frees it. `None` when the
+/// constructor fails or the family lacks its code tables.
+fn read_family<T>(family: TagFamily, f: impl FnOnce(&RawFamily<'_>) -> T) -> Option<T> {
     let entry = family.entry();
     let (create, destroy) = (entry.create, entry.destroy);
     // SAFETY: the family constructors return a heap-allocated family (or null); it is read only
-    // here, while alive, through the counts it states, and freed with its own destructor.
+    // inside this block, while alive, through the counts it states (after checking its tables
+    // are not null), and freed with its own destructor.
     unsafe {
         let tf = create();
         if tf.is_null() {
             return None;
         }
         let fam = &*tf;
-        let layout = FamilyLayout {
-            ncodes: fam.ncodes,
-            total_width: fam.total_width.max(0) as u32,
-            width_at_border: fam.width_at_border.max(0) as u32,
-            reversed_border: fam.reversed_border,
-        };
-        let codes = std::slice::from_raw_parts(fam.codes, fam.ncodes as usize);
-        let nbits = fam.nbits as usize;
-        let bit_x = std::slice::from_raw_parts(fam.bit_x, nbits);
-        let bit_y = std::slice::from_raw_parts(fam.bit_y, nbits);
+        let tables = !fam.codes.is_null() && !fam.bit_x.is_null() && !fam.bit_y.is_null();
+        let out = tables.then(|| {
+            let nbits = fam.nbits as usize;
+            f(&RawFamily {
+                layout: FamilyLayout {
+                    ncodes: fam.ncodes,
+                    total_width: fam.total_width.max(0) as u32,
+                    width_at_border: fam.width_at_border.max(0) as u32,
+                    reversed_border: fam.reversed_border,
+                },
+                codes: std::slice::from_raw_parts(fam.codes, fam.ncodes as usize),
+                nbits,
+                bit_x: std::slice::from_raw_parts(fam.bit_x, nbits),
+                bit_y: std::slice::from_raw_parts(fam.bit_y, nbits),
+            })
+        });
+        destroy(tf);
+        out
+    }
+}
+
+/// Reads the family from libapriltag and calls `f` with its layout and a cell function.
+fn with_family<T>(
+    family: TagFamily,
+    f: impl FnOnce(&FamilyLayout, &dyn Fn(u32) -> Option<Vec<Vec<bool>>>) -> T,
+) -> Option<T> {
+    read_family(family, |raw| {
+        let layout = &raw.layout;
+        let (codes, nbits, bit_x, bit_y) = (raw.codes, raw.nbits, raw.bit_x, raw.bit_y);
         let tw = layout.total_width as usize;
         let wab = layout.width_at_border as usize;
         let cells = |id: u32| -> Option<Vec<Vec<bool>>> {
@@ -243,10 +270,8 @@ fn with_family<T>(
             }
             Some(black)
         };
-        let out = f(&layout, &cells);
-        destroy(tf);
-        Some(out)
-    }
+        f(layout, &cells)
+    })
 }
 
 /// A family's codes and the cell of each code bit, read from libapriltag: `codes[id]` holds
@@ -261,30 +286,15 @@ pub(crate) struct FamilyCodes {
 
 /// The codes and bit cells of a family (see [`FamilyCodes`]).
 pub(crate) fn family_codes(family: TagFamily) -> Option<FamilyCodes> {
-    let entry = family.entry();
-    let (create, destroy) = (entry.create, entry.destroy);
-    // SAFETY: as in `with_family`: the family is read while alive, through the counts it states,
-    // and freed with its own destructor.
-    unsafe {
-        let tf = create();
-        if tf.is_null() {
-            return None;
-        }
-        let fam = &*tf;
-        let nbits = fam.nbits as usize;
-        let ok = !fam.codes.is_null() && !fam.bit_x.is_null() && !fam.bit_y.is_null();
-        let out = ok.then(|| {
-            let codes = std::slice::from_raw_parts(fam.codes, fam.ncodes as usize).to_vec();
-            let bx = std::slice::from_raw_parts(fam.bit_x, nbits);
-            let by = std::slice::from_raw_parts(fam.bit_y, nbits);
-            FamilyCodes {
-                codes,
-                bits: bx.iter().zip(by).map(|(&x, &y)| (x, y)).collect(),
-            }
-        });
-        destroy(tf);
-        out
-    }
+    read_family(family, |raw| FamilyCodes {
+        codes: raw.codes.to_vec(),
+        bits: raw
+            .bit_x
+            .iter()
+            .zip(raw.bit_y)
+            .map(|(&x, &y)| (x, y))
+            .collect(),
+    })
 }
 
 /// The layout of a family, from libapriltag.
