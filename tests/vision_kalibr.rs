@@ -158,6 +158,15 @@ fn grid_corners(id: u32, cols: u32) -> [Vector2<f64>; 4] {
     ]
 }
 
+/// The photos of the 6 x 6 TUM-VI grid (36 tags each).
+const SIX_BY_SIX: [&str; 5] = [
+    "TUM_VI.png",
+    "r45.png",
+    "right.png",
+    "top.png",
+    "top_right.png",
+];
+
 #[test]
 fn sixteen_bit_photos_are_read_at_full_range() {
     let path = fixtures().join("TUM_VI.png");
@@ -207,13 +216,7 @@ fn every_reference_tag_is_found_with_its_id_and_nothing_off_the_grid() {
     }
     // Every visible tag of the 6 x 6 photos is found (the reference misses some of the more
     // oblique and blurred ones).
-    for name in [
-        "TUM_VI.png",
-        "r45.png",
-        "right.png",
-        "top.png",
-        "top_right.png",
-    ] {
+    for name in SIX_BY_SIX {
         assert_eq!(ours[name].len(), 36, "{name}");
     }
     assert_eq!(ours["iphone.png"].len(), 66);
@@ -270,13 +273,7 @@ fn tags_beyond_the_reference_sit_where_the_grid_puts_them() {
     // A tag read with a wrong id lands a whole grid pitch (over a tag side) away from where a
     // smooth map of the board puts it; the fisheye photos need a cubic map.
     let ours = ours();
-    for name in [
-        "TUM_VI.png",
-        "r45.png",
-        "right.png",
-        "top.png",
-        "top_right.png",
-    ] {
+    for name in SIX_BY_SIX {
         let o = &ours[name];
         let res = poly_residuals(o, 6, 3);
         for (id, r) in res {
