@@ -105,6 +105,34 @@ fn main() {
     println!("{images} images ({n} stereo frames 752x480), decimate {DECIMATE}, {cores} cores");
     println!("| what | threads | images/s | stereo frames/s | x real time (10 Hz) |");
     println!("|---|---|---|---|---|");
+    // Best of three timings of the full `detect` (PNG decode, detection, PnP) and of the
+    // detection alone on decoded images.
+    let time_detect = |p: &rayon::ThreadPool, frames: &[_], board: &Board| {
+        best_of(3, || {
+            let s = Instant::now();
+            let (_, st) = p
+                .install(|| detect_frames(frames, board, &chain, &settings, &opts, false))
+                .expect("detect");
+            assert_eq!(st.poses, n);
+            s.elapsed().as_secs_f64()
+        })
+    };
+    let time_detection_alone = |p: &rayon::ThreadPool, images: &[image::GrayImage]| {
+        best_of(3, || {
+            let s = Instant::now();
+            let total: usize = p.install(|| {
+                images
+                    .par_iter()
+                    .map_init(
+                        || Detector::new(&settings).expect("detector"),
+                        |d, g| d.detect(g).len(),
+                    )
+                    .sum()
+            });
+            assert!(total > 0);
+            s.elapsed().as_secs_f64()
+        })
+    };
     let row = |what: &str, threads: &str, secs: f64| {
         let ips = images as f64 / secs;
         println!(
@@ -117,32 +145,13 @@ fn main() {
     let mut ours = Vec::new();
     for threads in [1, cores] {
         let p = pool(threads);
-        let secs = best_of(3, || {
-            let s = Instant::now();
-            let (_, st) = p
-                .install(|| detect_frames(&frames, &board, &chain, &settings, &opts, false))
-                .expect("detect");
-            assert_eq!(st.poses, n);
-            s.elapsed().as_secs_f64()
-        });
+        let secs = time_detect(&p, &frames, &board);
         let full = row(
             "dvlcal detect (PNG decode + detect + PnP)",
             &threads.to_string(),
             secs,
         );
-        let secs = best_of(3, || {
-            let s = Instant::now();
-            let total: usize = p.install(|| {
-                gray.par_iter()
-                    .map_init(
-                        || Detector::new(&settings).expect("detector"),
-                        |d, g| d.detect(g).len(),
-                    )
-                    .sum()
-            });
-            assert!(total > 0);
-            s.elapsed().as_secs_f64()
-        });
+        let secs = time_detection_alone(&p, &gray);
         let alone = row(
             "dvlcal detection alone (decoded images)",
             &threads.to_string(),
@@ -199,33 +208,13 @@ fn main() {
     println!("| Kalibr-printed board: | | | | |");
     for threads in [1, cores] {
         let p = pool(threads);
-        let secs = best_of(3, || {
-            let s = Instant::now();
-            let (_, st) = p
-                .install(|| detect_frames(&kframes, &kboard, &chain, &settings, &opts, false))
-                .expect("detect");
-            assert_eq!(st.poses, n);
-            s.elapsed().as_secs_f64()
-        });
+        let secs = time_detect(&p, &kframes, &kboard);
         row(
             "dvlcal detect, Kalibr print (PNG decode + detect + PnP)",
             &threads.to_string(),
             secs,
         );
-        let secs = best_of(3, || {
-            let s = Instant::now();
-            let total: usize = p.install(|| {
-                kgray
-                    .par_iter()
-                    .map_init(
-                        || Detector::new(&settings).expect("detector"),
-                        |d, g| d.detect(g).len(),
-                    )
-                    .sum()
-            });
-            assert!(total > 0);
-            s.elapsed().as_secs_f64()
-        });
+        let secs = time_detection_alone(&p, &kgray);
         row(
             "dvlcal detection alone, Kalibr print (decoded images)",
             &threads.to_string(),
