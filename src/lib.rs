@@ -93,13 +93,15 @@
 //!   stages);
 //! - stages: [`io`] (every format in and out, nothing estimated), [`vision`] (AprilTag boards,
 //!   cameras, detection, stereo PnP), [`trajectory`] (the white-noise-on-jerk GP on SE(3));
-//! - [`calib`] (the UIC estimator), [`sim`] (recordings with known truth), [`eval`] (accuracy
+//! - [`calib`] (the UIC estimator), [`camcal`] (camera intrinsics and stereo extrinsics from
+//!   board images), [`sim`] (recordings with known truth), [`eval`] (accuracy
 //!   and odometry checks), [`report`] (the HTML report);
 //! - [`pipeline`]: the stages strung together, for the `dvlcal` program and other programs.
 
 #![warn(missing_docs)]
 
 pub mod calib;
+pub mod camcal;
 pub mod error;
 pub mod eval;
 pub mod files;

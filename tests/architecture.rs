@@ -19,7 +19,7 @@ fn layer(top: &str) -> Option<u32> {
         "lie" | "parallel" => 1,
         "types" => 2,
         "io" | "vision" | "trajectory" => 3,
-        "calib" | "sim" => 4,
+        "calib" | "camcal" | "sim" => 4,
         "eval" | "report" => 5,
         "pipeline" => 6,
         "" => 7, // the crate root re-exports
