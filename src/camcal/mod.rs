@@ -18,11 +18,18 @@
 //!
 //! The result is a [`Camchain`], written in Kalibr's camchain format.
 
+pub mod bundle;
+pub mod init;
+pub mod quality;
+pub mod views;
+
 use nalgebra::{Vector2, Vector3};
 
 use crate::lie::Se3;
 use crate::vision::camera::{Camchain, Distortion};
 use crate::vision::detect::TagDetection;
+
+pub use bundle::calibrate_cameras;
 
 /// The camera model to fit (Kalibr's names: `pinhole-radtan`, `pinhole-equi`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -14,7 +14,7 @@
 //!
 //! Pixel: `u = fu x' + pu`, `v = fv y' + pv`.
 
-use nalgebra::{Matrix2, Matrix2x3, Matrix4, Vector2, Vector3};
+use nalgebra::{Matrix2, Matrix2x3, Matrix2x4, Matrix4, Vector2, Vector3};
 use serde::Deserialize;
 use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
@@ -116,6 +116,43 @@ impl Distortion {
                     s + ds_dr * y * y / r,
                 );
                 (Vector2::new(s * x, s * y), j)
+            }
+        }
+    }
+
+    /// The 2x4 Jacobian of the distorted normalised point with respect to the four coefficients,
+    /// in Kalibr's order (zero for [`Distortion::None`]).
+    pub fn coeff_jacobian(&self, p: &Vector2<f64>) -> Matrix2x4<f64> {
+        let (x, y) = (p.x, p.y);
+        let r2 = x * x + y * y;
+        match self {
+            Distortion::None => Matrix2x4::zeros(),
+            Distortion::RadTan { .. } => Matrix2x4::new(
+                x * r2,
+                x * r2 * r2,
+                2.0 * x * y,
+                r2 + 2.0 * x * x,
+                y * r2,
+                y * r2 * r2,
+                r2 + 2.0 * y * y,
+                2.0 * x * y,
+            ),
+            Distortion::Equidistant { .. } => {
+                let r = r2.sqrt();
+                if r < 1e-12 {
+                    return Matrix2x4::zeros();
+                }
+                // d theta_d / d k_i = theta^(2i+1); the point scales by theta_d / r.
+                let th = r.atan();
+                let t2 = th * th;
+                let mut m = Matrix2x4::zeros();
+                let mut pow = th * t2;
+                for i in 0..4 {
+                    m[(0, i)] = pow * x / r;
+                    m[(1, i)] = pow * y / r;
+                    pow *= t2;
+                }
+                m
             }
         }
     }
