@@ -19,10 +19,10 @@ use nalgebra::{
 
 use crate::camcal::init::initial_estimate;
 use crate::camcal::quality::{coverage, weak_points};
-use crate::camcal::views::match_views;
-use crate::camcal::{
+use crate::camcal::types::{
     CamCalOptions, CamCalResult, CameraModel, CameraStd, CornerObs, FrameFit, FrameTags, Residual,
 };
+use crate::camcal::views::match_views;
 use crate::lie::{Se3, hat};
 use crate::vision::board::Board;
 use crate::vision::camera::{Camchain, Camera};
@@ -88,7 +88,7 @@ impl State {
         } else {
             (self.ext[o.cam].transform_point(&p0), self.ext[o.cam].rot)
         };
-        if !(pc.z > 1e-9) {
+        if pc.z.is_nan() || pc.z <= 1e-9 {
             return None;
         }
         let cam = &self.cams[o.cam];
@@ -143,13 +143,16 @@ struct Jacs {
     ext: SMatrix<f64, 2, 6>,
 }
 
+/// One frame's part of the normal equations: its index, `H_ff`, `H_tf` and `g_f`.
+type FrameBlock = (usize, Matrix6<f64>, DMatrix<f64>, Vector6<f64>);
+
 /// The normal equations, frame poses separate.
 struct Normal {
     /// Camera block (intrinsics of every camera, then extrinsics of cam1..).
     htt: DMatrix<f64>,
     gt: DVector<f64>,
     /// Per frame (only frames with active corners): index, H_ff, H_tf, g_f.
-    frames: Vec<(usize, Matrix6<f64>, DMatrix<f64>, Vector6<f64>)>,
+    frames: Vec<FrameBlock>,
     cost: f64,
 }
 
@@ -162,7 +165,7 @@ fn build(state: &State, obs: &[CornerObs], active: &[bool]) -> Option<Normal> {
     let c = camera_dim(cams);
     let mut htt = DMatrix::zeros(c, c);
     let mut gt = DVector::zeros(c);
-    let mut frames: Vec<(usize, Matrix6<f64>, DMatrix<f64>, Vector6<f64>)> = Vec::new();
+    let mut frames: Vec<FrameBlock> = Vec::new();
     let mut cost = 0.0;
     for (o, _) in obs.iter().zip(active).filter(|(_, a)| **a) {
         let (r, j) = state.residual(o, true)?;
@@ -526,7 +529,7 @@ pub fn calibrate_cameras(
     for (v, n) in rms_cam.iter_mut().zip(&cnt_cam) {
         *v = (*v / (*n).max(1) as f64).sqrt();
     }
-    if !(rms_px <= MAX_RMS_PX) {
+    if rms_px.is_nan() || rms_px > MAX_RMS_PX {
         return Err(Error::Input(format!(
             "camera calibration failed: reprojection RMS {rms_px:.2} px (at most {MAX_RMS_PX} px \
              is expected of a good fit); check the board's tag size and the camera model ({})",
@@ -781,12 +784,12 @@ mod tests {
                             .iter()
                             .filter_map(|tag| {
                                 let mut c = [Vector2::zeros(); 4];
-                                for k in 0..4 {
-                                    let px = cam.project(&t.transform_point(&tag.corners[k]))?;
+                                for (ck, corner) in c.iter_mut().zip(&tag.corners) {
+                                    let px = cam.project(&t.transform_point(corner))?;
                                     if !cam.in_image(&px) {
                                         return None;
                                     }
-                                    c[k] = px
+                                    *ck = px
                                         + Vector2::new(rng.normal() * sigma, rng.normal() * sigma);
                                 }
                                 Some(TagDetection {
@@ -882,13 +885,8 @@ mod tests {
         for c in 0..2 {
             let (t, e) = (&truth.cams[c], &r.chain.cams[c]);
             let err = [e.fu - t.fu, e.fv - t.fv, e.pu - t.pu, e.pv - t.pv];
-            for k in 0..4 {
-                assert!(
-                    err[k].abs() < 4.0 * r.std[c].intrinsics[k],
-                    "cam{c} intrinsic {k}: {} vs std {}",
-                    err[k],
-                    r.std[c].intrinsics[k]
-                );
+            for (k, (e, s)) in err.iter().zip(&r.std[c].intrinsics).enumerate() {
+                assert!(e.abs() < 4.0 * s, "cam{c} intrinsic {k}: {e} vs std {s}");
             }
             let (tk, ek) = (t.distortion.coeffs(), e.distortion.coeffs());
             for k in 0..4 {

@@ -14,7 +14,7 @@ use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 use opencv::core::{Mat, Point2f, Point3f, Size, TermCriteria, TermCriteria_Type, Vector};
 use opencv::prelude::*;
 
-use crate::camcal::{CameraModel, CornerObs};
+use crate::camcal::types::{CameraModel, CornerObs};
 use crate::lie::{Se3, so3};
 use crate::vision::camera::{Camchain, Camera, Distortion};
 use crate::{Error, Result};
@@ -165,9 +165,9 @@ fn calibrate_one(
         criteria,
     )
     .map_err(cv)?;
-    let at = |m: &Mat, r: i32, c: i32| m.at_2d::<f64>(r, c).map(|v| *v).map_err(cv);
+    let at = |m: &Mat, r: i32, c: i32| m.at_2d::<f64>(r, c).copied().map_err(cv);
     let d: Vec<f64> = (0..4)
-        .map(|i| dist.at::<f64>(i).map(|v| *v).map_err(cv))
+        .map(|i| dist.at::<f64>(i).copied().map_err(cv))
         .collect::<Result<_>>()?;
     let mut camera = Camera {
         fu: at(&k, 0, 0)?,

@@ -3,7 +3,7 @@
 
 use nalgebra::Vector2;
 
-use crate::camcal::{CameraStd, Coverage};
+use crate::camcal::types::{CameraStd, Coverage};
 use crate::vision::camera::{Camchain, Camera};
 
 /// Share of the grid cells that must hold corners before the distortion counts as measured over

@@ -1,6 +1,6 @@
 //! Detections matched to the board: the corner observations of every usable view.
 
-use crate::camcal::{CornerObs, FrameTags};
+use crate::camcal::types::{CornerObs, FrameTags};
 use crate::vision::board::Board;
 
 /// The corner observations of all frames, and what was left out.
