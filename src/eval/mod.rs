@@ -1,6 +1,10 @@
 //! Accuracy of estimates against known truth, and an independent reference estimator
 //! ([`spline_baseline`]) to compare the calibration with.
+//!
+//! [`camera`]: the accuracy of a camera calibration (ray pixel error, extrinsic and baseline
+//! errors) and OpenCV's stereo calibration as its reference.
 
+pub mod camera;
 pub mod odometry;
 pub mod spline_baseline;
 
