@@ -1153,7 +1153,7 @@ fn coverage_grid(s: &mut String, c: usize, cam: &Camera, g: Option<&Coverage>) {
         let fill = if n == 0 {
             format!("url(#{id}-hatch)")
         } else {
-            shade(((n as f64).ln_1p() / (most as f64).ln_1p().max(1e-9)).sqrt())
+            shade((n as f64).ln_1p() / (most as f64).ln_1p().max(1e-9))
         };
         put!(
             s,
