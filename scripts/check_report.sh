@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Renders a dvlcal HTML report in headless Chromium and fails when the browser reports any
-# console message (SVG attribute errors, script errors) or when a section or plot is missing.
+# Renders a dvlcal HTML report (the DVL calibration's or the camera calibration's) in headless
+# Chromium and fails when the browser reports any console message (SVG attribute errors, script
+# errors) or when a section or plot is missing.
 #
 # usage: scripts/check_report.sh REPORT.html [SCREENSHOT.png]
 #
@@ -24,6 +25,18 @@ shot=${2:-}
 if [[ ! -f $report ]]; then
     echo "$report: no such file" >&2
     exit 2
+fi
+# The camera calibration report (`<body data-report="camcal">`) has its own sections and plots;
+# these lists match CAMCAL_SECTION_IDS, CAMCAL_PLOT_IDS and CAMCAL_CAMERA_PLOT_IDS in
+# src/report/cameras.rs. A camera with any of its plots must have all three.
+if grep -q '<body data-report="camcal"' "$report"; then
+    SECTIONS="summary warnings results residuals coverage frames camchain"
+    PLOTS="frame-rms"
+    cams=$({ grep -o 'id="[a-z-]*-cam[0-9]*"' "$report" || true; } |
+        sed 's/.*-cam\([0-9]*\)"/\1/' | sort -un)
+    for c in $cams; do
+        PLOTS+=" residual-hist-cam$c residual-map-cam$c coverage-grid-cam$c"
+    done
 fi
 browser=${CHROMIUM:-}
 if [[ -z $browser ]]; then

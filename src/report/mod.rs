@@ -10,12 +10,17 @@
 //! per-frame detection statistics, pose residuals and a top view of the trajectory, followed by
 //! the DVL log's summary and the result file.
 
+mod cameras;
 mod data;
 mod input;
 mod page;
 mod svg;
 mod words;
 
+pub use cameras::{
+    CAMCAL_CAMERA_PLOT_IDS, CAMCAL_PLOT_IDS, CAMCAL_SECTION_IDS, CamCalReportInput,
+    camcal_plot_ids, render_camcal_html,
+};
 pub use input::{FrameStat, ReportInput, frame_stats};
 pub use words::sound_speed_words;
 

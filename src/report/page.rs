@@ -24,7 +24,8 @@ const AXIS_COLORS: [&str; 3] = ["#d62728", "#2ca02c", "#1f77b4"];
 const WIDE: f64 = 940.0;
 const HALF: f64 = 462.0;
 
-const STYLE: &str = "\
+/// The page's style sheet (shared with the camera calibration report).
+pub(super) const STYLE: &str = "\
 body{font-family:system-ui,-apple-system,'Segoe UI',Roboto,'DejaVu Sans',sans-serif;\
 margin:0 auto;max-width:980px;padding:16px 20px 48px;color:#1d1d1d;line-height:1.45}\
 h1{font-size:1.6em;margin:.4em 0 .2em}h2{font-size:1.25em;margin:1.6em 0 .4em;\
@@ -50,6 +51,7 @@ macro_rules! put {
         let _ = write!($s, $($arg)*);
     }};
 }
+pub(super) use put;
 
 fn vec3(v: &Vector3<f64>, scale: f64, decimals: usize) -> String {
     format!(
@@ -146,11 +148,11 @@ pub(super) fn render(input: &ReportInput, d: &Derived) -> String {
     s
 }
 
-fn section(s: &mut String, id: &str, title: &str) {
+pub(super) fn section(s: &mut String, id: &str, title: &str) {
     put!(s, "<section id=\"{id}\"><h2>{}</h2>\n", escape(title));
 }
 
-fn figure(s: &mut String, plot: &Plot, caption: &str) {
+pub(super) fn figure(s: &mut String, plot: &Plot, caption: &str) {
     put!(
         s,
         "<figure>{}<figcaption>{}</figcaption></figure>\n",
@@ -248,7 +250,7 @@ fn summary(s: &mut String, input: &ReportInput, d: &Derived) {
     put!(s, "<p>{}</p></section>\n", escape(&words));
 }
 
-fn join_words(w: &[&str]) -> String {
+pub(super) fn join_words(w: &[&str]) -> String {
     match w {
         [] => String::new(),
         [a] => (*a).to_owned(),
@@ -655,7 +657,7 @@ fn robustness(s: &mut String, o: &CalibrationOutcome) {
 }
 
 /// Symmetric range holding all but the 0.1% most extreme values of `v`, at least `floor` wide.
-fn robust_half_range(v: &[f64], floor: f64) -> f64 {
+pub(super) fn robust_half_range(v: &[f64], floor: f64) -> f64 {
     let mut a: Vec<f64> = v
         .iter()
         .filter(|x| x.is_finite())
@@ -833,7 +835,7 @@ fn motion(s: &mut String, o: &CalibrationOutcome, d: &Derived) {
 }
 
 /// A y axis top for non-negative data starting at zero: the largest value and some room.
-fn upper(pts: &[(f64, f64)]) -> f64 {
+pub(super) fn upper(pts: &[(f64, f64)]) -> f64 {
     let m = pts
         .iter()
         .map(|p| p.1)
