@@ -346,7 +346,7 @@ pub fn calibrate_cameras(
         ));
     }
     let cams = sizes.len();
-    let matched = match_views(board, frames, cams, opts.min_view_corners);
+    let matched = match_views(board, frames, sizes, opts.border_px, opts.min_view_corners);
     let obs = matched.obs;
     for cam in 0..cams {
         let views = count_views(&obs, cam);
@@ -582,6 +582,7 @@ pub fn calibrate_cameras(
         corners_used: used,
         corners_rejected: obs.len() - used,
         detections_unmatched: matched.unmatched,
+        tags_at_border: matched.at_border,
         iterations,
         warnings,
     })

@@ -19,6 +19,9 @@ use crate::lie::{Se3, so3};
 use crate::vision::camera::{Camchain, Camera, Distortion};
 use crate::{Error, Result};
 
+/// Views per camera given to OpenCV's calibrateCamera.
+pub const INIT_VIEWS: usize = 30;
+
 /// The initial estimate.
 #[derive(Clone, Debug)]
 pub struct Initial {
@@ -143,19 +146,29 @@ fn calibrate_one(
             frames.len()
         )));
     }
+    // calibrateCamera solves one dense system over every view's pose: its cost grows with the
+    // cube of the view count. A start needs a few dozen views spread over the recording; the
+    // other views get their board pose from solvePnP with its camera.
+    let step = frames.len().div_ceil(INIT_VIEWS).max(1);
+    let mut sub_object = Vector::<Mat>::new();
+    let mut sub_image = Vector::<Mat>::new();
+    for i in (0..frames.len()).step_by(step) {
+        sub_object.push(object.get(i).map_err(cv)?);
+        sub_image.push(image.get(i).map_err(cv)?);
+    }
     let mut k = Mat::default();
     let mut dist = Mat::default();
     let mut rvecs = Vector::<Mat>::new();
     let mut tvecs = Vector::<Mat>::new();
     let criteria = TermCriteria::new(
         TermCriteria_Type::COUNT as i32 + TermCriteria_Type::EPS as i32,
-        100,
-        1e-12,
+        30,
+        f64::EPSILON,
     )
     .map_err(cv)?;
     let rms = opencv::calib3d::calibrate_camera(
-        &object,
-        &image,
+        &sub_object,
+        &sub_image,
         Size::new(w as i32, h as i32),
         &mut k,
         &mut dist,
@@ -207,17 +220,27 @@ fn calibrate_one(
     }
     let mut poses = BTreeMap::new();
     for (i, f) in frames.iter().enumerate() {
-        let r = vec3(&rvecs.get(i).map_err(cv)?).ok_or_else(|| cv_bad(cam))?;
-        let t = vec3(&tvecs.get(i).map_err(cv)?).ok_or_else(|| cv_bad(cam))?;
-        poses.insert(*f, Se3::new(so3::exp(&r), t));
+        let (o, im) = (object.get(i).map_err(cv)?, image.get(i).map_err(cv)?);
+        let mut r = Mat::default();
+        let mut t = Mat::default();
+        let solved = opencv::calib3d::solve_pnp(
+            &o,
+            &im,
+            &k,
+            &dist,
+            &mut r,
+            &mut t,
+            false,
+            opencv::calib3d::SOLVEPNP_IPPE,
+        )
+        .unwrap_or(false);
+        // A view whose pose cannot be found starts without one (its frame may still get one
+        // from another camera).
+        if let (true, Some(r), Some(t)) = (solved, vec3(&r), vec3(&t)) {
+            poses.insert(*f, Se3::new(so3::exp(&r), t));
+        }
     }
     Ok((camera, rms, poses))
-}
-
-fn cv_bad(cam: usize) -> Error {
-    Error::Input(format!(
-        "cam{cam}: OpenCV's calibrateCamera returned a board pose that is not finite"
-    ))
 }
 
 /// A 3-vector from a 3x1 or 1x3 CV_64F matrix.

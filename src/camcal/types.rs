@@ -78,6 +78,9 @@ pub struct CamCalOptions {
     /// A frame whose reprojection RMS (after corner outliers) exceeds this many times the median
     /// frame RMS is an outlier frame: it is dropped and named.
     pub frame_rms_factor: f64,
+    /// A tag with a corner closer than this to the image's edge (px) is not used: the side of a
+    /// tag cut by the edge cannot be fitted, and its corners can be pixels off.
+    pub border_px: f64,
     /// Levenberg-Marquardt iterations per fit.
     pub max_iterations: usize,
     /// Cells across the image width for the coverage grid (rows follow the aspect ratio).
@@ -92,6 +95,7 @@ impl Default for CamCalOptions {
             min_views: 5,
             outlier_sigmas: 5.0,
             frame_rms_factor: 3.0,
+            border_px: 5.0,
             max_iterations: 100,
             coverage_cells: 12,
         }
@@ -214,6 +218,8 @@ pub struct CamCalResult {
     pub corners_rejected: usize,
     /// Detections whose id is not on the board, or seen twice in one image.
     pub detections_unmatched: usize,
+    /// Tags left out because they touch the image's border margin.
+    pub tags_at_border: usize,
     /// Levenberg-Marquardt iterations of the final fit.
     pub iterations: usize,
     /// What makes the result weak, in words (empty: nothing found).

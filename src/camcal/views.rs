@@ -15,16 +15,22 @@ pub struct Matched {
     pub unmatched: usize,
     /// Views (one camera in one frame) with some corners but fewer than the minimum.
     pub small_views: usize,
+    /// Tags left out because a corner lies within the border margin of the image.
+    pub at_border: usize,
 }
 
-/// Matches each frame's detections to the board's corners. A view with fewer than
-/// `min_view_corners` corners contributes no observation (its corners are still counted).
+/// Matches each frame's detections to the board's corners. Tags with a corner within
+/// `border_px` of the edge of their image (`sizes`: width, height per camera) are left out. A view
+/// with fewer than `min_view_corners` corners contributes no observation (its corners are still
+/// counted).
 pub fn match_views(
     board: &Board,
     frames: &[FrameTags],
-    cams: usize,
+    sizes: &[(u32, u32)],
+    border_px: f64,
     min_view_corners: usize,
 ) -> Matched {
+    let cams = sizes.len();
     let mut m = Matched::default();
     for (fi, f) in frames.iter().enumerate() {
         let mut per_cam = vec![0; cams];
@@ -37,6 +43,17 @@ pub fn match_views(
                     m.unmatched += 1;
                     continue;
                 };
+                let (w, h) = (sizes[cam].0 as f64, sizes[cam].1 as f64);
+                let inside = |p: &nalgebra::Vector2<f64>| {
+                    p.x >= border_px - 0.5
+                        && p.y >= border_px - 0.5
+                        && p.x <= w - 0.5 - border_px
+                        && p.y <= h - 0.5 - border_px
+                };
+                if !d.corners.iter().all(inside) {
+                    m.at_border += 1;
+                    continue;
+                }
                 for (k, (b, px)) in tag.corners.iter().zip(&d.corners).enumerate() {
                     view.push(CornerObs {
                         frame: fi,
@@ -73,7 +90,7 @@ mod tests {
             id,
             hamming: 0,
             decision_margin: 50.0,
-            corners: [Vector2::new(0.0, 0.0); 4],
+            corners: [Vector2::new(100.0, 100.0); 4],
             border_bits: 1,
         }
     }
@@ -90,7 +107,7 @@ mod tests {
                 vec![det(1), det(1), det(3)],
             ],
         }];
-        let m = match_views(&board, &frames, 2, 12);
+        let m = match_views(&board, &frames, &[(640, 480), (640, 480)], 5.0, 12);
         assert_eq!(m.corners, vec![vec![12, 4]]);
         assert_eq!(
             m.obs.len(),

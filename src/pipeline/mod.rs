@@ -10,11 +10,14 @@
 //! 2. [`calibrate_dataset`] runs the estimator ([`crate::calib::calibrate`]) and builds the
 //!    result file; [`write_results`] and [`write_report`] write it, its exports and the report.
 //! 3. [`odometry_table`] and [`cross_validate`] check calibrations on data.
-//! 4. [`write_simulated_dataset`] writes a dataset folder with known truth.
+//! 4. [`calibrate_cameras_from_images`] calibrates the cameras themselves from board images
+//!    (intrinsics, distortion, stereo extrinsics) and writes a Kalibr camchain and its report.
+//! 5. [`write_simulated_dataset`] writes a dataset folder with known truth.
 //!
 //! Long steps take a worker-thread count; results never depend on it.
 
 mod calibration;
+mod cameras;
 mod dataset;
 mod evaluate;
 mod simulate;
@@ -24,6 +27,7 @@ pub use calibration::{
     CalibrationRun, ResultPaths, calibrate_dataset, method_name, result_file, sibling,
     write_report, write_results,
 };
+pub use cameras::{CameraCalOptions, CameraCalRun, calibrate_cameras_from_images};
 pub use dataset::{Dataset, dataset_files, describe_files};
 pub use evaluate::{
     Baseline, CrossValidation, baselines, cross_validate, odometry_check, odometry_table,

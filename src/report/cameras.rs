@@ -254,6 +254,10 @@ fn summary(s: &mut String, r: &CamCalResult, input: &CamCalReportInput) {
             "detections not on the board (or repeated)".into(),
             r.detections_unmatched.to_string(),
         ),
+        (
+            "tags left out at the image border".into(),
+            r.tags_at_border.to_string(),
+        ),
         ("reprojection RMS, all cameras".into(), px(r.rms_px)),
         (
             "reprojection RMS per camera".into(),

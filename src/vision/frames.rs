@@ -13,7 +13,7 @@ use rayon::prelude::*;
 
 use crate::Result;
 use crate::vision::board::Board;
-use crate::vision::camera::Camchain;
+use crate::vision::camera::{Camchain, Camera};
 use crate::vision::detect::{Detector, DetectorSettings, TagDetection, load_gray};
 use crate::vision::images::StereoFrame;
 use crate::vision::pnp::{FramePose, PnpOptions, PoseOutcome, solve_stereo};
@@ -211,47 +211,10 @@ fn process_frame(
         wrong_size: 0,
         problems: Vec::new(),
     };
-    let mut dets: Vec<Vec<TagDetection>> = vec![Vec::new(); f.paths.len()];
-    let mut detected = vec![0; f.paths.len()];
-    let mut any = false;
-    for (cam, path) in f.paths.iter().enumerate() {
-        let Some(path) = path else { continue };
-        let img = match load_gray(path) {
-            Ok(i) => i,
-            Err(e) => {
-                c.unreadable += 1;
-                c.problems.push(e.to_string());
-                continue;
-            }
-        };
-        let want = &chain.cams[cam];
-        if img.width() != want.width || img.height() != want.height {
-            c.wrong_size += 1;
-            c.problems.push(format!(
-                "{}: {}x{} image, cam{cam} is {}x{} in the camchain",
-                path.display(),
-                img.width(),
-                img.height(),
-                want.width,
-                want.height
-            ));
-            continue;
-        }
-        let detector = match slot {
-            Some(d) => d,
-            None => match Detector::new(det) {
-                Ok(d) => slot.insert(d),
-                Err(e) => {
-                    c.problems.push(e.to_string());
-                    continue;
-                }
-            },
-        };
-        c.images += 1;
-        any = true;
-        dets[cam] = detector.detect_with_camera(&img, Some(want));
-        detected[cam] = dets[cam].len();
-    }
+    let sizes: Vec<(u32, u32)> = chain.cams.iter().map(|c| (c.width, c.height)).collect();
+    let cams: Vec<Option<&Camera>> = chain.cams.iter().map(Some).collect();
+    let (dets, any) = detect_images(f, &sizes, &cams, det, slot, &mut c);
+    let detected: Vec<usize> = dets.iter().map(Vec::len).collect();
     let (status, pose) = if !any {
         (FrameStatus::NoImage, None)
     } else {
@@ -270,6 +233,115 @@ fn process_frame(
         },
         c,
     )
+}
+
+/// Decodes and detects the images of one frame. `sizes` are the expected image sizes per camera;
+/// `cams` the camera models for the corner refinement (`None`: not known yet). Unreadable and
+/// wrongly sized images are counted and named in `c`. Returns the detections per camera and
+/// whether any image was usable.
+fn detect_images(
+    f: &StereoFrame,
+    sizes: &[(u32, u32)],
+    cams: &[Option<&Camera>],
+    det: &DetectorSettings,
+    slot: &mut Option<Detector>,
+    c: &mut FrameCounts,
+) -> (Vec<Vec<TagDetection>>, bool) {
+    let mut dets: Vec<Vec<TagDetection>> = vec![Vec::new(); f.paths.len()];
+    let mut any = false;
+    for (cam, path) in f.paths.iter().enumerate() {
+        let Some(path) = path else { continue };
+        let img = match load_gray(path) {
+            Ok(i) => i,
+            Err(e) => {
+                c.unreadable += 1;
+                c.problems.push(e.to_string());
+                continue;
+            }
+        };
+        if let Some(&(w, h)) = sizes.get(cam)
+            && (img.width() != w || img.height() != h)
+        {
+            c.wrong_size += 1;
+            c.problems.push(format!(
+                "{}: {}x{} image, cam{cam} is {w}x{h}",
+                path.display(),
+                img.width(),
+                img.height(),
+            ));
+            continue;
+        }
+        let detector = match slot {
+            Some(d) => d,
+            None => match Detector::new(det) {
+                Ok(d) => slot.insert(d),
+                Err(e) => {
+                    c.problems.push(e.to_string());
+                    continue;
+                }
+            },
+        };
+        c.images += 1;
+        any = true;
+        dets[cam] = detector.detect_with_camera(&img, cams.get(cam).copied().flatten());
+    }
+    (dets, any)
+}
+
+/// The tags of every frame, detected in parallel (one detector per worker thread), in frame
+/// order: per frame, one detection list per camera. `sizes` are the expected image sizes (an
+/// image of another size is counted and skipped); `cams`, when known, refine the corners in
+/// undistorted coordinates. The counts come back in a [`DetectStats`] (its pose fields stay zero).
+pub fn detect_frame_tags(
+    frames: &[StereoFrame],
+    sizes: &[(u32, u32)],
+    cams: Option<&Camchain>,
+    det: &DetectorSettings,
+    progress: bool,
+) -> Result<(Vec<Vec<Vec<TagDetection>>>, DetectStats)> {
+    let first = Detector::new(det)?;
+    let workers = rayon::current_num_threads().max(1);
+    let detectors: Vec<Mutex<Option<Detector>>> = (0..workers).map(|_| Mutex::new(None)).collect();
+    if let Ok(mut slot) = detectors[0].lock() {
+        *slot = Some(first);
+    }
+    let models: Vec<Option<&Camera>> = (0..sizes.len())
+        .map(|i| cams.and_then(|ch| ch.cams.get(i)))
+        .collect();
+    let bar = progress_bar(frames.len() as u64, progress);
+    let out: Vec<(Vec<Vec<TagDetection>>, bool, FrameCounts)> = frames
+        .par_iter()
+        .map(|f| {
+            let idx = rayon::current_thread_index().unwrap_or(0) % workers;
+            let mut guard = detectors[idx].lock().unwrap_or_else(|p| p.into_inner());
+            let mut c = FrameCounts {
+                images: 0,
+                unreadable: 0,
+                wrong_size: 0,
+                problems: Vec::new(),
+            };
+            let (d, any) = detect_images(f, sizes, &models, det, &mut guard, &mut c);
+            drop(guard);
+            bar.inc(1);
+            (d, any, c)
+        })
+        .collect();
+    bar.finish_and_clear();
+    let mut stats = DetectStats {
+        frames: frames.len(),
+        ..DetectStats::default()
+    };
+    let mut all = Vec::with_capacity(out.len());
+    for (d, any, c) in out {
+        stats.images += c.images;
+        stats.unreadable += c.unreadable;
+        stats.wrong_size += c.wrong_size;
+        stats.problems.extend(c.problems);
+        stats.no_image += usize::from(!any);
+        stats.tags_detected += d.iter().map(Vec::len).sum::<usize>();
+        all.push(d);
+    }
+    Ok((all, stats))
 }
 
 /// A progress bar on stderr when asked for and stderr is a terminal; hidden otherwise.

@@ -66,6 +66,19 @@ pub struct ScanStats {
 
 const EXTENSIONS: [&str; 5] = ["png", "jpg", "jpeg", "pgm", "pnm"];
 
+/// The number of cameras whose images a folder holds: `cam0`, `cam1`, ... (either layout),
+/// counted up to the first missing one.
+pub fn camera_count(dir: &Path) -> usize {
+    let root = if dir.join("mav0").join("cam0").is_dir() {
+        dir.join("mav0")
+    } else {
+        dir.to_path_buf()
+    };
+    (0..)
+        .take_while(|c| root.join(format!("cam{c}")).is_dir())
+        .count()
+}
+
 /// Lists and pairs the images of `cams` cameras under `dir` (see the module documentation).
 /// `tolerance_ns`: largest time difference between paired images.
 pub fn scan_images(

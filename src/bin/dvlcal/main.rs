@@ -2,6 +2,7 @@
 
 mod board;
 mod calibrate;
+mod cameras;
 mod compare;
 mod dataset;
 mod detect;
@@ -36,6 +37,9 @@ enum Command {
     /// Camera poses (TUM, board frame as world) with covariances from stereo images of an
     /// AprilTag board.
     Detect(detect::DetectArgs),
+    /// Calibrate the cameras (intrinsics, distortion, stereo extrinsics) from images of a board
+    /// and write a Kalibr camchain.
+    CalibrateCameras(cameras::CalibrateCamerasArgs),
     /// Estimate the DVL's rotation, lever arm, clock offset and velocity scale.
     Calibrate(calibrate::CalibrateArgs),
     /// Check calibrations by DVL dead reckoning against the camera (ATE, RPE), and
@@ -75,6 +79,7 @@ fn main() {
         Command::RecordDvl(a) => record_dvl::run(a),
         Command::Board(a) => board::run(a),
         Command::Calibrate(a) => calibrate::run(a),
+        Command::CalibrateCameras(a) => cameras::run(a),
         Command::Detect(a) => detect::run(a),
         Command::Tags(a) => tags::run(a),
     };
