@@ -565,7 +565,24 @@ pub fn calibrate_cameras(
                 .count()
         })
         .collect();
-    warnings.extend(weak_points(&chain, &std, &coverage, &views_used));
+    let mut tilts: Vec<f64> = frame_fits
+        .iter()
+        .filter(|f| f.dropped.is_none())
+        .filter_map(|f| f.t_c0_board)
+        .map(|t| t.rot[(2, 2)].abs().min(1.0).acos().to_degrees())
+        .collect();
+    tilts.sort_by(f64::total_cmp);
+    let tilt_p90_deg = tilts
+        .get((tilts.len() * 9 / 10).min(tilts.len().saturating_sub(1)))
+        .copied()
+        .unwrap_or(0.0);
+    warnings.extend(weak_points(
+        &chain,
+        &std,
+        &coverage,
+        &views_used,
+        tilt_p90_deg,
+    ));
     Ok(CamCalResult {
         chain,
         model: opts.model,
@@ -583,6 +600,7 @@ pub fn calibrate_cameras(
         corners_rejected: obs.len() - used,
         detections_unmatched: matched.unmatched,
         tags_at_border: matched.at_border,
+        tilt_p90_deg,
         iterations,
         warnings,
     })

@@ -20,6 +20,10 @@ pub const MAX_PRINCIPAL_STD_PX: f64 = 2.0;
 pub const MAX_BASELINE_REL_STD: f64 = 0.01;
 /// Standard deviation of the stereo rotation above which it is poorly determined, rad (0.1 deg).
 pub const MAX_ROTATION_STD_RAD: f64 = 0.1 * std::f64::consts::PI / 180.0;
+/// Below this tilt of the board (90th percentile over the views, degrees) the focal length and
+/// the board's distance are nearly interchangeable: a small systematic corner error moves the
+/// focal length far more than its standard deviation says.
+pub const MIN_TILT_DEG: f64 = 25.0;
 /// Fewer views than this make a weak calibration.
 pub const MIN_GOOD_VIEWS: usize = 15;
 
@@ -95,8 +99,17 @@ pub fn weak_points(
     std: &[CameraStd],
     coverage: &[Coverage],
     views: &[usize],
+    tilt_p90_deg: f64,
 ) -> Vec<String> {
     let mut w = Vec::new();
+    if tilt_p90_deg < MIN_TILT_DEG {
+        w.push(format!(
+            "the board hardly tilted against the cameras (90 % of the views within {tilt_p90_deg:.0} \
+             deg of facing them): the focal lengths and the board's distance trade off, so the \
+             focal lengths may be off by more than their standard deviations; record views \
+             tilted 30 to 45 degrees"
+        ));
+    }
     for (i, cam) in chain.cams.iter().enumerate() {
         if let Some(c) = coverage.get(i) {
             let empty = empty_regions(c);

@@ -220,6 +220,10 @@ pub struct CamCalResult {
     pub detections_unmatched: usize,
     /// Tags left out because they touch the image's border margin.
     pub tags_at_border: usize,
+    /// The tilt of the board against cam0's optical axis (angle between the board's normal and
+    /// the axis), 90th percentile over the used frames, degrees. Tilted views separate the focal
+    /// length from the board's distance.
+    pub tilt_p90_deg: f64,
     /// Levenberg-Marquardt iterations of the final fit.
     pub iterations: usize,
     /// What makes the result weak, in words (empty: nothing found).

@@ -269,6 +269,10 @@ fn summary(s: &mut String, r: &CamCalResult, input: &CamCalReportInput) {
         ),
         ("estimated corner noise (per axis)".into(), px(r.sigma_px)),
         (
+            "board tilt against cam0, 90th percentile of the views".into(),
+            format!("{:.0} deg", r.tilt_p90_deg),
+        ),
+        (
             "Levenberg-Marquardt iterations (final fit)".into(),
             r.iterations.to_string(),
         ),

@@ -158,6 +158,7 @@ fn result(cams: usize, frames: usize, full_coverage: bool) -> CamCalResult {
         corners_rejected: cams * frames * per_view - used,
         detections_unmatched: 2,
         tags_at_border: 1,
+        tilt_p90_deg: 38.0,
         iterations: 9,
         warnings: vec![
             "cam1: <script>alert('x')</script> & a warning".to_owned(),

@@ -52,3 +52,98 @@ pub fn rendered_views(
     let sizes = chain.cams.iter().map(|c| (c.width, c.height)).collect();
     (frames, sizes)
 }
+
+/// The images of `n` [`calibration_views`] frames (one image per camera), rendered in parallel with
+/// the default image settings.
+pub fn render_views(
+    chain: &Camchain,
+    board: &Board,
+    n: usize,
+    seed: u64,
+) -> Vec<Vec<image::GrayImage>> {
+    let poses = calibration_views(chain, board, n, seed);
+    let settings = ImageSimSettings {
+        seed,
+        ..ImageSimSettings::default()
+    };
+    poses
+        .par_iter()
+        .enumerate()
+        .map(|(k, t)| render_frame(board, chain, t, &settings, k as u64))
+        .collect()
+}
+
+/// The tags of rendered frames, detected in parallel; with `cams`, corners are refined with those
+/// camera models (the second pass of a camera calibration).
+pub fn detect_views(
+    images: &[Vec<image::GrayImage>],
+    board: &Board,
+    cams: Option<&Camchain>,
+) -> Vec<FrameTags> {
+    let detector = DetectorSettings {
+        family: board.family,
+        ..DetectorSettings::default()
+    };
+    images
+        .par_iter()
+        .enumerate()
+        .map_init(
+            || Detector::new(&detector).expect("detector"),
+            |det, (k, imgs)| FrameTags {
+                name: format!("view{k:03}"),
+                t_ns: k as i64 * 100_000_000,
+                dets: imgs
+                    .iter()
+                    .enumerate()
+                    .map(|(c, img)| det.detect_with_camera(img, cams.map(|ch| &ch.cams[c])))
+                    .collect(),
+            },
+        )
+        .collect()
+}
+
+/// A fisheye stereo pair like TUM-VI's (512x512, equidistant, about 190 px focal length, 10 cm
+/// baseline).
+pub fn fisheye_chain() -> Camchain {
+    use dvlcal::lie::{Se3, so3};
+    use dvlcal::vision::camera::{Camera, Distortion};
+    use nalgebra::Vector3;
+    let cam = |fu: f64, pu: f64, pv: f64, k: [f64; 4]| Camera {
+        fu,
+        fv: fu + 0.3,
+        pu,
+        pv,
+        distortion: Distortion::Equidistant {
+            k1: k[0],
+            k2: k[1],
+            k3: k[2],
+            k4: k[3],
+        },
+        width: 512,
+        height: 512,
+    };
+    Camchain {
+        cams: vec![
+            cam(
+                190.98,
+                254.93,
+                256.90,
+                [0.00348, 0.000716, -0.00205, 0.000203],
+            ),
+            cam(
+                190.44,
+                252.60,
+                254.92,
+                [0.00340, 0.001766, -0.00266, 0.000329],
+            ),
+        ],
+        t_cn_c0: vec![
+            Se3::identity(),
+            Se3::new(
+                so3::exp(&Vector3::new(0.004, -0.012, 0.002)),
+                Vector3::new(-0.1010, -0.0019, -0.0010),
+            ),
+        ],
+        topics: vec![None, None],
+    }
+}
