@@ -153,6 +153,8 @@ struct Normal {
     gt: DVector<f64>,
     /// Per frame (only frames with active corners): index, H_ff, H_tf, g_f.
     frames: Vec<FrameBlock>,
+    /// Per frame (same order): the frame's share of `gt`.
+    gt_frame: Vec<DVector<f64>>,
     cost: f64,
 }
 
@@ -166,6 +168,7 @@ fn build(state: &State, obs: &[CornerObs], active: &[bool]) -> Option<Normal> {
     let mut htt = DMatrix::zeros(c, c);
     let mut gt = DVector::zeros(c);
     let mut frames: Vec<FrameBlock> = Vec::new();
+    let mut gt_frame: Vec<DVector<f64>> = Vec::new();
     let mut cost = 0.0;
     for (o, _) in obs.iter().zip(active).filter(|(_, a)| **a) {
         let (r, j) = state.residual(o, true)?;
@@ -178,8 +181,10 @@ fn build(state: &State, obs: &[CornerObs], active: &[bool]) -> Option<Normal> {
                 DMatrix::zeros(c, 6),
                 Vector6::zeros(),
             ));
+            gt_frame.push(DVector::zeros(c));
         }
         let fr = frames.last_mut()?;
+        let fg = gt_frame.last_mut()?;
         // Local camera Jacobian: 8 intrinsic columns, then 6 extrinsic ones (cam n > 0).
         let ii = NI * o.cam;
         let ie = NI * cams + 6 * o.cam.saturating_sub(1);
@@ -199,6 +204,7 @@ fn build(state: &State, obs: &[CornerObs], active: &[bool]) -> Option<Normal> {
         let hlf = jl.transpose() * j.pose;
         for (a, &ia) in idx.iter().enumerate() {
             gt[ia] += gl[a];
+            fg[ia] += gl[a];
             for (b, &ib) in idx.iter().enumerate() {
                 htt[(ia, ib)] += hl[(a, b)];
             }
@@ -213,6 +219,7 @@ fn build(state: &State, obs: &[CornerObs], active: &[bool]) -> Option<Normal> {
         htt,
         gt,
         frames,
+        gt_frame,
         cost,
     })
 }
@@ -482,17 +489,30 @@ pub fn calibrate_cameras(
     }
     let sigma2 = n.cost / (m - unknowns) as f64;
     let (s, _, _) = schur(&n, 0.0);
-    let cov = s
-        .clone()
-        .cholesky()
-        .map(|c| c.inverse() * sigma2)
-        .ok_or_else(|| {
-            Error::Input(
-                "the views do not determine every camera parameter (the board was seen from too \
-                 few angles or distances)"
-                    .into(),
-            )
-        })?;
+    let s_inv = s.clone().cholesky().map(|c| c.inverse()).ok_or_else(|| {
+        Error::Input(
+            "the views do not determine every camera parameter (the board was seen from too few \
+             angles or distances)"
+                .into(),
+        )
+    })?;
+    // Two covariances of the camera unknowns: the model's, `sigma^2 S^-1` (corner errors
+    // independent), and the one clustered by frame, `F/(F-1) sum_f u_f u_f^T` with
+    // `u_f = S^-1 g_f` (the frame's share of the camera gradient; its pose's own gradient is zero
+    // at the solution), which holds whatever the errors' correlation within a frame (corner
+    // errors shared by a tag's corners, or by a whole view's blur and tilt). Each parameter's
+    // standard deviation is the larger of the two.
+    let model_cov = &s_inv * sigma2;
+    let nf = n.gt_frame.len() as f64;
+    let mut clustered = DMatrix::zeros(s_inv.nrows(), s_inv.ncols());
+    for g in &n.gt_frame {
+        let u = &s_inv * g;
+        clustered += &u * u.transpose();
+    }
+    if nf > 1.0 {
+        clustered *= nf / (nf - 1.0);
+    }
+    let cov = larger_variances(&model_cov, &clustered);
     let std = camera_std(&state, &cov);
     let chain = state.chain();
     // What comes back from the file must be what was found.
@@ -677,6 +697,22 @@ fn frame_fits(
             }
         })
         .collect()
+}
+
+/// The covariance whose every variance is the larger of the two, with the correlations of `a`
+/// (each row and column of `a` scaled by the ratio of the standard deviations).
+fn larger_variances(a: &DMatrix<f64>, b: &DMatrix<f64>) -> DMatrix<f64> {
+    let k: Vec<f64> = (0..a.nrows())
+        .map(|i| {
+            let (va, vb) = (a[(i, i)], b[(i, i)]);
+            if va > 0.0 && vb > va {
+                (vb / va).sqrt()
+            } else {
+                1.0
+            }
+        })
+        .collect();
+    DMatrix::from_fn(a.nrows(), a.ncols(), |i, j| a[(i, j)] * k[i] * k[j])
 }
 
 /// Standard deviations from the covariance of the camera unknowns.
