@@ -2,7 +2,8 @@
 //!
 //! A dataset folder holds the images (`cam0/`, `cam1/` in Kalibr's bag-creator layout, or
 //! EuRoC's `mav0/camN/`), a Kalibr camchain YAML, a board (target) YAML and a DVL log in any
-//! format the ingest reads. Instead of images it may hold a TUM pose file. Only the folder's
+//! format the ingest reads. The camchain may be missing: the pipeline then calibrates the
+//! cameras from the same images first. Instead of images it may hold a TUM pose file. Only the folder's
 //! own files are looked at, not its subfolders (a `truth/` folder beside the data is never
 //! mistaken for data).
 //!
@@ -25,7 +26,8 @@ pub struct DatasetFiles {
     pub root: PathBuf,
     /// The folder holding `cam0/` (or `mav0/`): the dataset folder itself.
     pub images: Option<PathBuf>,
-    /// The Kalibr camchain YAML.
+    /// The Kalibr camchain YAML; `None` with images: the cameras are to be calibrated from the
+    /// images themselves (see [`DatasetFiles::calibrates_cameras`]).
     pub camchain: Option<PathBuf>,
     /// The board (target) YAML.
     pub target: Option<PathBuf>,
@@ -45,6 +47,12 @@ impl DatasetFiles {
             .flatten()
             .cloned()
             .collect()
+    }
+
+    /// Whether the camera trajectory comes from images that have no camchain: the cameras must
+    /// then be calibrated from those images (and the board) before the poses are solved.
+    pub fn calibrates_cameras(&self) -> bool {
+        self.poses.is_none() && self.images.is_some() && self.camchain.is_none()
     }
 }
 
@@ -200,7 +208,8 @@ pub fn has_images(dir: &Path) -> bool {
 ///
 /// Errors: `dir` is not a folder; two files compete for one role (both named); images and a
 /// pose file are both present and neither was chosen; no camera data or no DVL log is found;
-/// images without a camchain or a board.
+/// images without a board. Images without a camchain are accepted (`camchain` is `None`): the
+/// cameras are then calibrated from the same images.
 pub fn discover(dir: &Path, given: &DatasetOverrides) -> Result<DatasetFiles> {
     if !dir.is_dir() {
         return Err(Error::Input(format!(
@@ -298,21 +307,11 @@ pub fn discover(dir: &Path, given: &DatasetOverrides) -> Result<DatasetFiles> {
             dir.display()
         )));
     }
-    if found.images.is_some() {
-        for (what, part) in [
-            (
-                "camera chain (Kalibr camchain YAML with a cam0 entry)",
-                &found.camchain,
-            ),
-            ("board (target YAML)", &found.target),
-        ] {
-            if part.is_none() {
-                return Err(Error::Input(format!(
-                    "{}: images but no {what}",
-                    dir.display()
-                )));
-            }
-        }
+    if found.images.is_some() && found.target.is_none() {
+        return Err(Error::Input(format!(
+            "{}: images but no board (target YAML)",
+            dir.display()
+        )));
     }
     if found.dvl.is_none() {
         return Err(Error::Input(format!(

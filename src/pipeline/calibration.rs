@@ -15,11 +15,13 @@ use crate::io::calib_yaml::{
     CalibrationFile, CalibrationInfo, CalibrationStd, Observability, ObservabilityFlags,
     ResultStatus, write_calib_yaml,
 };
+use crate::io::dataset::DatasetFiles;
 use crate::io::dvl::DvlLog;
 use crate::io::exports::{FrameNames, kalibr_dvl_block, ros_static_transform};
 use crate::io::write_atomic;
 use crate::report::{ReportInput, frame_stats, render_html};
 
+use super::cameras::{CameraCalRun, SEPARATE_CAMERA_RECORDING};
 use super::dataset::Dataset;
 
 /// A finished calibration of a dataset: the outcome, the result file made from it, and the wall
@@ -45,12 +47,46 @@ pub fn calibrate_dataset(
     let start = Instant::now();
     let outcome = workers.install(|| calibrate(&data.poses, &data.log.samples, opts))?;
     let elapsed_s = start.elapsed().as_secs_f64();
-    let file = result_file(&outcome, &data.log);
+    let mut file = result_file(&outcome, &data.log);
+    if let Some(cams) = &data.cameras {
+        note_cameras(&mut file, cams);
+    }
     Ok(CalibrationRun {
         outcome,
         file,
         elapsed_s,
     })
+}
+
+/// Records in the result file that the camchain was calibrated from the same images, and warns
+/// when that calibration is weak.
+fn note_cameras(file: &mut CalibrationFile, cams: &CameraCalRun) {
+    let info = file.info.get_or_insert_with(CalibrationInfo::default);
+    info.notes.push(format!(
+        "no camchain given: the cameras were calibrated from the same images ({}) first: {}",
+        cams.images.display(),
+        cams.one_line()
+    ));
+    info.extra.insert(
+        "camchain_source".into(),
+        "calibrated from the same images".into(),
+    );
+    if cams.is_weak() {
+        let w = &cams.result.warnings;
+        let more = match w.len() {
+            0 | 1 => String::new(),
+            n => format!(
+                "; and {} more warning{}",
+                n - 1,
+                if n == 2 { "" } else { "s" }
+            ),
+        };
+        info.warnings.push(format!(
+            "the camchain was calibrated from this recording and is weak ({}{more}): \
+             {SEPARATE_CAMERA_RECORDING}",
+            w.first().map_or("", String::as_str)
+        ));
+    }
 }
 
 fn flag(v: &Verdict) -> Observability {
@@ -332,6 +368,64 @@ pub fn write_results(
     })
 }
 
+/// Where `dvlcal calibrate` writes the cameras it calibrated from a dataset's images (a dataset
+/// without a camchain): `camchain.yaml` beside the result, and with a DVL report `R.html` the
+/// camera report `R-cameras.html` beside it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CameraOutputs {
+    /// The camchain YAML.
+    pub camchain: PathBuf,
+    /// The camera calibration report, when a DVL report is written.
+    pub report: Option<PathBuf>,
+}
+
+impl CameraOutputs {
+    /// The outputs for the result `out` and the DVL report `report`, when `files` have images
+    /// without a camchain (`None` otherwise). Errors, before anything is run, when one of them
+    /// would overwrite an input of the run or the result.
+    pub fn plan(
+        out: &Path,
+        report: Option<&Path>,
+        files: &DatasetFiles,
+    ) -> Result<Option<CameraOutputs>> {
+        if !files.calibrates_cameras() {
+            return Ok(None);
+        }
+        let camchain = out.with_file_name("camchain.yaml");
+        if camchain == out || crate::files::same_file(&camchain, out) {
+            return Err(Error::option(
+                "--out",
+                format!(
+                    "{}: the camchain calibrated from the images is written to {} beside the \
+                     result; name the result otherwise",
+                    out.display(),
+                    camchain.display()
+                ),
+            ));
+        }
+        let inputs = files.inputs();
+        let inputs = || inputs.iter().map(|p| p.as_path());
+        crate::files::refuse_input("--out", &camchain, inputs())?;
+        let report = report.map(|r| sibling(r, "cameras.html"));
+        if let Some(r) = &report {
+            crate::files::refuse_input("--report", r, inputs().chain([out, camchain.as_path()]))?;
+        }
+        Ok(Some(CameraOutputs { camchain, report }))
+    }
+
+    /// Writes the camchain and the report (with `command`, the command line) of `cams`; returns
+    /// the paths written, for the user.
+    pub fn write(&self, cams: &CameraCalRun, command: Option<String>) -> Result<Vec<String>> {
+        cams.write_camchain(&self.camchain)?;
+        let mut written = vec![self.camchain.display().to_string()];
+        if let Some(r) = &self.report {
+            cams.write_report(r, &self.camchain, command)?;
+            written.push(r.display().to_string());
+        }
+        Ok(written)
+    }
+}
+
 /// Renders the HTML report of a run and writes it atomically to `path`. `result` is the result
 /// YAML already written (its text is shown in the report when it can be read).
 pub fn write_report(
@@ -350,11 +444,22 @@ pub fn write_report(
         .vision
         .as_ref()
         .map(|v| frame_stats(&v.results, &v.epoch));
-    let dataset = format!(
+    let mut dataset = format!(
         "camera poses: {}; DVL log: {}",
         data.camera_source.display(),
         data.log.stats.path.display()
     );
+    if let Some(cams) = &data.cameras {
+        dataset.push_str(&format!(
+            "; camchain: calibrated from the same images ({}){}",
+            cams.one_line(),
+            if cams.is_weak() {
+                ", weak: see the warnings in the result file"
+            } else {
+                ""
+            }
+        ));
+    }
     // The result file was just written; a report without it is still useful.
     let yaml = std::fs::read_to_string(result).ok();
     let name = result.display().to_string();

@@ -23,6 +23,12 @@ use crate::vision::images::{ScanStats, StereoFrame, camera_count, scan_images};
 
 use super::vision::VisionOptions;
 
+/// What to do when a camera calibration made from a DVL recording is weak: a recording made for
+/// the DVL rotates less than one made for the cameras.
+pub const SEPARATE_CAMERA_RECORDING: &str = "record the board for the cameras separately (moved \
+     over the whole image and tilted up to 45 degrees), calibrate it with `dvlcal \
+     calibrate-cameras`, and pass the camchain with --camchain";
+
 /// Settings of [`calibrate_cameras_from_images`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct CameraCalOptions {
@@ -349,6 +355,24 @@ impl CameraCalRun {
     /// the better source of the camchain.
     pub fn is_weak(&self) -> bool {
         !self.result.warnings.is_empty()
+    }
+
+    /// One line on the fit, for a result that used this chain: model, cameras, reprojection
+    /// RMS, frames used and detection passes.
+    pub fn one_line(&self) -> String {
+        let r = &self.result;
+        format!(
+            "{} model, {} camera{}, reprojection RMS {:.3} px, {} of {} frames used, {} detection \
+             pass{}",
+            r.model.name(),
+            r.chain.cams.len(),
+            if r.chain.cams.len() == 1 { "" } else { "s" },
+            r.rms_px,
+            r.frames.iter().filter(|f| f.dropped.is_none()).count(),
+            r.frames.len(),
+            self.passes,
+            if self.passes == 1 { "" } else { "es" }
+        )
     }
 
     /// Writes the camchain to `path` (its folder is created).

@@ -9,10 +9,13 @@ use crate::io::dvl::{DvlLog, DvlReadOptions, read_dvl_log};
 use crate::io::tum::read_tum;
 use crate::types::PoseMeasurement;
 
-use super::vision::{VisionOptions, VisionRun, poses_from_images};
+use super::cameras::{CameraCalOptions, CameraCalRun, calibrate_cameras_from_images};
+use super::vision::{VisionOptions, VisionRun, poses_from_images, poses_from_images_with_chain};
 
 /// The files of a dataset: found in `dir` with `given` taking precedence, or, without a folder,
-/// exactly the files `given` names (a DVL log, and poses or images with a camchain and a target).
+/// exactly the files `given` names (a DVL log, and poses or images with a target and, optionally,
+/// a camchain: without one the cameras are calibrated from the images when the dataset is
+/// loaded).
 pub fn dataset_files(dir: Option<&Path>, given: &DatasetOverrides) -> Result<DatasetFiles> {
     if let Some(d) = dir {
         return discover(d, given);
@@ -25,15 +28,17 @@ pub fn dataset_files(dir: Option<&Path>, given: &DatasetOverrides) -> Result<Dat
     match (&given.poses, &given.images) {
         (Some(_), _) => {}
         (None, Some(_)) => {
-            if given.camchain.is_none() || given.target.is_none() {
+            if given.target.is_none() {
                 return Err(Error::Input(
-                    "--images needs --camchain FILE and --target FILE".into(),
+                    "--images needs --target FILE (and --camchain FILE, or the cameras are \
+                     calibrated from the same images)"
+                        .into(),
                 ));
             }
         }
         (None, None) => {
             return Err(Error::Input(
-                "give --poses FILE, or --images DIR --camchain FILE --target FILE".into(),
+                "give --poses FILE, or --images DIR --target FILE [--camchain FILE]".into(),
             ));
         }
     }
@@ -78,6 +83,9 @@ pub struct Dataset {
     pub poses: Vec<PoseMeasurement>,
     /// The image pipeline's run, when the poses come from images.
     pub vision: Option<VisionRun>,
+    /// The camera calibration run from the same images, when the dataset had images but no
+    /// camchain (its chain is the one the poses were solved with).
+    pub cameras: Option<CameraCalRun>,
     /// The DVL log, read on the poses' epoch.
     pub log: DvlLog,
     /// The DVL log's file.
@@ -89,23 +97,61 @@ pub struct Dataset {
 impl Dataset {
     /// Reads the camera trajectory (running the image pipeline on images) and the DVL log on
     /// its epoch. `on_vision` sees the image run as soon as detection ends, also when no frame
-    /// got a pose (the error follows).
+    /// got a pose (the error follows). Images without a camchain are calibrated first, with
+    /// the default camera model (see [`Dataset::load_observed`]).
     pub fn load(
         files: DatasetFiles,
         vision: &VisionOptions,
         read: &DvlReadOptions,
         on_vision: &mut dyn FnMut(&VisionRun),
     ) -> Result<Dataset> {
+        Self::load_observed(files, vision, read, &mut |_| {}, on_vision)
+    }
+
+    /// [`Dataset::load`], with `on_cameras` seeing the camera calibration as soon as it ends
+    /// when the files have images but no camchain ([`DatasetFiles::calibrates_cameras`]). The
+    /// cameras are then calibrated from the same images and board with
+    /// [`calibrate_cameras_from_images`] (threads, decimation, pairing tolerance and progress
+    /// bar from `vision`; the default camera model, two detection passes), and the poses are
+    /// solved with the fitted chain. A camera calibration that fails is an error; one with
+    /// warnings ([`CameraCalRun::is_weak`]) is used, and kept in [`Dataset::cameras`] for the
+    /// caller to report.
+    pub fn load_observed(
+        files: DatasetFiles,
+        vision: &VisionOptions,
+        read: &DvlReadOptions,
+        on_cameras: &mut dyn FnMut(&CameraCalRun),
+        on_vision: &mut dyn FnMut(&VisionRun),
+    ) -> Result<Dataset> {
+        let mut cameras = None;
         let (epoch, poses, run, camera_source) = match (&files.poses, &files.images) {
             (Some(p), _) => {
                 let tum = read_tum(p, None)?;
                 (tum.epoch, tum.poses, None, p.clone())
             }
             (None, Some(dir)) => {
-                let (Some(chain), Some(target)) = (&files.camchain, &files.target) else {
-                    return Err(Error::dataset(dir, "images need a camchain and a target"));
+                let Some(target) = &files.target else {
+                    return Err(Error::dataset(dir, "images need a target (board YAML)"));
                 };
-                let run = poses_from_images(dir, chain, target, vision)?;
+                let run = match &files.camchain {
+                    Some(chain) => poses_from_images(dir, chain, target, vision)?,
+                    None => {
+                        let opts = CameraCalOptions {
+                            vision: vision.clone(),
+                            ..CameraCalOptions::default()
+                        };
+                        let cal =
+                            calibrate_cameras_from_images(dir, target, &opts).map_err(|e| {
+                                e.during(
+                                    "no camchain: calibrating the cameras from the same images",
+                                )
+                            })?;
+                        on_cameras(&cal);
+                        let chain = cal.chain().clone();
+                        cameras = Some(cal);
+                        poses_from_images_with_chain(dir, chain, target, vision)?
+                    }
+                };
                 on_vision(&run);
                 run.require_poses()?;
                 (run.epoch, run.poses.clone(), Some(run), dir.clone())
@@ -124,6 +170,7 @@ impl Dataset {
             files,
             poses,
             vision: run,
+            cameras,
             log,
             dvl_path,
             camera_source,

@@ -7,6 +7,8 @@
 //! 1. [`dataset_files`] finds the parts of a dataset folder (or takes them one by one), and
 //!    [`Dataset::load`] reads them: camera poses from a pose file or from images
 //!    ([`poses_from_images`]: detection and stereo PnP), and the DVL log on the same epoch.
+//!    Images without a camchain are first calibrated with [`calibrate_cameras_from_images`]
+//!    (the run is kept in [`Dataset::cameras`]).
 //! 2. [`calibrate_dataset`] runs the estimator ([`crate::calib::calibrate`]) and builds the
 //!    result file; [`write_results`] and [`write_report`] write it, its exports and the report.
 //! 3. [`odometry_table`] and [`cross_validate`] check calibrations on data.
@@ -24,10 +26,12 @@ mod simulate;
 mod vision;
 
 pub use calibration::{
-    CalibrationRun, ResultPaths, calibrate_dataset, method_name, result_file, sibling,
-    write_report, write_results,
+    CalibrationRun, CameraOutputs, ResultPaths, calibrate_dataset, method_name, result_file,
+    sibling, write_report, write_results,
 };
-pub use cameras::{CameraCalOptions, CameraCalRun, calibrate_cameras_from_images};
+pub use cameras::{
+    CameraCalOptions, CameraCalRun, SEPARATE_CAMERA_RECORDING, calibrate_cameras_from_images,
+};
 pub use dataset::{Dataset, dataset_files, describe_files};
 pub use evaluate::{
     Baseline, CrossValidation, baselines, cross_validate, odometry_check, odometry_table,
@@ -35,7 +39,7 @@ pub use evaluate::{
 pub use simulate::{ImageRequest, SimulateRequest, SimulatedRecording, write_simulated_dataset};
 pub use vision::{
     MAX_REPROJECTION_RMS_PX, VisionOptions, VisionRun, frames_csv_path, posed_frames,
-    poses_from_images,
+    poses_from_images, poses_from_images_with_chain,
 };
 
 pub use crate::parallel::worker_pool;

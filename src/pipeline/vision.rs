@@ -106,6 +106,18 @@ pub fn poses_from_images(
 ) -> Result<VisionRun> {
     opts.validate()?;
     let chain = Camchain::load(camchain)?;
+    poses_from_images_with_chain(images, chain, target, opts)
+}
+
+/// [`poses_from_images`] with the camera chain given as a value (one fitted in the same run, for
+/// example by [`super::calibrate_cameras_from_images`]) instead of a file.
+pub fn poses_from_images_with_chain(
+    images: &Path,
+    chain: Camchain,
+    target: &Path,
+    opts: &VisionOptions,
+) -> Result<VisionRun> {
+    opts.validate()?;
     let board = Board::load(target)?;
     let tol_ns = (opts.pair_tolerance_ms * 1e6).round() as i64;
     let (frames, scan) = scan_images(images, chain.cams.len(), tol_ns)?;

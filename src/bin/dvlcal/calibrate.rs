@@ -4,14 +4,16 @@ use anyhow::{Context, Result, bail};
 use clap::ValueEnum;
 use std::path::PathBuf;
 
-use crate::dataset::{DatasetArgs, load};
+use crate::dataset::{DatasetArgs, find, read_files};
 use crate::dvl_info::DvlInputArgs;
 
 use dvlcal::calib::prior::{LeverArmPrior, Priors, RotationPrior};
 use dvlcal::calib::robust::Loss;
 use dvlcal::calib::{CalibOptions, Method, Status};
 use dvlcal::io::calib_yaml::{read_calibration_guess, rotation_from_rpy_deg};
-use dvlcal::pipeline::{calibrate_dataset, write_report, write_results};
+use dvlcal::pipeline::{
+    CameraOutputs, SEPARATE_CAMERA_RECORDING, calibrate_dataset, write_report, write_results,
+};
 use dvlcal::types::CalibrationParams;
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -118,6 +120,8 @@ impl EstimatorArgs {
 pub struct CalibrateArgs {
     /// Dataset folder: cam0/ (+ cam1/) images or a TUM pose file, a Kalibr camchain YAML, a
     /// board YAML and a DVL log, recognised by their content. Options below override parts.
+    /// Without a camchain the cameras are calibrated from the same images first (written as
+    /// camchain.yaml beside --out, and with --report R.html a camera report R-cameras.html).
     #[arg(value_name = "DATASET_DIR")]
     pub dataset: Option<PathBuf>,
     #[command(flatten)]
@@ -213,12 +217,28 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
     {
         bail!("--dvl-sound-speed must be between 1000 and 2000 m/s, got {c}");
     }
-    let mut data = load(
-        a.dataset.as_deref(),
-        &a.files,
+    let files = find(a.dataset.as_deref(), &a.files)?;
+    // Without a camchain the cameras are calibrated first; where their camchain (and report)
+    // will go is checked before the long run.
+    let cameras_out = CameraOutputs::plan(&a.out, a.report.as_deref(), &files)?;
+    let mut data = read_files(
+        files,
         &a.vision.options(),
         &a.dvl_input.read_options(a.strict),
     )?;
+    if let (Some(cams), Some(to)) = (&data.cameras, &cameras_out) {
+        let command = std::env::args().collect::<Vec<_>>().join(" ");
+        for p in to.write(cams, Some(command))? {
+            println!("wrote {p} (cameras calibrated from the same images)");
+        }
+        if cams.is_weak() {
+            eprintln!(
+                "warning: the camera calibration from this recording is weak (see its warnings \
+                 above). A recording made for the DVL rotates less than one made for the cameras: \
+                 {SEPARATE_CAMERA_RECORDING}."
+            );
+        }
+    }
     let st = &mut data.log.stats;
     if let (None, Some(c)) = (st.sound_speed_mps, a.dvl_sound_speed) {
         st.sound_speed_mps = Some(c);

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Result;
 use clap::Args;
 
-use dvlcal::io::dataset::DatasetOverrides;
+use dvlcal::io::dataset::{DatasetFiles, DatasetOverrides};
 use dvlcal::io::dvl::DvlReadOptions;
 use dvlcal::pipeline::{Dataset, VisionOptions, VisionRun, dataset_files, describe_files};
 
@@ -16,10 +16,11 @@ pub struct DatasetArgs {
     #[arg(long, conflicts_with = "images")]
     pub poses: Option<PathBuf>,
     /// Image folder (DIR/cam0, DIR/cam1 or EuRoC's DIR/mav0/camN): poses and their covariances
-    /// come from `dvlcal detect`'s pipeline (needs a camchain and a target).
+    /// come from `dvlcal detect`'s pipeline (needs a target; without a camchain the cameras are
+    /// calibrated from the same images first).
     #[arg(long, value_name = "DIR")]
     pub images: Option<PathBuf>,
-    /// Kalibr camchain YAML, with images.
+    /// Kalibr camchain YAML, with images (default: calibrate the cameras from the images).
     #[arg(long, value_name = "FILE")]
     pub camchain: Option<PathBuf>,
     /// Board YAML (dvlcal grid or list, or a Kalibr aprilgrid), with images.
@@ -50,11 +51,35 @@ pub fn load(
     vision: &VisionOptions,
     read: &DvlReadOptions,
 ) -> Result<Dataset> {
+    read_files(find(dir, args)?, vision, read)
+}
+
+/// Finds a dataset's files, printing what was found (for a folder).
+pub fn find(dir: Option<&Path>, args: &DatasetArgs) -> Result<DatasetFiles> {
     let files = dataset_files(dir, &args.overrides())?;
     if dir.is_some() {
         print!("{}", describe_files(&files));
     }
-    let data = Dataset::load(files, vision, read, &mut print_vision)?;
+    Ok(files)
+}
+
+/// Reads the dataset `files` name, printing the camera calibration (images without a
+/// camchain), the image pipeline's summary and warnings, and the DVL log's skipped lines.
+pub fn read_files(
+    files: DatasetFiles,
+    vision: &VisionOptions,
+    read: &DvlReadOptions,
+) -> Result<Dataset> {
+    if files.calibrates_cameras() {
+        println!("no camchain: calibrating the cameras from the same images first");
+    }
+    let data = Dataset::load_observed(
+        files,
+        vision,
+        read,
+        &mut |c| print!("{}", c.summary()),
+        &mut print_vision,
+    )?;
     let st = &data.log.stats;
     if st.rejected_lines > 0 {
         eprintln!(
