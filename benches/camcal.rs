@@ -116,7 +116,7 @@ fn main() {
             ray: r,
             baseline_mm: b,
             trans_mm: t,
-            focal_z,
+            z,
             detect_s,
             fit_s,
         });

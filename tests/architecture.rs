@@ -368,6 +368,7 @@ fn the_program_is_thin_and_uses_the_public_interface() {
         }
     }
     // The program parses arguments, calls the pipeline and prints: it was 2368 lines when it
-    // still did the library's work. A new command adds its argument struct, not an estimator.
-    assert!(lines < 1400, "src/bin/dvlcal has {lines} lines");
+    // still did the library's work. A new command adds its argument struct, not an estimator:
+    // about 100 lines per command (14 commands, `calibrate-cameras` the latest).
+    assert!(lines < 1600, "src/bin/dvlcal has {lines} lines");
 }
