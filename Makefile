@@ -26,14 +26,19 @@ build: deps
 
 # Calibrates the rendered stereo dataset shipped in sample_data (images -> AprilTag detection ->
 # stereo PnP -> GP trajectory -> UIC), writes the YAML, the exports and the HTML report, then
-# compares the result with the simulation's truth.
+# compares the result with the simulation's truth; then the same for a Kalibr-printed board.
 demo: build
 	mkdir -p $(OUT)
 	./target/release/dvlcal calibrate sample_data/stereo --out $(OUT)/calibration.yaml \
 		--report $(OUT)/calibration.html
 	./target/release/dvlcal compare-calib --estimate $(OUT)/calibration.yaml \
 		--truth sample_data/stereo/truth/calibration.yaml
-	@echo "open $(OUT)/calibration.html in a browser"
+	# The same with a board printed by Kalibr (two-bit borders, corner squares).
+	./target/release/dvlcal calibrate sample_data/stereo_kalibr --out $(OUT)/kalibr/calibration.yaml \
+		--report $(OUT)/kalibr/calibration.html
+	./target/release/dvlcal compare-calib --estimate $(OUT)/kalibr/calibration.yaml \
+		--truth sample_data/stereo_kalibr/truth/calibration.yaml
+	@echo "open $(OUT)/calibration.html (and $(OUT)/kalibr/calibration.html) in a browser"
 
 # Property tests draw from a fixed seed so that a CI run can be reproduced exactly; set
 # PROPTEST_RNG_SEED=<another number> (or plain `cargo test`, which draws a random seed) to

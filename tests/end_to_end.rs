@@ -12,12 +12,18 @@ use dvlcal::eval::calibration_error;
 use dvlcal::io::calib_yaml::read_calib_yaml;
 
 const STEREO: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/sample_data/stereo");
+/// The same kind of recording with a board printed the way Kalibr prints it.
+const STEREO_KALIBR: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/sample_data/stereo_kalibr");
 
 fn calibrate(out: &Path, threads: &str) -> String {
+    calibrate_dir(STEREO, out, threads)
+}
+
+fn calibrate_dir(dir: &str, out: &Path, threads: &str) -> String {
     let r = Command::new(env!("CARGO_BIN_EXE_dvlcal"))
         .args([
             "calibrate",
-            STEREO,
+            dir,
             "--out",
             out.to_str().unwrap(),
             "--threads",
@@ -49,8 +55,23 @@ fn rendered_dataset_calibrates_within_its_uncertainty_and_identically_on_any_thr
     let b = std::fs::read_to_string(&two).unwrap();
     assert_eq!(a, b, "results differ between 1 and 2 threads");
 
-    let est_file = read_calib_yaml(&two).unwrap();
-    let truth_file = Path::new(STEREO).join("truth").join("calibration.yaml");
+    within_uncertainty(STEREO, &two);
+}
+
+#[test]
+fn kalibr_printed_board_calibrates_within_its_uncertainty() {
+    let tmp = TmpDir::new("e2e-stereo-kalibr");
+    let out = tmp.0.join("calibration.yaml");
+    let stdout = calibrate_dir(STEREO_KALIBR, &out, "2");
+    assert!(stdout.contains("201 of 201 frames"), "{stdout}");
+    within_uncertainty(STEREO_KALIBR, &out);
+}
+
+/// Every parameter of the result within 3.5 of its standard deviations of the dataset's truth,
+/// and every parameter observable.
+fn within_uncertainty(dir: &str, result: &Path) {
+    let est_file = read_calib_yaml(result).unwrap();
+    let truth_file = Path::new(dir).join("truth").join("calibration.yaml");
     let truth = read_calib_yaml(&truth_file).unwrap().to_params().unwrap();
     let ce = calibration_error(&est_file, &truth).unwrap();
     let d = ce.error;
