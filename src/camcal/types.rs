@@ -63,7 +63,7 @@ pub struct FrameTags {
     pub dets: Vec<Vec<TagDetection>>,
 }
 
-/// Settings of [`calibrate_cameras`].
+/// Settings of [`calibrate_cameras`](crate::camcal::calibrate_cameras).
 #[derive(Clone, Debug, PartialEq)]
 pub struct CamCalOptions {
     /// The camera model every camera is fitted with.
