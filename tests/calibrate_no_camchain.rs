@@ -4,13 +4,12 @@
 //! the simulation's truth.
 
 mod tmp_common;
+mod truth_common;
 use tmp_common::TmpDir;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use dvlcal::eval::calibration_error;
-use dvlcal::io::calib_yaml::read_calib_yaml;
 use dvlcal::io::dataset::{DatasetOverrides, discover};
 use dvlcal::pipeline::dataset_files;
 use dvlcal::vision::camera::Camchain;
@@ -134,30 +133,9 @@ fn calibrate_without_camchain_calibrates_the_cameras_first_and_stays_near_the_tr
     // velocity scale and the lever arm along the optical axis move by a few of their standard
     // deviations. The bounds are the end-to-end test's 3.5 sigma, widened to 6 sigma for that
     // bias.
-    let est_file = read_calib_yaml(&result).unwrap();
-    let truth_file = Path::new(STEREO).join("truth").join("calibration.yaml");
-    let truth = read_calib_yaml(&truth_file).unwrap().to_params().unwrap();
-    let ce = calibration_error(&est_file, &truth).unwrap();
-    let d = ce.error;
-    let std = ce.std.expect("std in the result");
-    let names = [
-        "rot x", "rot y", "rot z", "lever x", "lever y", "lever z", "scale", "offset",
-    ];
-    let mut table = String::new();
-    for k in 0..8 {
-        table.push_str(&format!(
-            "{}: err {:.3e} std {:.3e} z {:+.2}\n",
-            names[k],
-            d[k],
-            std[k],
-            d[k] / std[k]
-        ));
-    }
-    eprintln!("{table}");
-    for k in 0..8 {
-        assert!(std[k] > 0.0 && std[k].is_finite(), "{table}");
-        assert!((d[k] / std[k]).abs() < 6.0, "{}:\n{table}", names[k]);
-    }
+    let a = truth_common::against_truth(Path::new(STEREO), &result);
+    truth_common::assert_within(&a, 6.0);
+    let (d, table) = (a.err, a.table);
     // And in absolute terms: rotation within 0.5 deg, lever arm within 1.5 cm, scale within
     // 1 %, clock offset within 3 ms.
     for k in 0..3 {

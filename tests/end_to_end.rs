@@ -3,13 +3,11 @@
 //! same digits whatever the number of threads.
 
 mod tmp_common;
+mod truth_common;
 use tmp_common::TmpDir;
 
 use std::path::Path;
 use std::process::Command;
-
-use dvlcal::eval::calibration_error;
-use dvlcal::io::calib_yaml::read_calib_yaml;
 
 const STEREO: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/sample_data/stereo");
 /// The same kind of recording with a board printed the way Kalibr prints it.
@@ -70,32 +68,11 @@ fn kalibr_printed_board_calibrates_within_its_uncertainty() {
 /// Every parameter of the result within 3.5 of its standard deviations of the dataset's truth,
 /// and every parameter observable.
 fn within_uncertainty(dir: &str, result: &Path) {
-    let est_file = read_calib_yaml(result).unwrap();
-    let truth_file = Path::new(dir).join("truth").join("calibration.yaml");
-    let truth = read_calib_yaml(&truth_file).unwrap().to_params().unwrap();
-    let ce = calibration_error(&est_file, &truth).unwrap();
-    let d = ce.error;
-    let std = ce.std.expect("std in the result");
-    let names = [
-        "rot x", "rot y", "rot z", "lever x", "lever y", "lever z", "scale", "offset",
-    ];
-    let mut report = String::new();
-    for k in 0..8 {
-        report.push_str(&format!(
-            "{}: err {:.3e} std {:.3e} z {:+.2}\n",
-            names[k],
-            d[k],
-            std[k],
-            d[k] / std[k]
-        ));
-    }
-    eprintln!("{report}");
+    let a = truth_common::against_truth(Path::new(dir), result);
     // One dataset: each error within 3.5 standard deviations (eight parameters, so a 3.5 sigma
     // bound keeps the chance of a false alarm for a consistent estimator below 0.4 %).
-    for k in 0..8 {
-        assert!(std[k] > 0.0 && std[k].is_finite(), "{report}");
-        assert!((d[k] / std[k]).abs() < 3.5, "{}:\n{report}", names[k]);
-    }
+    truth_common::assert_within(&a, 3.5);
+    let est_file = a.file;
     // And useful: the motion of the sample rotates, so every parameter is observable.
     let obs = est_file.observability.expect("observability");
     let text = serde_yaml::to_string(&obs).unwrap();

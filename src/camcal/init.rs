@@ -17,6 +17,7 @@ use opencv::prelude::*;
 use crate::camcal::types::{CameraModel, CornerObs};
 use crate::lie::{Se3, so3};
 use crate::vision::camera::{Camchain, Camera, Distortion};
+use crate::vision::pnp::mat3;
 use crate::{Error, Result};
 
 /// Views per camera given to OpenCV's calibrateCamera.
@@ -236,23 +237,11 @@ fn calibrate_one(
         .unwrap_or(false);
         // A view whose pose cannot be found starts without one (its frame may still get one
         // from another camera).
-        if let (true, Some(r), Some(t)) = (solved, vec3(&r), vec3(&t)) {
+        if let (true, Some(r), Some(t)) = (solved, mat3(&r), mat3(&t)) {
             poses.insert(*f, Se3::new(so3::exp(&r), t));
         }
     }
     Ok((camera, rms, poses))
-}
-
-/// A 3-vector from a 3x1 or 1x3 CV_64F matrix.
-fn vec3(m: &Mat) -> Option<Vector3<f64>> {
-    if m.total() != 3 {
-        return None;
-    }
-    let mut v = Vector3::zeros();
-    for i in 0..3 {
-        v[i] = *m.at::<f64>(i as i32).ok()?;
-    }
-    v.iter().all(|x| x.is_finite()).then_some(v)
 }
 
 /// The equidistant coefficients whose radial curve best matches a radtan one out to the

@@ -434,8 +434,8 @@ fn initial_pose(chain: &Camchain, cam: usize, obs: &[Obs]) -> Option<Se3> {
     None
 }
 
-/// A 3-vector from a 3x1 or 1x3 CV_64F matrix.
-fn mat3(m: &Mat) -> Option<Vector3<f64>> {
+/// A 3-vector from a 3x1 or 1x3 CV_64F matrix (`None` unless all three are finite).
+pub(crate) fn mat3(m: &Mat) -> Option<Vector3<f64>> {
     if m.total() != 3 {
         return None;
     }

@@ -244,7 +244,7 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
         st.sound_speed_mps = Some(c);
         st.sound_speed_source = Some("--dvl-sound-speed".into());
     }
-    let run = calibrate_dataset(&data, &opts, a.vision.threads).with_context(|| {
+    let run = calibrate_dataset(&data, &opts, a.vision.detect.threads).with_context(|| {
         format!(
             "calibrating {} against {}",
             data.dvl_path.display(),

@@ -9,7 +9,7 @@ use clap::Args;
 use dvlcal::camcal::{CamCalOptions, CameraModel};
 use dvlcal::pipeline::{CameraCalOptions, calibrate_cameras_from_images};
 
-use dvlcal::pipeline::VisionOptions;
+use crate::detect::DetectTuning;
 
 #[derive(Args, Debug)]
 pub struct CalibrateCamerasArgs {
@@ -32,18 +32,8 @@ pub struct CalibrateCamerasArgs {
     /// One detection pass only (corners fitted in the distorted image; faster, less accurate).
     #[arg(long)]
     pub single_pass: bool,
-    /// Worker threads (one image pair per thread at a time; default: all cores).
-    #[arg(long, value_name = "N")]
-    pub threads: Option<usize>,
-    /// Decimation of the image for quad detection (corners are refined at full resolution).
-    #[arg(long, value_name = "X", default_value_t = 2.0)]
-    pub decimate: f32,
-    /// Largest time difference between paired cam0 / cam1 images, milliseconds.
-    #[arg(long, value_name = "MS", default_value_t = 2.0)]
-    pub pair_tolerance_ms: f64,
-    /// No progress bar (it is shown only when stderr is a terminal anyway).
-    #[arg(long)]
-    pub no_progress: bool,
+    #[command(flatten)]
+    pub tuning: DetectTuning,
 }
 
 pub fn run(a: CalibrateCamerasArgs) -> Result<()> {
@@ -55,13 +45,7 @@ pub fn run(a: CalibrateCamerasArgs) -> Result<()> {
         dvlcal::files::refuse_input("--report", r, [a.target.as_path(), a.out.as_path()])?;
     }
     let opts = CameraCalOptions {
-        vision: VisionOptions {
-            threads: a.threads,
-            decimate: a.decimate,
-            pair_tolerance_ms: a.pair_tolerance_ms,
-            progress: !a.no_progress,
-            ..VisionOptions::default()
-        },
+        vision: a.tuning.options(),
         camcal: CamCalOptions {
             model,
             ..CamCalOptions::default()

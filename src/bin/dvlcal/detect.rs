@@ -10,9 +10,9 @@ use dvlcal::io::tum::write_tum;
 use dvlcal::io::write_atomic;
 use dvlcal::pipeline::{VisionOptions, frames_csv_path, poses_from_images};
 
-/// Detection and PnP settings shared by `detect` and `calibrate --images`.
+/// Detection settings shared by every command that reads images.
 #[derive(Args, Debug, Clone)]
-pub struct VisionTuning {
+pub struct DetectTuning {
     /// Worker threads (one image pair per thread at a time; default: all cores).
     #[arg(long, value_name = "N")]
     pub threads: Option<usize>,
@@ -22,6 +22,29 @@ pub struct VisionTuning {
     /// Largest time difference between paired cam0 / cam1 images, milliseconds.
     #[arg(long, value_name = "MS", default_value_t = 2.0)]
     pub pair_tolerance_ms: f64,
+    /// No progress bar (it is shown only when stderr is a terminal anyway).
+    #[arg(long)]
+    pub no_progress: bool,
+}
+
+impl DetectTuning {
+    /// The library's options for these arguments (the pose settings at their defaults).
+    pub fn options(&self) -> VisionOptions {
+        VisionOptions {
+            threads: self.threads,
+            decimate: self.decimate,
+            pair_tolerance_ms: self.pair_tolerance_ms,
+            progress: !self.no_progress,
+            ..VisionOptions::default()
+        }
+    }
+}
+
+/// Detection and PnP settings shared by `detect` and `calibrate --images`.
+#[derive(Args, Debug, Clone)]
+pub struct VisionTuning {
+    #[command(flatten)]
+    pub detect: DetectTuning,
     /// Frames with fewer board corners (all cameras) get no pose.
     #[arg(long, value_name = "N", default_value_t = 8)]
     pub min_corners: usize,
@@ -29,21 +52,15 @@ pub struct VisionTuning {
     /// residuals).
     #[arg(long, value_name = "PX")]
     pub pixel_sigma: Option<f64>,
-    /// No progress bar (it is shown only when stderr is a terminal anyway).
-    #[arg(long)]
-    pub no_progress: bool,
 }
 
 impl VisionTuning {
     /// The library's options for these arguments.
     pub fn options(&self) -> VisionOptions {
         VisionOptions {
-            threads: self.threads,
-            decimate: self.decimate,
-            pair_tolerance_ms: self.pair_tolerance_ms,
             min_corners: self.min_corners,
             pixel_sigma: self.pixel_sigma,
-            progress: !self.no_progress,
+            ..self.detect.options()
         }
     }
 }

@@ -83,7 +83,7 @@ pub fn run(a: EvaluateArgs) -> Result<()> {
             baselines(guess),
             &base,
             &odo,
-            a.vision.threads,
+            a.vision.detect.threads,
             &mut |line| eprintln!("{line}"),
         )?;
         report.push_str(&cv.markdown());
