@@ -138,12 +138,11 @@ fn calibrate_without_camchain_calibrates_the_cameras_first_and_stays_near_the_tr
     let (d, table) = (a.err, a.table);
     // And in absolute terms: rotation within 0.5 deg, lever arm within 1.5 cm, scale within
     // 1 %, clock offset within 3 ms.
-    for k in 0..3 {
-        assert!(d[k].abs() < 0.5f64.to_radians(), "{table}");
-    }
-    for k in 3..6 {
-        assert!(d[k].abs() < 0.015, "{table}");
-    }
+    assert!(
+        d[..3].iter().all(|e| e.abs() < 0.5f64.to_radians()),
+        "{table}"
+    );
+    assert!(d[3..6].iter().all(|e| e.abs() < 0.015), "{table}");
     assert!(d[6].abs() < 0.01, "{table}");
     assert!(d[7].abs() < 0.003, "{table}");
 }

@@ -52,13 +52,8 @@ pub fn against_truth(dataset: &Path, result: &Path) -> AgainstTruth {
 
 /// Every error within `z` of its standard deviations (and every deviation positive and finite).
 pub fn assert_within(a: &AgainstTruth, z: f64) {
-    for k in 0..8 {
-        assert!(a.std[k] > 0.0 && a.std[k].is_finite(), "{}", a.table);
-        assert!(
-            (a.err[k] / a.std[k]).abs() < z,
-            "{}:\n{}",
-            NAMES[k],
-            a.table
-        );
+    for ((name, e), s) in NAMES.iter().zip(&a.err).zip(&a.std) {
+        assert!(*s > 0.0 && s.is_finite(), "{}", a.table);
+        assert!((e / s).abs() < z, "{name}:\n{}", a.table);
     }
 }
