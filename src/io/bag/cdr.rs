@@ -884,19 +884,40 @@ mod tests {
 
     #[test]
     fn alignment_and_big_endian() {
-        // u8 at 0, pad to 4, u32 at 4, pad to 8, f64 at 8 (payload offsets).
-        let mut le = vec![0, 1, 0, 0, 7, 0, 0, 0, 5, 0, 0, 0, 0, 0, 0, 0];
-        le.extend_from_slice(&2.5f64.to_le_bytes());
-        let mut r = CdrReader::new(&le).unwrap();
-        assert_eq!(r.u8("a").unwrap(), 7);
-        assert_eq!(r.u32("b").unwrap(), 5);
-        assert_eq!(r.f64("c").unwrap(), 2.5);
-        let mut be = vec![0, 0, 0, 0, 7, 0, 0, 0, 0, 0, 0, 5, 0, 0, 0, 0];
-        be.extend_from_slice(&2.5f64.to_be_bytes());
-        let mut r = CdrReader::new(&be).unwrap();
-        assert_eq!(r.u8("a").unwrap(), 7);
-        assert_eq!(r.u32("b").unwrap(), 5);
-        assert_eq!(r.f64("c").unwrap(), 2.5);
+        // Payload offsets: u8 at 0, pad to 4, u32 at 4, u8 at 8, pad to 16, f64 at 16.
+        let pad = [0u8; 7];
+        let le = [
+            &[0u8, 1, 0, 0, 7, 0, 0, 0][..],
+            &5u32.to_le_bytes(),
+            &[9],
+            &pad,
+            &2.5f64.to_le_bytes(),
+        ]
+        .concat();
+        let be = [
+            &[0u8, 0, 0, 0, 7, 0, 0, 0][..],
+            &5u32.to_be_bytes(),
+            &[9],
+            &pad,
+            &2.5f64.to_be_bytes(),
+        ]
+        .concat();
+        for m in [le, be] {
+            let mut r = CdrReader::new(&m).unwrap();
+            assert_eq!(r.u8("a").unwrap(), 7);
+            assert_eq!(r.u32("b").unwrap(), 5);
+            assert_eq!(r.u8("c").unwrap(), 9);
+            assert_eq!(r.offset(), 13);
+            assert_eq!(r.f64("d").unwrap(), 2.5);
+            assert_eq!(r.remaining(), 0);
+            // Cut inside the padding before the f64.
+            let mut r = CdrReader::new(&m[..15]).unwrap();
+            r.u8("a").unwrap();
+            r.u32("b").unwrap();
+            r.u8("c").unwrap();
+            let e = r.f64("d").unwrap_err().to_string();
+            assert!(e.contains("d at byte 13"), "{e}");
+        }
     }
 
     #[test]
