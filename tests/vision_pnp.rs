@@ -4,6 +4,7 @@
 use nalgebra::{Matrix3, Vector2, Vector3, Vector6};
 
 use dvlcal::lie::{Se3, so3};
+use dvlcal::sim::camcal_views::synthetic_detections;
 use dvlcal::sim::rng::Rng;
 use dvlcal::vision::board::{Board, TagFamily};
 use dvlcal::vision::camera::{Camchain, Camera, Distortion};
@@ -78,26 +79,7 @@ fn detections(
         .zip(&chain.t_cn_c0)
         .map(|(cam, t_cn_c0)| {
             let t = t_cn_c0 * &t_c0_b;
-            b.tags
-                .iter()
-                .filter_map(|tag| {
-                    let mut corners = [Vector2::zeros(); 4];
-                    for (corner, p) in corners.iter_mut().zip(&tag.corners) {
-                        let px = cam.project(&t.transform_point(p))?;
-                        if !cam.in_image(&px) {
-                            return None;
-                        }
-                        *corner = px + Vector2::new(rng.normal(), rng.normal()) * sigma;
-                    }
-                    Some(TagDetection {
-                        id: tag.id,
-                        hamming: 0,
-                        decision_margin: 80.0,
-                        corners,
-                        border_bits: 1,
-                    })
-                })
-                .collect()
+            synthetic_detections(b, cam, &t, sigma, rng)
         })
         .collect()
 }

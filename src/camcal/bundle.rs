@@ -788,9 +788,9 @@ mod tests {
     use super::*;
     use crate::camcal::CameraModel;
     use crate::lie::so3;
+    use crate::sim::camcal_views::synthetic_detections;
     use crate::sim::image_dataset::{default_board, default_stereo_camchain};
     use crate::sim::rng::Rng;
-    use crate::vision::detect::TagDetection;
 
     /// Board poses in front of cam0 spread over the image, with tilts.
     fn views(n: usize, rng: &mut Rng) -> Vec<Se3> {
@@ -833,29 +833,7 @@ mod tests {
                     .iter()
                     .zip(&chain.t_cn_c0)
                     .map(|(cam, t_cn_c0)| {
-                        let t = *t_cn_c0 * *t_c0_b;
-                        board
-                            .tags
-                            .iter()
-                            .filter_map(|tag| {
-                                let mut c = [Vector2::zeros(); 4];
-                                for (ck, corner) in c.iter_mut().zip(&tag.corners) {
-                                    let px = cam.project(&t.transform_point(corner))?;
-                                    if !cam.in_image(&px) {
-                                        return None;
-                                    }
-                                    *ck = px
-                                        + Vector2::new(rng.normal() * sigma, rng.normal() * sigma);
-                                }
-                                Some(TagDetection {
-                                    id: tag.id,
-                                    hamming: 0,
-                                    decision_margin: 50.0,
-                                    corners: c,
-                                    border_bits: 1,
-                                })
-                            })
-                            .collect()
+                        synthetic_detections(board, cam, &(*t_cn_c0 * *t_c0_b), sigma, rng)
                     })
                     .collect();
                 FrameTags {

@@ -410,9 +410,9 @@ pub fn opencv_stereo_reference(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::sim::camcal_views::synthetic_detections;
     use crate::sim::image_dataset::{default_board, default_stereo_camchain};
     use crate::sim::rng::Rng;
-    use crate::vision::detect::TagDetection;
 
     #[test]
     fn ray_error_of_a_camera_against_itself_is_zero() {
@@ -448,31 +448,6 @@ mod tests {
         assert!((baseline_error(&truth, &est) - 0.01 * truth.trans.norm()).abs() < 1e-12);
     }
 
-    /// Exact corners of `t_cam_board` with a little noise, as detections.
-    fn synthetic(board: &Board, cam: &Camera, t: &Se3, rng: &mut Rng) -> Vec<TagDetection> {
-        board
-            .tags
-            .iter()
-            .filter_map(|tag| {
-                let mut corners = [Vector2::zeros(); 4];
-                for (c, p) in corners.iter_mut().zip(&tag.corners) {
-                    let px = cam.project(&t.transform_point(p))?;
-                    if !cam.in_image(&px) {
-                        return None;
-                    }
-                    *c = px + Vector2::new(rng.normal(), rng.normal()) * 0.05;
-                }
-                Some(TagDetection {
-                    id: tag.id,
-                    hamming: 0,
-                    decision_margin: 100.0,
-                    corners,
-                    border_bits: 1,
-                })
-            })
-            .collect()
-    }
-
     #[test]
     fn reference_recovers_a_chain_from_exact_corners() {
         let chain = default_stereo_camchain();
@@ -489,7 +464,7 @@ mod tests {
                     .cams
                     .iter()
                     .zip(crate::sim::image_dataset::board_in_cameras(&chain, t))
-                    .map(|(cam, t_cb)| synthetic(&board, cam, &t_cb, &mut rng))
+                    .map(|(cam, t_cb)| synthetic_detections(&board, cam, &t_cb, 0.05, &mut rng))
                     .collect(),
             })
             .collect();

@@ -22,6 +22,7 @@ use crate::sim::image_dataset::{board_centre, board_in_cameras};
 use crate::sim::rng::Rng;
 use crate::vision::board::Board;
 use crate::vision::camera::{Camchain, Camera};
+use crate::vision::detect::TagDetection;
 
 /// Smallest share of the board's tag corners that must fall on cam0's image and on cam1's.
 pub const MIN_VISIBLE_FRACTION: f64 = 0.4;
@@ -179,6 +180,39 @@ pub fn acceptable(chain: &Camchain, board: &Board, t_board_cam0: &Se3) -> bool {
             .zip(&poses)
             .take(2)
             .all(|(cam, t)| visible_fraction(board, cam, t) >= MIN_VISIBLE_FRACTION)
+}
+
+/// The detections an ideal detector would report of `board` seen by `cam` at `T_cam_board`: every
+/// tag whose four corners project inside the image, its corners moved by Gaussian noise of
+/// `sigma_px` per axis (drawn from `rng`, corner by corner in tag order).
+pub fn synthetic_detections(
+    board: &Board,
+    cam: &Camera,
+    t_cam_board: &Se3,
+    sigma_px: f64,
+    rng: &mut Rng,
+) -> Vec<TagDetection> {
+    board
+        .tags
+        .iter()
+        .filter_map(|tag| {
+            let mut corners = [Vector2::zeros(); 4];
+            for (c, p) in corners.iter_mut().zip(&tag.corners) {
+                let px = cam.project(&t_cam_board.transform_point(p))?;
+                if !cam.in_image(&px) {
+                    return None;
+                }
+                *c = px + Vector2::new(rng.normal(), rng.normal()) * sigma_px;
+            }
+            Some(TagDetection {
+                id: tag.id,
+                hamming: 0,
+                decision_margin: 100.0,
+                corners,
+                border_bits: 1,
+            })
+        })
+        .collect()
 }
 
 #[cfg(test)]
