@@ -185,28 +185,25 @@ fn build(state: &State, obs: &[CornerObs], active: &[bool]) -> Option<Normal> {
         }
         let fr = frames.last_mut()?;
         let fg = gt_frame.last_mut()?;
-        // Local camera Jacobian: 8 intrinsic columns, then 6 extrinsic ones (cam n > 0).
+        // Local camera Jacobian: 8 intrinsic columns, then 6 extrinsic ones (cam n > 0; for cam0
+        // only the first 8 are used). Fixed-size, so nothing is allocated per corner.
         let ii = NI * o.cam;
         let ie = NI * cams + 6 * o.cam.saturating_sub(1);
-        let mut idx: Vec<usize> = (ii..ii + NI).collect();
-        let mut jl = DMatrix::<f64>::zeros(2, NI + 6);
-        jl.view_mut((0, 0), (2, NI)).copy_from(&j.intr);
-        let width = if o.cam > 0 {
-            idx.extend(ie..ie + 6);
-            jl.view_mut((0, NI), (2, 6)).copy_from(&j.ext);
-            NI + 6
-        } else {
-            NI
-        };
-        let jl = jl.columns(0, width).into_owned();
-        let hl = jl.transpose() * &jl;
+        let width = if o.cam > 0 { NI + 6 } else { NI };
+        let idx: [usize; NI + 6] =
+            std::array::from_fn(|a| if a < NI { ii + a } else { ie + a - NI });
+        let mut jl = SMatrix::<f64, 2, { NI + 6 }>::zeros();
+        jl.fixed_view_mut::<2, NI>(0, 0).copy_from(&j.intr);
+        jl.fixed_view_mut::<2, 6>(0, NI).copy_from(&j.ext);
+        let hl = jl.transpose() * jl;
         let gl = jl.transpose() * r;
         let hlf = jl.transpose() * j.pose;
-        for (a, &ia) in idx.iter().enumerate() {
+        for a in 0..width {
+            let ia = idx[a];
             gt[ia] += gl[a];
             fg[ia] += gl[a];
-            for (b, &ib) in idx.iter().enumerate() {
-                htt[(ia, ib)] += hl[(a, b)];
+            for b in 0..width {
+                htt[(ia, idx[b])] += hl[(a, b)];
             }
             for k in 0..6 {
                 fr.2[(ia, k)] += hlf[(a, k)];
