@@ -1,7 +1,390 @@
-//! Bag containers. Each reader gives connections (topic, message type) and the serialised
-//! messages of the ones asked for, in file order; decoding the messages is left to the format
-//! that needs them (the DVL messages in [`crate::io::dvl`]); [`cdr`] decodes the
-//! messages of ROS 2 bags.
+//! Bags as users record them: ROS 1 bags ([`ros1`]) and ROS 2 bags in either storage (MCAP,
+//! [`mcap`]; sqlite3, [`sqlite`]), behind one [`Bag`] that lists the topics and streams the
+//! serialised messages of the ones asked for, in record order, one chunk at a time. Decoding
+//! the messages is left to [`cdr`] (both serialisations) and to the formats that need them.
+//!
+//! A ROS 2 bag is a folder with `metadata.yaml` and its storage files, or one bare `.mcap` or
+//! `.db3` file; [`Bag::open`] takes any of these, and a ROS 1 `.bag`.
 
 pub mod cdr;
+pub mod mcap;
 pub mod ros1;
+pub mod sqlite;
+
+use std::path::{Path, PathBuf};
+
+use crate::error::{Error, Result};
+
+/// How the messages of a topic are serialised.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Serialization {
+    /// ROS 2's CDR (an encapsulation header, aligned primitives).
+    Cdr,
+    /// ROS 1's serialisation (packed little-endian, `Header` with a `seq`).
+    Ros1,
+}
+
+/// The storage a bag was read from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Storage {
+    /// A ROS 1 bag (format 2.0).
+    Ros1,
+    /// ROS 2, MCAP storage.
+    Mcap,
+    /// ROS 2, sqlite3 storage.
+    Sqlite3,
+}
+
+impl Storage {
+    /// The storage's name in summaries.
+    pub fn name(self) -> &'static str {
+        match self {
+            Storage::Ros1 => "ROS 1 bag",
+            Storage::Mcap => "ROS 2 bag (MCAP)",
+            Storage::Sqlite3 => "ROS 2 bag (sqlite3)",
+        }
+    }
+}
+
+/// One topic of a bag.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Topic {
+    /// The topic's name (`/cam0/image_raw`).
+    pub name: String,
+    /// The message type as the bag stores it (`sensor_msgs/msg/Image` in ROS 2,
+    /// `sensor_msgs/Image` in ROS 1); [`Topic::type_name`] gives one spelling for both.
+    pub msg_type: String,
+    /// How its messages are serialised.
+    pub serialization: Serialization,
+    /// Messages the bag's index, summary or metadata declares for the topic, when it does.
+    pub declared_count: Option<u64>,
+}
+
+impl Topic {
+    /// The message type without ROS 2's `/msg/` (`sensor_msgs/Image` in both ROS versions).
+    pub fn type_name(&self) -> String {
+        normalize_type(&self.msg_type)
+    }
+}
+
+/// `pkg/msg/Type` as `pkg/Type`; any other spelling unchanged.
+pub fn normalize_type(t: &str) -> String {
+    match t.split('/').collect::<Vec<_>>().as_slice() {
+        [pkg, "msg", name] => format!("{pkg}/{name}"),
+        _ => t.to_string(),
+    }
+}
+
+/// One serialised message handed out by [`Bag::messages`].
+#[derive(Clone, Copy, Debug)]
+pub struct BagMessage<'a> {
+    /// The message's topic: an index into [`Bag::topics`].
+    pub topic: usize,
+    /// The record (log) time: when the recorder received the message, Unix nanoseconds.
+    pub log_time_ns: i64,
+    /// The serialised message.
+    pub data: &'a [u8],
+    /// The 1-based number of this message among its topic's messages read in this pass.
+    pub index: u64,
+}
+
+/// What one pass over the messages found.
+#[derive(Clone, Debug, Default)]
+pub struct BagReadSummary {
+    /// Messages handed to the callback.
+    pub messages: u64,
+    /// Damage met while reading (a chunk that could not be decompressed, a file cut short),
+    /// each with what it cost.
+    pub problems: Vec<String>,
+}
+
+/// A bag opened for reading: its topics and how to stream its messages.
+#[derive(Debug)]
+pub struct Bag {
+    path: PathBuf,
+    storage: Storage,
+    topics: Vec<Topic>,
+    problems: Vec<String>,
+    inner: Inner,
+}
+
+#[derive(Debug)]
+enum Inner {
+    Ros1 {
+        bag: ros1::Ros1Bag,
+        /// The topic index of each connection id.
+        conn_topic: std::collections::BTreeMap<u32, usize>,
+    },
+    Mcap(mcap::McapBag),
+    Sqlite(sqlite::SqliteBag),
+}
+
+/// The first bytes of an MCAP file.
+pub const MCAP_MAGIC: &[u8] = b"\x89MCAP0\r\n";
+/// The first bytes of an sqlite3 database.
+pub const SQLITE_MAGIC: &[u8] = b"SQLite format 3\0";
+
+/// Whether `path` looks like a bag: a folder holding `metadata.yaml`, or a file starting like
+/// a ROS 1 bag, an MCAP file or an sqlite3 database.
+pub fn is_bag(path: &Path) -> bool {
+    if path.is_dir() {
+        return path.join("metadata.yaml").is_file();
+    }
+    let mut head = [0u8; 16];
+    let n = std::fs::File::open(path)
+        .and_then(|mut f| std::io::Read::read(&mut f, &mut head))
+        .unwrap_or(0);
+    let head = &head[..n];
+    head.starts_with(ros1::MAGIC) || head.starts_with(MCAP_MAGIC) || head.starts_with(SQLITE_MAGIC)
+}
+
+impl Bag {
+    /// Opens a bag: a ROS 2 bag folder (`metadata.yaml` and its `.mcap` or `.db3` files, read
+    /// in the order the metadata lists them), a bare `.mcap` or `.db3` file, or a ROS 1 bag.
+    /// Damage that leaves messages to read is described in [`Bag::problems`]; a file that is
+    /// none of these, or that holds nothing readable, is an error naming it.
+    pub fn open(path: &Path) -> Result<Bag> {
+        if path.is_dir() {
+            return open_ros2_folder(path);
+        }
+        let mut head = [0u8; 16];
+        let n = std::fs::File::open(path)
+            .and_then(|mut f| std::io::Read::read(&mut f, &mut head))
+            .map_err(|e| Error::io(path, e))?;
+        let head = &head[..n];
+        if head.starts_with(ros1::MAGIC) {
+            let bag = ros1::Ros1Bag::open(path)?;
+            let mut topics: Vec<Topic> = Vec::new();
+            let mut conn_topic = std::collections::BTreeMap::new();
+            for c in bag.connections() {
+                let i = match topics
+                    .iter()
+                    .position(|t| t.name == c.topic && t.msg_type == c.msg_type)
+                {
+                    Some(i) => i,
+                    None => {
+                        topics.push(Topic {
+                            name: c.topic.clone(),
+                            msg_type: c.msg_type.clone(),
+                            serialization: Serialization::Ros1,
+                            declared_count: None,
+                        });
+                        topics.len() - 1
+                    }
+                };
+                conn_topic.insert(c.id, i);
+            }
+            return Ok(Bag {
+                path: path.to_path_buf(),
+                storage: Storage::Ros1,
+                topics,
+                problems: bag.problems().to_vec(),
+                inner: Inner::Ros1 { bag, conn_topic },
+            });
+        }
+        if head.starts_with(MCAP_MAGIC) {
+            let bag = mcap::McapBag::open(&[path.to_path_buf()])?;
+            return Ok(Bag {
+                path: path.to_path_buf(),
+                storage: Storage::Mcap,
+                topics: bag.topics().to_vec(),
+                problems: bag.problems().to_vec(),
+                inner: Inner::Mcap(bag),
+            });
+        }
+        if head.starts_with(SQLITE_MAGIC) {
+            let bag = sqlite::SqliteBag::open(&[path.to_path_buf()])?;
+            return Ok(Bag {
+                path: path.to_path_buf(),
+                storage: Storage::Sqlite3,
+                topics: bag.topics().to_vec(),
+                problems: bag.problems().to_vec(),
+                inner: Inner::Sqlite(bag),
+            });
+        }
+        Err(Error::Input(format!(
+            "{}: not a bag (neither a ROS 1 bag, an MCAP file, an sqlite3 database, nor a ROS 2 \
+             bag folder with metadata.yaml)",
+            path.display()
+        )))
+    }
+
+    /// The bag's path as given.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// The storage the bag was read from.
+    pub fn storage(&self) -> Storage {
+        self.storage
+    }
+
+    /// The topics, in the order the bag declares them; [`BagMessage::topic`] indexes this.
+    pub fn topics(&self) -> &[Topic] {
+        &self.topics
+    }
+
+    /// Damage found while opening: what it was and what it cost.
+    pub fn problems(&self) -> &[String] {
+        &self.problems
+    }
+
+    /// Hands every message of the topics `wanted` accepts (by index into [`Bag::topics`]) to
+    /// `f`, in record order within each storage file, files in order. Memory stays bounded by
+    /// one chunk, whatever the bag's size. Damage is skipped and described in the summary; an
+    /// error from `f` stops the pass and is returned.
+    pub fn messages(
+        &self,
+        wanted: &dyn Fn(usize) -> bool,
+        f: &mut dyn FnMut(BagMessage<'_>) -> Result<()>,
+    ) -> Result<BagReadSummary> {
+        match &self.inner {
+            Inner::Ros1 { bag, conn_topic } => {
+                let mut counts = vec![0u64; self.topics.len()];
+                let want = |id: u32| conn_topic.get(&id).is_some_and(|&t| wanted(t));
+                let s = bag.messages(&want, &mut |m| {
+                    let Some(&topic) = conn_topic.get(&m.conn_id) else {
+                        return Ok(());
+                    };
+                    counts[topic] += 1;
+                    f(BagMessage {
+                        topic,
+                        log_time_ns: i64::from(m.sec) * 1_000_000_000 + i64::from(m.nsec),
+                        data: m.data,
+                        index: counts[topic],
+                    })
+                })?;
+                let mut problems = s.problems;
+                if let Some(n) = s.lost_messages.filter(|&n| n > 0) {
+                    problems.push(format!(
+                        "{n} messages that the bag's index lists could not be read"
+                    ));
+                }
+                Ok(BagReadSummary {
+                    messages: s.messages as u64,
+                    problems,
+                })
+            }
+            Inner::Mcap(b) => b.messages(wanted, f),
+            Inner::Sqlite(b) => b.messages(wanted, f),
+        }
+    }
+}
+
+/// A ROS 2 bag folder: its `metadata.yaml` names the storage and the files.
+fn open_ros2_folder(dir: &Path) -> Result<Bag> {
+    let meta_path = dir.join("metadata.yaml");
+    if !meta_path.is_file() {
+        return Err(Error::Input(format!(
+            "{}: a folder without metadata.yaml is not a ROS 2 bag",
+            dir.display()
+        )));
+    }
+    let meta = crate::files::read_text(&meta_path)?;
+    let info = parse_metadata(&meta, &meta_path)?;
+    let files: Vec<PathBuf> = info.files.iter().map(|f| dir.join(f)).collect();
+    for f in &files {
+        if !f.is_file() {
+            return Err(Error::Input(format!(
+                "{}: lists {}, which is missing",
+                meta_path.display(),
+                f.display()
+            )));
+        }
+    }
+    let (storage, inner, topics, problems) = match info.storage.as_str() {
+        "mcap" => {
+            let b = mcap::McapBag::open(&files)?;
+            let (t, p) = (b.topics().to_vec(), b.problems().to_vec());
+            (Storage::Mcap, Inner::Mcap(b), t, p)
+        }
+        "sqlite3" => {
+            let b = sqlite::SqliteBag::open(&files)?;
+            let (t, p) = (b.topics().to_vec(), b.problems().to_vec());
+            (Storage::Sqlite3, Inner::Sqlite(b), t, p)
+        }
+        other => {
+            return Err(Error::Input(format!(
+                "{}: storage_identifier {other:?} is not read (mcap and sqlite3 are)",
+                meta_path.display()
+            )));
+        }
+    };
+    let mut topics = topics;
+    for t in &mut topics {
+        if t.declared_count.is_none() {
+            t.declared_count = info.counts.get(&t.name).copied();
+        }
+    }
+    Ok(Bag {
+        path: dir.to_path_buf(),
+        storage,
+        topics,
+        problems,
+        inner,
+    })
+}
+
+/// What dvlcal reads of a ROS 2 bag's `metadata.yaml`.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Metadata {
+    /// `storage_identifier`: `mcap` or `sqlite3`.
+    pub storage: String,
+    /// `relative_file_paths`, in order.
+    pub files: Vec<String>,
+    /// `message_count` of each topic in `topics_with_message_count`.
+    pub counts: std::collections::BTreeMap<String, u64>,
+}
+
+/// Parses a ROS 2 bag's `metadata.yaml` (`rosbag2_bagfile_information`).
+pub fn parse_metadata(text: &str, path: &Path) -> Result<Metadata> {
+    let v: serde_yaml::Value = serde_yaml::from_str(text)
+        .map_err(|e| Error::Input(format!("{}: not readable as YAML ({e})", path.display())))?;
+    let Some(info) = v.get("rosbag2_bagfile_information") else {
+        return Err(Error::Input(format!(
+            "{}: no rosbag2_bagfile_information: not a ROS 2 bag's metadata",
+            path.display()
+        )));
+    };
+    let storage = info
+        .get("storage_identifier")
+        .and_then(|s| s.as_str())
+        .unwrap_or("")
+        .to_string();
+    let files: Vec<String> = info
+        .get("relative_file_paths")
+        .and_then(|s| s.as_sequence())
+        .map(|s| {
+            s.iter()
+                .filter_map(|f| f.as_str().map(str::to_string))
+                .collect()
+        })
+        .unwrap_or_default();
+    if files.is_empty() {
+        return Err(Error::Input(format!(
+            "{}: relative_file_paths lists no storage file",
+            path.display()
+        )));
+    }
+    let mut counts = std::collections::BTreeMap::new();
+    if let Some(list) = info
+        .get("topics_with_message_count")
+        .and_then(|s| s.as_sequence())
+    {
+        for t in list {
+            let name = t
+                .get("topic_metadata")
+                .and_then(|m| m.get("name"))
+                .and_then(|n| n.as_str());
+            let n = t.get("message_count").and_then(|n| n.as_u64());
+            if let (Some(name), Some(n)) = (name, n) {
+                counts.insert(name.to_string(), n);
+            }
+        }
+    }
+    Ok(Metadata {
+        storage,
+        files,
+        counts,
+    })
+}
