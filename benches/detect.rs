@@ -202,8 +202,8 @@ fn main() {
     let (kframes, _) = scan_images(&kdir, 2, 1_000_000).expect("scan");
     let kgray: Vec<_> = kframes
         .iter()
-        .flat_map(|f| f.paths.iter().flatten())
-        .map(|p| load_gray(p).expect("png"))
+        .flat_map(|f| f.images.iter().flatten())
+        .map(|p| load_gray(p.path().expect("file")).expect("png"))
         .collect();
     println!("| Kalibr-printed board: | | | | |");
     for threads in [1, cores] {

@@ -49,12 +49,14 @@ fn kalibr_layout_pairs_by_time_and_counts_the_rest() {
     assert_eq!(st.ignored, 2);
     assert_eq!(frames[0].t_ns, 1_000_000_000);
     assert!(
-        frames[1].paths[1]
+        frames[1].images[1]
             .as_ref()
+            .unwrap()
+            .path()
             .unwrap()
             .ends_with("cam1/1101000000.jpg")
     );
-    assert!(frames[2].paths[1].is_none() && frames[3].paths[1].is_none());
+    assert!(frames[2].images[1].is_none() && frames[3].images[1].is_none());
     assert!(st.warnings.iter().any(|w| w.contains("without a partner")));
     // A tighter tolerance drops the 1 ms pair.
     let (_, st) = scan_images(&d, 2, 999_999).unwrap();
@@ -65,7 +67,7 @@ fn kalibr_layout_pairs_by_time_and_counts_the_rest() {
     // Mono chain: cam1 is not looked at.
     let (frames, st) = scan_images(&d, 1, 0).unwrap();
     assert_eq!(frames.len(), 4);
-    assert_eq!(frames[0].paths.len(), 1);
+    assert_eq!(frames[0].images.len(), 1);
     assert!(st.warnings.is_empty());
 }
 
@@ -90,7 +92,14 @@ fn euroc_layout() {
         assert_eq!(st.complete, 3);
         assert_eq!(st.ignored, 2);
         assert_eq!(frames[2].t_ns, 1_403_636_579_863_555_584);
-        assert!(frames[2].paths[1].as_ref().unwrap().exists());
+        assert!(
+            frames[2].images[1]
+                .as_ref()
+                .unwrap()
+                .path()
+                .unwrap()
+                .exists()
+        );
     }
 }
 
@@ -108,7 +117,7 @@ fn empty_or_missing_folders() {
     touch(&d.join("cam0").join("5.png"));
     let (frames, st) = scan_images(&d, 2, 0).unwrap();
     assert_eq!(frames.len(), 1);
-    assert!(frames[0].paths[1].is_none());
+    assert!(frames[0].images[1].is_none());
     assert!(
         st.warnings[0].contains("no cam1 folder"),
         "{:?}",

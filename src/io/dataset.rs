@@ -2,7 +2,9 @@
 //!
 //! A dataset folder holds the images (`cam0/`, `cam1/` in Kalibr's bag-creator layout, or
 //! EuRoC's `mav0/camN/`), a Kalibr camchain YAML, a board (target) YAML and a DVL log in any
-//! format the ingest reads. The camchain may be missing: the pipeline then calibrates the
+//! format the ingest reads. A bag (a ROS 1 `.bag`, a ROS 2 `.mcap` or `.db3`, or a ROS 2 bag
+//! folder with `metadata.yaml`) may stand in for the images (or poses) and the DVL log: it
+//! gives what the folder's own files do not. A bag may also be the dataset itself. The camchain may be missing: the pipeline then calibrates the
 //! cameras from the same images first. Instead of images it may hold a TUM pose file. Only the folder's
 //! own files are looked at, not its subfolders (a `truth/` folder beside the data is never
 //! mistaken for data).
@@ -16,7 +18,9 @@
 use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result};
-use crate::io::dvl::detect::{detect_format, is_mcap};
+use crate::io::bag::is_bag;
+use crate::io::bag::roles::BagOptions;
+use crate::io::dvl::detect::detect_format;
 use crate::io::dvl::{DvlFormat, json, serial, text_lines};
 
 /// What was found in (or given for) a dataset.
@@ -35,6 +39,11 @@ pub struct DatasetFiles {
     pub dvl: Option<PathBuf>,
     /// The TUM pose file, used instead of images.
     pub poses: Option<PathBuf>,
+    /// The bag giving the camera data (images or poses), when neither image folders nor a
+    /// pose file do. (A bag giving only the DVL data is in `dvl`.)
+    pub bag: Option<PathBuf>,
+    /// Which topics of a bag play which part, and which time to use.
+    pub bag_options: BagOptions,
     /// Files looked at and not used, with the reason (for the summary).
     pub ignored: Vec<(PathBuf, String)>,
 }
@@ -42,7 +51,7 @@ pub struct DatasetFiles {
 impl DatasetFiles {
     /// The input files (camchain, target, DVL log, pose file): what no output may overwrite.
     pub fn inputs(&self) -> Vec<PathBuf> {
-        [&self.camchain, &self.target, &self.dvl, &self.poses]
+        [&self.camchain, &self.target, &self.dvl, &self.poses, &self.bag]
             .into_iter()
             .flatten()
             .cloned()
@@ -53,6 +62,22 @@ impl DatasetFiles {
     /// then be calibrated from those images (and the board) before the poses are solved.
     pub fn calibrates_cameras(&self) -> bool {
         self.poses.is_none() && self.images.is_some() && self.camchain.is_none()
+    }
+
+    /// A dataset that is one bag (`dvlcal calibrate run.mcap`): it gives the camera data and,
+    /// unless `given` names a DVL log, the DVL data; camchain and target come from `given`.
+    pub fn from_bag(bag: &Path, given: &DatasetOverrides) -> DatasetFiles {
+        DatasetFiles {
+            root: bag.to_path_buf(),
+            images: given.images.clone(),
+            camchain: given.camchain.clone(),
+            target: given.target.clone(),
+            dvl: Some(given.dvl.clone().unwrap_or_else(|| bag.to_path_buf())),
+            poses: given.poses.clone(),
+            bag: (given.images.is_none() && given.poses.is_none()).then(|| bag.to_path_buf()),
+            bag_options: given.bag_options.clone(),
+            ignored: Vec::new(),
+        }
     }
 }
 
@@ -70,6 +95,10 @@ pub struct DatasetOverrides {
     pub dvl: Option<PathBuf>,
     /// The TUM pose file, used instead of images.
     pub poses: Option<PathBuf>,
+    /// A bag for the camera data and, without a DVL log, the DVL data.
+    pub bag: Option<PathBuf>,
+    /// Which topics of a bag play which part, and which time to use.
+    pub bag_options: BagOptions,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -78,6 +107,7 @@ enum Role {
     Target,
     Dvl,
     Poses,
+    Bag,
 }
 
 impl Role {
@@ -87,6 +117,7 @@ impl Role {
             Role::Target => "board (target YAML)",
             Role::Dvl => "DVL log",
             Role::Poses => "pose file (TUM)",
+            Role::Bag => "bag",
         }
     }
 }
@@ -172,14 +203,12 @@ fn looks_like_tum(bytes: &[u8]) -> bool {
 
 /// The role of a non-YAML file from its first bytes.
 fn data_role(path: &Path) -> Result<std::result::Result<Role, String>> {
-    let bytes = sniff(path)?;
-    if is_mcap(&bytes) {
-        return Ok(Err(
-            "a ROS2 (MCAP) file, not read yet: export /dvl/json_data as JSON lines".into(),
-        ));
+    if is_bag(path) {
+        return Ok(Ok(Role::Bag));
     }
+    let bytes = sniff(path)?;
     match detect_format(&bytes) {
-        Some(DvlFormat::RosBag) => return Ok(Ok(Role::Dvl)),
+        Some(DvlFormat::RosBag) => return Ok(Ok(Role::Bag)),
         Some(f) => {
             // The format vote only looks at the shape of lines (a README mentioning `wrz` or
             // `{` would pass it); a DVL log must also hold at least one line that parses.
@@ -220,7 +249,8 @@ pub fn discover(dir: &Path, given: &DatasetOverrides) -> Result<DatasetFiles> {
     let mut entries: Vec<PathBuf> = std::fs::read_dir(dir)
         .map_err(|e| Error::io(dir, e))?
         .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.is_file())
+        // Files, and ROS 2 bag folders (a folder with metadata.yaml).
+        .filter(|p| p.is_file() || (p.is_dir() && is_bag(p)))
         .collect();
     entries.sort();
 
@@ -237,7 +267,9 @@ pub fn discover(dir: &Path, given: &DatasetOverrides) -> Result<DatasetFiles> {
         if hidden {
             continue;
         }
-        let role = if is_yaml(&p) {
+        let role = if p.is_dir() {
+            Ok(Ok(Role::Bag))
+        } else if is_yaml(&p) {
             yaml_role(&p)
         } else {
             data_role(&p)
@@ -277,6 +309,8 @@ pub fn discover(dir: &Path, given: &DatasetOverrides) -> Result<DatasetFiles> {
     found.camchain = pick(Role::Camchain, &given.camchain)?;
     found.target = pick(Role::Target, &given.target)?;
     found.dvl = pick(Role::Dvl, &given.dvl)?;
+    found.bag_options = given.bag_options.clone();
+    let bag = pick(Role::Bag, &given.bag)?;
 
     let images_here = has_images(dir).then(|| dir.to_path_buf());
     match (&given.images, &given.poses) {
@@ -302,8 +336,14 @@ pub fn discover(dir: &Path, given: &DatasetOverrides) -> Result<DatasetFiles> {
         }
     }
     if found.images.is_none() && found.poses.is_none() {
+        found.bag = bag.clone();
+    }
+    if found.dvl.is_none() {
+        found.dvl = bag;
+    }
+    if found.images.is_none() && found.poses.is_none() && found.bag.is_none() {
         return Err(Error::Input(format!(
-            "{}: no camera data: neither cam0/ (or mav0/cam0/) images nor a TUM pose file",
+            "{}: no camera data: neither cam0/ (or mav0/cam0/) images, a TUM pose file nor a bag",
             dir.display()
         )));
     }
@@ -315,7 +355,7 @@ pub fn discover(dir: &Path, given: &DatasetOverrides) -> Result<DatasetFiles> {
     }
     if found.dvl.is_none() {
         return Err(Error::Input(format!(
-            "{}: no DVL log (A50 JSON lines, serial capture or ROS1 bag) found",
+            "{}: no DVL log (A50 JSON lines, serial capture or a ROS bag) found",
             dir.display()
         )));
     }

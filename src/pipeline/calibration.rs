@@ -388,7 +388,10 @@ impl CameraOutputs {
         report: Option<&Path>,
         files: &DatasetFiles,
     ) -> Result<Option<CameraOutputs>> {
-        if !files.calibrates_cameras() {
+        // A bag without a camchain may need its cameras calibrated too (a stereo pair, or no
+        // CameraInfo): the paths are reserved, and used only if it does.
+        let bag_may = files.bag.is_some() && files.camchain.is_none();
+        if !files.calibrates_cameras() && !bag_may {
             return Ok(None);
         }
         let camchain = out.with_file_name("camchain.yaml");

@@ -18,7 +18,7 @@ use crate::report::{CamCalReportInput, render_camcal_html};
 use crate::vision::board::Board;
 use crate::vision::camera::Camchain;
 use crate::vision::detect::DetectorSettings;
-use crate::vision::frames::{DetectStats, detect_frame_tags};
+use crate::vision::frames::{DetectStats, FrameSource, detect_source_tags};
 use crate::vision::images::{ScanStats, StereoFrame, camera_count, scan_images};
 
 use super::vision::VisionOptions;
@@ -81,7 +81,8 @@ fn image_sizes(frames: &[StereoFrame], cams: usize) -> Result<Vec<(u32, u32)>> {
             let mut last_err = None;
             for p in frames
                 .iter()
-                .filter_map(|f| f.paths.get(c).cloned().flatten())
+                .filter_map(|f| f.images.get(c).cloned().flatten())
+                .filter_map(|r| r.path().map(Path::to_path_buf))
             {
                 match image::image_dimensions(&p) {
                     Ok(d) => return Ok(d),
@@ -105,12 +106,11 @@ fn frame_tags(
         .zip(dets)
         .map(|(f, d)| FrameTags {
             name: f
-                .paths
+                .images
                 .iter()
                 .flatten()
                 .next()
-                .and_then(|p| p.file_name())
-                .map_or_else(|| f.t_ns.to_string(), |n| n.to_string_lossy().into_owned()),
+                .map_or_else(|| f.t_ns.to_string(), |r| r.short_name()),
             t_ns: f.t_ns,
             dets: d,
         })
@@ -136,6 +136,32 @@ pub fn calibrate_cameras_from_images(
     let tol_ns = (opts.vision.pair_tolerance_ms * 1e6).round() as i64;
     let (frames, scan) = scan_images(images, cams, tol_ns)?;
     let sizes = image_sizes(&frames, cams)?;
+    calibrate_cameras_from_frames(
+        images,
+        target,
+        &board,
+        &frames,
+        scan,
+        sizes,
+        &|| FrameSource::Files(&frames),
+        opts,
+    )
+}
+
+/// The calibration of [`calibrate_cameras_from_images`] on frames from any source (a folder,
+/// a bag): `source` gives the frames' images once per detection pass. `name` is the images'
+/// folder or bag, `sizes` the image size of each camera.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn calibrate_cameras_from_frames<'a>(
+    name: &Path,
+    target: &Path,
+    board: &Board,
+    frames: &[StereoFrame],
+    scan: ScanStats,
+    sizes: Vec<(u32, u32)>,
+    source: &dyn Fn() -> FrameSource<'a>,
+    opts: &CameraCalOptions,
+) -> Result<CameraCalRun> {
     let det = DetectorSettings {
         family: board.family,
         decimate: opts.vision.decimate,
@@ -148,18 +174,18 @@ pub fn calibrate_cameras_from_images(
 
     let start = Instant::now();
     let (dets, mut detect) =
-        pool.install(|| detect_frame_tags(&frames, &sizes, None, &det, opts.vision.progress))?;
+        pool.install(|| detect_source_tags(source(), &sizes, None, &det, opts.vision.progress))?;
     seconds_detect += start.elapsed().as_secs_f64();
     let start = Instant::now();
     let mut result = pool
-        .install(|| calibrate_cameras(&board, &frame_tags(&frames, dets), &sizes, &opts.camcal))?;
+        .install(|| calibrate_cameras(board, &frame_tags(frames, dets), &sizes, &opts.camcal))?;
     seconds_fit += start.elapsed().as_secs_f64();
     let mut passes = 1;
     if opts.second_pass {
         let start = Instant::now();
         let (dets, d2) = pool.install(|| {
-            detect_frame_tags(
-                &frames,
+            detect_source_tags(
+                source(),
                 &sizes,
                 Some(&result.chain),
                 &det,
@@ -169,7 +195,7 @@ pub fn calibrate_cameras_from_images(
         seconds_detect += start.elapsed().as_secs_f64();
         let start = Instant::now();
         let second = pool.install(|| {
-            calibrate_cameras(&board, &frame_tags(&frames, dets), &sizes, &opts.camcal)
+            calibrate_cameras(board, &frame_tags(frames, dets), &sizes, &opts.camcal)
         });
         seconds_fit += start.elapsed().as_secs_f64();
         // The second pass is the better one when it works; when it does not, the first stands
@@ -190,7 +216,7 @@ pub fn calibrate_cameras_from_images(
         *t = Some(format!("/cam{i}/image_raw"));
     }
     Ok(CameraCalRun {
-        images: images.to_path_buf(),
+        images: name.to_path_buf(),
         target: target.to_path_buf(),
         result,
         scan,

@@ -9,6 +9,7 @@ use crate::io::dvl::{DvlLog, DvlReadOptions, read_dvl_log};
 use crate::io::tum::read_tum;
 use crate::types::PoseMeasurement;
 
+use super::bag::{OpenBag, calibrate_cameras_from_bag, camera_from_info, plan_frames, poses_from_bag, read_bag_poses};
 use super::cameras::{CameraCalOptions, CameraCalRun, calibrate_cameras_from_images};
 use super::vision::{VisionOptions, VisionRun, poses_from_images, poses_from_images_with_chain};
 
@@ -18,7 +19,13 @@ use super::vision::{VisionOptions, VisionRun, poses_from_images, poses_from_imag
 /// loaded).
 pub fn dataset_files(dir: Option<&Path>, given: &DatasetOverrides) -> Result<DatasetFiles> {
     if let Some(d) = dir {
+        if crate::io::bag::is_bag(d) {
+            return Ok(DatasetFiles::from_bag(d, given));
+        }
         return discover(d, given);
+    }
+    if let Some(b) = &given.bag {
+        return Ok(DatasetFiles::from_bag(b, given));
     }
     let Some(dvl) = &given.dvl else {
         return Err(Error::Input(
@@ -49,6 +56,8 @@ pub fn dataset_files(dir: Option<&Path>, given: &DatasetOverrides) -> Result<Dat
         target: given.target.clone(),
         dvl: Some(dvl.clone()),
         poses: given.poses.clone(),
+        bag: None,
+        bag_options: given.bag_options.clone(),
         ignored: Vec::new(),
     })
 }
@@ -60,10 +69,11 @@ pub fn describe_files(f: &DatasetFiles) -> String {
             .map_or("-".to_string(), |p| p.display().to_string())
     };
     let mut s = format!(
-        "dataset {}: images {}, poses {}, camchain {}, target {}, DVL log {}\n",
+        "dataset {}: images {}, poses {}, bag {}, camchain {}, target {}, DVL log {}\n",
         f.root.display(),
         show(&f.images),
         show(&f.poses),
+        show(&f.bag),
         show(&f.camchain),
         show(&f.target),
         show(&f.dvl)
@@ -92,6 +102,9 @@ pub struct Dataset {
     pub dvl_path: PathBuf,
     /// What the camera trajectory came from: the pose file or the image folder.
     pub camera_source: PathBuf,
+    /// Things the user should know about the camera data (a bag's zero stamps, the source of
+    /// the camera model, ...).
+    pub notes: Vec<String>,
 }
 
 impl Dataset {
@@ -124,6 +137,7 @@ impl Dataset {
         on_vision: &mut dyn FnMut(&VisionRun),
     ) -> Result<Dataset> {
         let mut cameras = None;
+        let mut notes = Vec::new();
         let (epoch, poses, run, camera_source) = match (&files.poses, &files.images) {
             (Some(p), _) => {
                 let tum = read_tum(p, None)?;
@@ -156,15 +170,76 @@ impl Dataset {
                 run.require_poses()?;
                 (run.epoch, run.poses.clone(), Some(run), dir.clone())
             }
-            (None, None) => return Err(Error::dataset(&files.root, "no camera data")),
+            (None, None) => {
+                let Some(bag) = &files.bag else {
+                    return Err(Error::dataset(&files.root, "no camera data"));
+                };
+                let ob = OpenBag::open(bag, &files.bag_options)?;
+                notes.extend(ob.roles.notes.iter().cloned());
+                if ob.roles.images.is_empty() {
+                    let p = read_bag_poses(&ob)?;
+                    notes.push(format!("camera poses from {}", p.source));
+                    notes.extend(p.warnings);
+                    (p.epoch, p.poses, None, bag.clone())
+                } else {
+                    let Some(target) = &files.target else {
+                        return Err(Error::dataset(
+                            bag,
+                            "the bag holds images: give the board with --target",
+                        ));
+                    };
+                    let tol_ns = (vision.pair_tolerance_ms * 1e6).round() as i64;
+                    let plan = plan_frames(&ob, tol_ns)?;
+                    let chain = match &files.camchain {
+                        Some(c) => crate::vision::camera::Camchain::load(c)?,
+                        None => match (plan.sizes.len(), camera_from_info(&ob, 0)?) {
+                            (1, Some(cam)) => {
+                                notes.push(
+                                    "no camchain: the camera model is the bag's CameraInfo".into(),
+                                );
+                                crate::vision::camera::Camchain::mono(cam)
+                            }
+                            _ => {
+                                let opts = CameraCalOptions {
+                                    vision: vision.clone(),
+                                    ..CameraCalOptions::default()
+                                };
+                                let cal = calibrate_cameras_from_bag(&ob, &plan, target, &opts)
+                                    .map_err(|e| {
+                                        e.during(
+                                            "no camchain: calibrating the cameras from the bag's \
+                                             images",
+                                        )
+                                    })?;
+                                on_cameras(&cal);
+                                let chain = cal.chain().clone();
+                                cameras = Some(cal);
+                                chain
+                            }
+                        },
+                    };
+                    let run = poses_from_bag(&ob, &plan, chain, target, vision)?;
+                    on_vision(&run);
+                    run.require_poses()?;
+                    (run.epoch, run.poses.clone(), Some(run), bag.clone())
+                }
+            }
         };
         let Some(dvl_path) = files.dvl.clone() else {
             return Err(Error::dataset(&files.root, "no DVL log"));
         };
-        let read = DvlReadOptions {
+        let mut read = DvlReadOptions {
             epoch: Some(epoch),
             ..read.clone()
         };
+        if crate::io::bag::is_bag(&dvl_path) {
+            if read.topic.is_none() {
+                read.topic = files.bag_options.dvl_topic.clone();
+            }
+            if files.bag_options.time == crate::io::bag::roles::BagTime::Record {
+                read.time_source = crate::io::dvl::DvlTimeSource::Host;
+            }
+        }
         let log = read_dvl_log(&dvl_path, &read)?;
         Ok(Dataset {
             files,
@@ -174,6 +249,7 @@ impl Dataset {
             log,
             dvl_path,
             camera_source,
+            notes,
         })
     }
 

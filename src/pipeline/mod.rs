@@ -15,9 +15,13 @@
 //! 4. [`calibrate_cameras_from_images`] calibrates the cameras themselves from board images
 //!    (intrinsics, distortion, stereo extrinsics) and writes a Kalibr camchain and its report.
 //! 5. [`write_simulated_dataset`] writes a dataset folder with known truth.
+//! 6. [`OpenBag`] takes a bag (ROS 1 or ROS 2) as a dataset: [`plan_frames`] and
+//!    [`poses_from_bag`] stream its images through the same pipeline, [`read_bag_poses`] reads
+//!    its poses, [`bag_info`] lists it.
 //!
 //! Long steps take a worker-thread count; results never depend on it.
 
+mod bag;
 mod calibration;
 mod cameras;
 mod dataset;
@@ -25,6 +29,10 @@ mod evaluate;
 mod simulate;
 mod vision;
 
+pub use bag::{
+    BagFrames, BagInfo, BagPoses, OpenBag, TopicInfo, bag_info, calibrate_cameras_from_bag,
+    camera_from_info, frame_source, plan_frames, poses_from_bag, read_bag_poses,
+};
 pub use calibration::{
     CalibrationRun, CameraOutputs, ResultPaths, calibrate_dataset, method_name, result_file,
     sibling, write_report, write_results,

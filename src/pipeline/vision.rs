@@ -197,6 +197,7 @@ impl VisionRun {
         let layout = match sc.layout {
             Layout::Kalibr => "camN/<t_ns> layout",
             Layout::Euroc => "EuRoC layout",
+            Layout::Bag => "bag image topics",
         };
         let per_cam: Vec<String> = sc
             .images

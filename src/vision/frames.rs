@@ -5,8 +5,150 @@
 //! Every frame is processed independently, so the results, returned in frame order, are the
 //! same whatever the number of threads. Images that cannot be read, or whose size differs from
 //! the camera chain's, are counted and named in [`DetectStats::problems`]; they never stop the run.
+//!
+//! The images come from files ([`FrameSource::Files`]) or from a stream ([`FrameStream`]: a
+//! bag read in one pass on a thread of its own, which hands each frame's encoded images to the
+//! workers through a queue a few frames long, so that memory stays bounded by the worker count
+//! whatever the recording's length).
+
+/// The encoded images of one frame, one per camera (`None` where the frame has no image).
+pub type FrameBytes = Vec<Option<Vec<u8>>>;
+
+/// The producer of a [`FrameStream`]: it calls `send(frame index, images)` once per frame it
+/// can deliver, in any order, and returns when it has sent all it can (an error from `send`
+/// means the workers stopped: return it).
+pub type Produce<'a> =
+    Box<dyn FnOnce(&mut dyn FnMut(usize, FrameBytes) -> Result<()>) -> Result<()> + Send + 'a>;
+
+/// Decodes one encoded image of a stream (camera, bytes) to grey; the error says what was
+/// wrong.
+pub type Decode<'a> = Box<dyn Fn(usize, &[u8]) -> Result<image::GrayImage> + Send + Sync + 'a>;
+
+/// Frames whose images a producer delivers (a bag read once, in record order).
+pub struct FrameStream<'a> {
+    /// The frames, in time order, as planned before the stream starts.
+    pub frames: &'a [StereoFrame],
+    /// Runs on a thread of its own and sends the frames' images.
+    pub produce: Produce<'a>,
+    /// Decodes one image (on a worker thread).
+    pub decode: Decode<'a>,
+}
+
+/// Where the images of the frames come from.
+pub enum FrameSource<'a> {
+    /// Files named by the frames ([`ImageRef::File`]), read by the workers.
+    Files(&'a [StereoFrame]),
+    /// A producer's stream.
+    Stream(FrameStream<'a>),
+}
+
+impl FrameSource<'_> {
+    /// The frames.
+    pub fn frames(&self) -> &[StereoFrame] {
+        match self {
+            FrameSource::Files(f) => f,
+            FrameSource::Stream(s) => s.frames,
+        }
+    }
+}
+
+/// Frames a stream may have in flight beyond those being processed, per worker.
+const QUEUE_PER_WORKER: usize = 2;
+
+/// Runs `work` on every frame of `src` on the current rayon pool; results in frame order. For
+/// a stream, frames the producer never delivered get `work` with images that fail to load
+/// (counted as unreadable, named); an error of the producer is returned after the workers end.
+fn for_each_frame<R: Send>(
+    src: FrameSource<'_>,
+    bar: &ProgressBar,
+    work: &(dyn Fn(&StereoFrame, &dyn Fn(usize) -> Option<Result<image::GrayImage>>) -> R + Sync),
+) -> Result<Vec<R>> {
+    match src {
+        FrameSource::Files(frames) => Ok(frames
+            .par_iter()
+            .map(|f| {
+                let load = |c: usize| {
+                    f.images.get(c).cloned().flatten().map(|r| match r {
+                        ImageRef::File(p) => load_gray(&p),
+                        other => Err(crate::Error::Input(format!("{other}: not a file"))),
+                    })
+                };
+                let r = work(f, &load);
+                bar.inc(1);
+                r
+            })
+            .collect()),
+        FrameSource::Stream(s) => {
+            let frames = s.frames;
+            let decode = &s.decode;
+            let workers = rayon::current_num_threads().max(1);
+            let (tx, rx) = sync_channel::<(usize, FrameBytes)>(QUEUE_PER_WORKER * workers);
+            let produce = s.produce;
+            let (mut done, produced) = std::thread::scope(|scope| {
+                let producer = scope.spawn(move || {
+                    produce(&mut |i, bytes| {
+                        tx.send((i, bytes)).map_err(|_| {
+                            crate::Error::Input("the image workers stopped early".into())
+                        })
+                    })
+                });
+                let done: Vec<(usize, R)> = rx
+                    .into_iter()
+                    .par_bridge()
+                    .filter(|(i, _)| *i < frames.len())
+                    .map(|(i, bytes)| {
+                        let f = &frames[i];
+                        let load = |c: usize| {
+                            let name = f.images.get(c).cloned().flatten()?;
+                            let b = bytes.get(c).and_then(|b| b.as_deref());
+                            Some(match b {
+                                Some(b) => decode(b)
+                                    .map_err(|e| crate::Error::Input(format!("{name}: {e}"))),
+                                None => Err(crate::Error::Input(format!(
+                                    "{name}: not delivered by the stream"
+                                ))),
+                            })
+                        };
+                        let r = work(f, &load);
+                        bar.inc(1);
+                        (i, r)
+                    })
+                    .collect();
+                let produced = producer
+                    .join()
+                    .unwrap_or_else(|_| Err(crate::Error::Input("the image reader failed".into())));
+                (done, produced)
+            });
+            produced?;
+            // Frames the stream never delivered (a bag cut short): their images fail to load.
+            let mut seen = vec![false; frames.len()];
+            for (i, _) in &done {
+                seen[*i] = true;
+            }
+            done.sort_by_key(|(i, _)| *i);
+            done.dedup_by_key(|(i, _)| *i);
+            let missing: Vec<(usize, R)> = (0..frames.len())
+                .filter(|&i| !seen[i])
+                .map(|i| {
+                    let f = &frames[i];
+                    let load = |c: usize| {
+                        let name = f.images.get(c).cloned().flatten()?;
+                        Some(Err(crate::Error::Input(format!(
+                            "{name}: not delivered by the stream"
+                        ))))
+                    };
+                    (i, work(f, &load))
+                })
+                .collect();
+            done.extend(missing);
+            done.sort_by_key(|(i, _)| *i);
+            Ok(done.into_iter().map(|(_, r)| r).collect())
+        }
+    }
+}
 
 use std::sync::Mutex;
+use std::sync::mpsc::sync_channel;
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
@@ -15,7 +157,7 @@ use crate::Result;
 use crate::vision::board::Board;
 use crate::vision::camera::{Camchain, Camera};
 use crate::vision::detect::{Detector, DetectorSettings, TagDetection, load_gray};
-use crate::vision::images::StereoFrame;
+use crate::vision::images::{ImageRef, StereoFrame};
 use crate::vision::pnp::{FramePose, PnpOptions, PoseOutcome, solve_stereo};
 
 /// What became of a frame.
@@ -125,13 +267,34 @@ pub fn detect_frames(
     opts: &PnpOptions,
     progress: bool,
 ) -> Result<(Vec<FrameResult>, DetectStats)> {
+    detect_source(
+        FrameSource::Files(frames),
+        board,
+        chain,
+        det,
+        opts,
+        progress,
+    )
+}
+
+/// [`detect_frames`] on frames from any [`FrameSource`].
+pub fn detect_source(
+    src: FrameSource<'_>,
+    board: &Board,
+    chain: &Camchain,
+    det: &DetectorSettings,
+    opts: &PnpOptions,
+    progress: bool,
+) -> Result<(Vec<FrameResult>, DetectStats)> {
     // Fail early on settings the detector refuses.
     let first = Detector::new(det)?;
-    if let Some(f) = frames.iter().find(|f| f.paths.len() > chain.cams.len()) {
+    let frames = src.frames();
+    let n_frames = frames.len();
+    if let Some(f) = frames.iter().find(|f| f.images.len() > chain.cams.len()) {
         return Err(crate::Error::Input(format!(
             "frame at {} ns has {} images, the camera chain {} cameras",
             f.t_ns,
-            f.paths.len(),
+            f.images.len(),
             chain.cams.len()
         )));
     }
@@ -140,24 +303,20 @@ pub fn detect_frames(
     if let Ok(mut slot) = detectors[0].lock() {
         *slot = Some(first);
     }
-    let bar = progress_bar(frames.len() as u64, progress);
+    let bar = progress_bar(n_frames as u64, progress);
 
-    let out: Vec<(FrameResult, FrameCounts)> = frames
-        .par_iter()
-        .map(|f| {
-            let idx = rayon::current_thread_index().unwrap_or(0) % workers;
-            // A poisoned lock only means another frame panicked; the detector is still whole.
-            let mut guard = detectors[idx].lock().unwrap_or_else(|p| p.into_inner());
-            let r = process_frame(f, board, chain, det, opts, &mut guard);
-            drop(guard);
-            bar.inc(1);
-            r
-        })
-        .collect();
+    let out: Vec<(FrameResult, FrameCounts)> = for_each_frame(src, &bar, &|f, load| {
+        let idx = rayon::current_thread_index().unwrap_or(0) % workers;
+        // A poisoned lock only means another frame panicked; the detector is still whole.
+        let mut guard = detectors[idx].lock().unwrap_or_else(|p| p.into_inner());
+        let r = process_frame(f, load, board, chain, det, opts, &mut guard);
+        drop(guard);
+        r
+    })?;
     bar.finish_and_clear();
 
     let mut stats = DetectStats {
-        frames: frames.len(),
+        frames: n_frames,
         ..DetectStats::default()
     };
     let mut results = Vec::with_capacity(out.len());
@@ -199,6 +358,7 @@ struct FrameCounts {
 
 fn process_frame(
     f: &StereoFrame,
+    load: &dyn Fn(usize) -> Option<Result<image::GrayImage>>,
     board: &Board,
     chain: &Camchain,
     det: &DetectorSettings,
@@ -213,7 +373,7 @@ fn process_frame(
     };
     let sizes: Vec<(u32, u32)> = chain.cams.iter().map(|c| (c.width, c.height)).collect();
     let cams: Vec<Option<&Camera>> = chain.cams.iter().map(Some).collect();
-    let (dets, any) = detect_images(f, &sizes, &cams, det, slot, &mut c);
+    let (dets, any) = detect_images(f, load, &sizes, &cams, det, slot, &mut c);
     let detected: Vec<usize> = dets.iter().map(Vec::len).collect();
     let (status, pose) = if !any {
         (FrameStatus::NoImage, None)
@@ -241,17 +401,19 @@ fn process_frame(
 /// whether any image was usable.
 fn detect_images(
     f: &StereoFrame,
+    load: &dyn Fn(usize) -> Option<Result<image::GrayImage>>,
     sizes: &[(u32, u32)],
     cams: &[Option<&Camera>],
     det: &DetectorSettings,
     slot: &mut Option<Detector>,
     c: &mut FrameCounts,
 ) -> (Vec<Vec<TagDetection>>, bool) {
-    let mut dets: Vec<Vec<TagDetection>> = vec![Vec::new(); f.paths.len()];
+    let mut dets: Vec<Vec<TagDetection>> = vec![Vec::new(); f.images.len()];
     let mut any = false;
-    for (cam, path) in f.paths.iter().enumerate() {
-        let Some(path) = path else { continue };
-        let img = match load_gray(path) {
+    for (cam, name) in f.images.iter().enumerate() {
+        let Some(name) = name else { continue };
+        let Some(loaded) = load(cam) else { continue };
+        let img = match loaded {
             Ok(i) => i,
             Err(e) => {
                 c.unreadable += 1;
@@ -264,8 +426,7 @@ fn detect_images(
         {
             c.wrong_size += 1;
             c.problems.push(format!(
-                "{}: {}x{} image, cam{cam} is {w}x{h}",
-                path.display(),
+                "{name}: {}x{} image, cam{cam} is {w}x{h}",
                 img.width(),
                 img.height(),
             ));
@@ -299,7 +460,19 @@ pub fn detect_frame_tags(
     det: &DetectorSettings,
     progress: bool,
 ) -> Result<(Vec<Vec<Vec<TagDetection>>>, DetectStats)> {
+    detect_source_tags(FrameSource::Files(frames), sizes, cams, det, progress)
+}
+
+/// [`detect_frame_tags`] on frames from any [`FrameSource`].
+pub fn detect_source_tags(
+    src: FrameSource<'_>,
+    sizes: &[(u32, u32)],
+    cams: Option<&Camchain>,
+    det: &DetectorSettings,
+    progress: bool,
+) -> Result<(Vec<Vec<Vec<TagDetection>>>, DetectStats)> {
     let first = Detector::new(det)?;
+    let n_frames = src.frames().len();
     let workers = rayon::current_num_threads().max(1);
     let detectors: Vec<Mutex<Option<Detector>>> = (0..workers).map(|_| Mutex::new(None)).collect();
     if let Ok(mut slot) = detectors[0].lock() {
@@ -308,10 +481,9 @@ pub fn detect_frame_tags(
     let models: Vec<Option<&Camera>> = (0..sizes.len())
         .map(|i| cams.and_then(|ch| ch.cams.get(i)))
         .collect();
-    let bar = progress_bar(frames.len() as u64, progress);
-    let out: Vec<(Vec<Vec<TagDetection>>, bool, FrameCounts)> = frames
-        .par_iter()
-        .map(|f| {
+    let bar = progress_bar(n_frames as u64, progress);
+    let out: Vec<(Vec<Vec<TagDetection>>, bool, FrameCounts)> =
+        for_each_frame(src, &bar, &|f, load| {
             let idx = rayon::current_thread_index().unwrap_or(0) % workers;
             let mut guard = detectors[idx].lock().unwrap_or_else(|p| p.into_inner());
             let mut c = FrameCounts {
@@ -320,15 +492,13 @@ pub fn detect_frame_tags(
                 wrong_size: 0,
                 problems: Vec::new(),
             };
-            let (d, any) = detect_images(f, sizes, &models, det, &mut guard, &mut c);
+            let (d, any) = detect_images(f, load, sizes, &models, det, &mut guard, &mut c);
             drop(guard);
-            bar.inc(1);
             (d, any, c)
-        })
-        .collect();
+        })?;
     bar.finish_and_clear();
     let mut stats = DetectStats {
-        frames: frames.len(),
+        frames: n_frames,
         ..DetectStats::default()
     };
     let mut all = Vec::with_capacity(out.len());

@@ -22,13 +22,58 @@ use std::path::{Path, PathBuf};
 
 use crate::{Error, Result};
 
-/// One time instant: one image path per camera (`None` where that camera has no image).
+/// Where one image is: a file, or a message of a bag.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum ImageRef {
+    /// An image file (PNG, JPEG, PGM).
+    File(PathBuf),
+    /// An image message of a bag: its topic and its 1-based number among that topic's
+    /// messages.
+    Message {
+        /// The topic.
+        topic: String,
+        /// The message's number on the topic.
+        index: u64,
+    },
+}
+
+impl ImageRef {
+    /// The file, for an image file.
+    pub fn path(&self) -> Option<&Path> {
+        match self {
+            ImageRef::File(p) => Some(p),
+            ImageRef::Message { .. } => None,
+        }
+    }
+
+    /// A short name: the file name, or `topic#index`.
+    pub fn short_name(&self) -> String {
+        match self {
+            ImageRef::File(p) => p.file_name().map_or_else(
+                || p.display().to_string(),
+                |n| n.to_string_lossy().into_owned(),
+            ),
+            ImageRef::Message { topic, index } => format!("{topic}#{index}"),
+        }
+    }
+}
+
+impl std::fmt::Display for ImageRef {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ImageRef::File(p) => write!(f, "{}", p.display()),
+            ImageRef::Message { topic, index } => write!(f, "{topic} message {index}"),
+        }
+    }
+}
+
+/// One time instant: one image per camera (`None` where that camera has no image).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct StereoFrame {
     /// cam0's time stamp, integer nanoseconds.
     pub t_ns: i64,
-    /// Image path of each camera, indexed by camera (`None`: no image from that camera).
-    pub paths: Vec<Option<PathBuf>>,
+    /// The image of each camera, indexed by camera (`None`: no image from that camera).
+    pub images: Vec<Option<ImageRef>>,
 }
 
 /// Which layout a folder was read as.
@@ -38,6 +83,8 @@ pub enum Layout {
     Kalibr,
     /// `mav0/camN/data.csv` + `data/`.
     Euroc,
+    /// Image topics of a bag.
+    Bag,
 }
 
 /// What [`scan_images`] found.
@@ -158,42 +205,71 @@ pub fn scan_images(
                 dir.display()
             ),
             (Some(f), _) => format!("{}: no cam0 images", f.display()),
-            (None, Layout::Euroc) => format!("{}: no cam0 images", dir.display()),
+            (None, Layout::Euroc | Layout::Bag) => format!("{}: no cam0 images", dir.display()),
         };
         return Err(Error::Input(what));
     }
+    let labels: Vec<String> = (0..cams)
+        .map(|c| match &stats.folders[c] {
+            None => format!("{}: no cam{c} folder", dir.display()),
+            Some(f) => format!("{}: no images", f.display()),
+        })
+        .collect();
+    let lists = lists
+        .into_iter()
+        .map(|l| l.into_iter().map(|(t, p)| (t, ImageRef::File(p))).collect())
+        .collect();
+    let frames = pair_frames(lists, tolerance_ns, &labels, &mut stats);
+    Ok((frames, stats))
+}
+
+/// Frames from the time-sorted image lists of each camera (cam0 first, each list without
+/// repeated stamps): every cam0 image is a frame; every other camera's image closest in time
+/// within `tolerance_ns` joins it (each image at most once). A camera other than cam0 with no
+/// images is left out with a warning (`missing[c]` says why); cam0 images without a partner
+/// stay frames, other images without one are dropped; both are counted in `stats`.
+pub fn pair_frames(
+    lists: Vec<Vec<(i64, ImageRef)>>,
+    tolerance_ns: i64,
+    missing: &[String],
+    stats: &mut ScanStats,
+) -> Vec<StereoFrame> {
+    let cams = lists.len();
     let mut used_cams = vec![true; cams];
     for c in 1..cams {
         if lists[c].is_empty() {
             used_cams[c] = false;
-            stats.warnings.push(match &stats.folders[c] {
-                None => format!("{}: no cam{c} folder; poses from cam0 alone", dir.display()),
-                Some(f) => format!("{}: no images; poses from cam0 alone", f.display()),
-            });
+            let why = missing
+                .get(c)
+                .cloned()
+                .unwrap_or_else(|| format!("cam{c}: no images"));
+            stats.warnings.push(format!("{why}; poses from cam0 alone"));
         }
     }
-
-    let mut frames: Vec<StereoFrame> = lists[0]
+    let Some(first) = lists.first() else {
+        return Vec::new();
+    };
+    let mut frames: Vec<StereoFrame> = first
         .iter()
         .map(|(t, p)| {
-            let mut paths = vec![None; cams];
-            paths[0] = Some(p.clone());
-            StereoFrame { t_ns: *t, paths }
+            let mut images = vec![None; cams];
+            images[0] = Some(p.clone());
+            StereoFrame { t_ns: *t, images }
         })
         .collect();
     for c in (1..cams).filter(|&c| used_cams[c]) {
-        let partner = pair(&lists[0], &lists[c], tolerance_ns);
+        let partner = pair(first, &lists[c], tolerance_ns);
         let mut taken = 0;
         for (f, m) in frames.iter_mut().zip(&partner) {
             if let Some(j) = m {
-                f.paths[c] = Some(lists[c][*j].1.clone());
+                f.images[c] = Some(lists[c][*j].1.clone());
                 taken += 1;
             }
         }
         stats.unpaired_other += lists[c].len() - taken;
     }
     for f in &frames {
-        let all = (0..cams).all(|c| !used_cams[c] || f.paths[c].is_some());
+        let all = (0..cams).all(|c| !used_cams[c] || f.images[c].is_some());
         if all {
             stats.complete += 1;
         } else {
@@ -209,12 +285,12 @@ pub fn scan_images(
             stats.unpaired_other
         ));
     }
-    Ok((frames, stats))
+    frames
 }
 
 /// For each time of `a` (sorted), the index of its partner in `b` (sorted): pairs are formed
 /// closest first, each element used at most once, within `tol`.
-fn pair(a: &[(i64, PathBuf)], b: &[(i64, PathBuf)], tol: i64) -> Vec<Option<usize>> {
+fn pair<T>(a: &[(i64, T)], b: &[(i64, T)], tol: i64) -> Vec<Option<usize>> {
     // Candidate pairs within tolerance, found with a sliding window, then taken in order of
     // increasing time difference (ties by position, so the result does not depend on anything else).
     let mut cand: Vec<(i64, usize, usize)> = Vec::new();

@@ -119,10 +119,12 @@ impl EstimatorArgs {
 #[derive(clap::Args)]
 pub struct CalibrateArgs {
     /// Dataset folder: cam0/ (+ cam1/) images or a TUM pose file, a Kalibr camchain YAML, a
-    /// board YAML and a DVL log, recognised by their content. Options below override parts.
+    /// board YAML and a DVL log, recognised by their content (a bag may stand in for the
+    /// images and the log); or a bag itself (ROS 1 .bag, ROS 2 .mcap / .db3 / bag folder).
+    /// Options below override parts.
     /// Without a camchain the cameras are calibrated from the same images first (written as
     /// camchain.yaml beside --out, and with --report R.html a camera report R-cameras.html).
-    #[arg(value_name = "DATASET_DIR")]
+    #[arg(value_name = "DATASET")]
     pub dataset: Option<PathBuf>,
     #[command(flatten)]
     pub files: DatasetArgs,
@@ -217,15 +219,12 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
     {
         bail!("--dvl-sound-speed must be between 1000 and 2000 m/s, got {c}");
     }
-    let files = find(a.dataset.as_deref(), &a.files)?;
+    let read = a.dvl_input.read_options(a.strict);
+    let files = find(a.dataset.as_deref(), &a.files, &read)?;
     // Without a camchain the cameras are calibrated first; where their camchain (and report)
     // will go is checked before the long run.
     let cameras_out = CameraOutputs::plan(&a.out, a.report.as_deref(), &files)?;
-    let mut data = read_files(
-        files,
-        &a.vision.options(),
-        &a.dvl_input.read_options(a.strict),
-    )?;
+    let mut data = read_files(files, &a.vision.options(), &read)?;
     if let (Some(cams), Some(to)) = (&data.cameras, &cameras_out) {
         let command = std::env::args().collect::<Vec<_>>().join(" ");
         for p in to.write(cams, Some(command))? {

@@ -26,19 +26,28 @@ pub struct DatasetArgs {
     /// Board YAML (dvlcal grid or list, or a Kalibr aprilgrid), with images.
     #[arg(long, value_name = "FILE")]
     pub target: Option<PathBuf>,
-    /// Water Linked A50 log: JSON lines (any json_v1..v3 version), serial capture or ROS1 bag.
+    /// Water Linked A50 log: JSON lines (any json_v1..v3 version), serial capture, or a ROS
+    /// bag (ROS 1, or ROS 2 MCAP / sqlite3).
     #[arg(long)]
     pub dvl: Option<PathBuf>,
+    /// A bag (ROS 1 .bag, ROS 2 .mcap / .db3 or bag folder) giving the images or poses, and the
+    /// DVL data unless --dvl names a log.
+    #[arg(long, value_name = "BAG")]
+    pub bag: Option<PathBuf>,
+    #[command(flatten)]
+    pub bag_args: crate::bag::BagArgs,
 }
 
 impl DatasetArgs {
-    fn overrides(&self) -> DatasetOverrides {
+    fn overrides(&self, read: &DvlReadOptions) -> DatasetOverrides {
         DatasetOverrides {
             images: self.images.clone(),
             camchain: self.camchain.clone(),
             target: self.target.clone(),
             dvl: self.dvl.clone(),
             poses: self.poses.clone(),
+            bag: self.bag.clone(),
+            bag_options: self.bag_args.options(read.topic.clone()),
         }
     }
 }
@@ -51,12 +60,12 @@ pub fn load(
     vision: &VisionOptions,
     read: &DvlReadOptions,
 ) -> Result<Dataset> {
-    read_files(find(dir, args)?, vision, read)
+    read_files(find(dir, args, read)?, vision, read)
 }
 
 /// Finds a dataset's files, printing what was found (for a folder).
-pub fn find(dir: Option<&Path>, args: &DatasetArgs) -> Result<DatasetFiles> {
-    let files = dataset_files(dir, &args.overrides())?;
+pub fn find(dir: Option<&Path>, args: &DatasetArgs, read: &DvlReadOptions) -> Result<DatasetFiles> {
+    let files = dataset_files(dir, &args.overrides(read))?;
     if dir.is_some() {
         print!("{}", describe_files(&files));
     }
@@ -80,6 +89,9 @@ pub fn read_files(
         &mut |c| print!("{}", c.summary()),
         &mut print_vision,
     )?;
+    for n in &data.notes {
+        eprintln!("note: {n}");
+    }
     let st = &data.log.stats;
     if st.rejected_lines > 0 {
         eprintln!(

@@ -8,7 +8,10 @@ use clap::Args;
 
 use dvlcal::io::tum::write_tum;
 use dvlcal::io::write_atomic;
-use dvlcal::pipeline::{VisionOptions, frames_csv_path, poses_from_images};
+use dvlcal::pipeline::{
+    OpenBag, VisionOptions, frames_csv_path, plan_frames, poses_from_bag, poses_from_images,
+};
+use dvlcal::vision::camera::Camchain;
 
 /// Detection settings shared by every command that reads images.
 #[derive(Args, Debug, Clone)]
@@ -66,12 +69,19 @@ impl VisionTuning {
 }
 
 #[derive(Args, Debug)]
+#[command(group(clap::ArgGroup::new("source").required(true).args(["images", "bag"])))]
 pub struct DetectArgs {
     /// Image folder: DIR/cam0/<t_ns>.png (+ DIR/cam1/...) or EuRoC's DIR/mav0/camN/data.csv.
     /// Without cam1 images the poses come from cam0 alone (with a warning); unreadable images
     /// and unpaired frames are counted and skipped.
     #[arg(long, value_name = "DIR")]
-    pub images: PathBuf,
+    pub images: Option<PathBuf>,
+    /// A bag (ROS 1 .bag, ROS 2 .mcap / .db3 or bag folder) whose image topics are read instead
+    /// of a folder, streamed.
+    #[arg(long, value_name = "BAG")]
+    pub bag: Option<PathBuf>,
+    #[command(flatten)]
+    pub bag_args: crate::bag::BagArgs,
     /// Kalibr camchain YAML (intrinsics, distortion, T_cn_cnm1).
     #[arg(long, value_name = "FILE")]
     pub camchain: PathBuf,
@@ -90,7 +100,21 @@ pub fn run(a: DetectArgs) -> Result<()> {
     for out in [&a.out, &frames] {
         dvlcal::files::refuse_input("--out", out, [a.camchain.as_path(), a.target.as_path()])?;
     }
-    let run = poses_from_images(&a.images, &a.camchain, &a.target, &a.tuning.options())?;
+    let opts = a.tuning.options();
+    let run = match (&a.images, &a.bag) {
+        (Some(dir), _) => poses_from_images(dir, &a.camchain, &a.target, &opts)?,
+        (None, Some(bag)) => {
+            let ob = OpenBag::open(bag, &a.bag_args.options(None))?;
+            for n in &ob.roles.notes {
+                eprintln!("note: {n}");
+            }
+            let tol_ns = (opts.pair_tolerance_ms * 1e6).round() as i64;
+            let plan = plan_frames(&ob, tol_ns)?;
+            let chain = Camchain::load(&a.camchain)?;
+            poses_from_bag(&ob, &plan, chain, &a.target, &opts)?
+        }
+        (None, None) => anyhow::bail!("give --images DIR or --bag BAG"),
+    };
     crate::dataset::print_vision(&run);
     run.require_poses()?;
     write_tum(&a.out, run.epoch, &run.poses)?;

@@ -19,8 +19,8 @@ use crate::dvl_info::DvlInputArgs;
 
 #[derive(Args)]
 pub struct EvaluateArgs {
-    /// Dataset folders (as for `calibrate`).
-    #[arg(value_name = "DATASET_DIR", required = true)]
+    /// Dataset folders or bags (as for `calibrate`).
+    #[arg(value_name = "DATASET", required = true)]
     pub datasets: Vec<PathBuf>,
     /// A calibration (result YAML) to check on every dataset.
     #[arg(long, value_name = "FILE")]
@@ -48,6 +48,8 @@ pub struct EvaluateArgs {
     #[command(flatten)]
     pub dvl_input: DvlInputArgs,
     #[command(flatten)]
+    pub bag_args: crate::bag::BagArgs,
+    #[command(flatten)]
     pub estimator: EstimatorArgs,
 }
 
@@ -65,7 +67,11 @@ pub fn run(a: EvaluateArgs) -> Result<()> {
     let vision = a.vision.options();
     let mut data = Vec::with_capacity(a.datasets.len());
     for d in &a.datasets {
-        data.push(load(Some(d), &DatasetArgs::default(), &vision, &read)?);
+        let args = DatasetArgs {
+            bag_args: a.bag_args.clone(),
+            ..DatasetArgs::default()
+        };
+        data.push(load(Some(d), &args, &vision, &read)?);
     }
     let mut report = String::new();
     if let Some(p) = &a.calib {

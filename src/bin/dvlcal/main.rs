@@ -1,5 +1,6 @@
 //! The `dvlcal` command line: a thin layer over the library, one module per subcommand.
 
+mod bag;
 mod board;
 mod calibrate;
 mod cameras;
@@ -50,6 +51,8 @@ enum Command {
     CompareCalib(compare::CompareArgs),
     /// Compare a twist CSV with a truth twist CSV (RMS errors and normalised errors).
     EvalTwist(eval::EvalTwistArgs),
+    /// List a bag's topics (types, counts, rates, spans) and the part dvlcal gives each.
+    BagInfo(bag::BagInfoArgs),
     /// Summarise a DVL log (any format): counts, time span, rate, velocity statistics, problems.
     DvlInfo(dvl_info::DvlInfoArgs),
     /// Record a DVL's TCP JSON stream to a log, adding the host receive time to each line.
@@ -76,6 +79,7 @@ fn main() {
         Command::Evaluate(a) => evaluate::run(a),
         Command::CompareCalib(a) => compare::run(a),
         Command::DvlInfo(a) => dvl_info::run(a),
+        Command::BagInfo(a) => bag::run(a),
         Command::RecordDvl(a) => record_dvl::run(a),
         Command::Board(a) => board::run(a),
         Command::Calibrate(a) => calibrate::run(a),

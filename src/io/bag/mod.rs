@@ -8,6 +8,7 @@
 
 pub mod cdr;
 pub mod mcap;
+pub mod roles;
 pub mod ros1;
 pub mod sqlite;
 

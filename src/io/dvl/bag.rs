@@ -1,45 +1,34 @@
-//! ROS1 bags recorded from the vendor's driver (waterlinked/dvl-a50-ros-driver):
-//! `/dvl/json_data` (std_msgs/String, the raw JSON line) and `/dvl/data`
-//! (`waterlinked_a50_ros_driver/DVL`, header stamp = host receive time). The bag container is
-//! read by [`crate::io::bag::ros1`], damage included; the two message types are decoded here.
+//! DVL reports from a bag: ROS 1 bags recorded from the vendor's ROS 1 driver
+//! (waterlinked/dvl-a50-ros-driver: `/dvl/json_data`, std_msgs/String, the raw JSON line, and
+//! `/dvl/data`, `waterlinked_a50_ros_driver/DVL`, header stamp = host receive time), and ROS 2
+//! bags (MCAP or sqlite3) from Water Linked's ROS 2 driver (`marine_acoustic_msgs/Dvl`,
+//! header stamp = time of validity, validity from `beam_velocities_valid`, covariance from
+//! `velocity_covar`; or its `nav_msgs/Odometry`), or any
+//! `geometry_msgs/TwistWithCovarianceStamped`. The container is read by [`crate::io::bag`],
+//! the topic chosen by [`crate::io::bag::roles::choose_dvl`]; the messages are decoded here.
+//!
+//! Times: the JSON strings carry the DVL's own; the typed ROS 2 messages carry their header
+//! stamp as the time of validity (a zero stamp is replaced by the record time, counted and
+//! warned about); every message also carries its record time as the host receive time
+//! (`--dvl-time host`).
 
-use std::collections::BTreeMap;
 use std::path::Path;
 
 use super::json;
 use super::log::{DvlLogStats, DvlReadOptions};
 use super::report::{Parsed, Reject, VelocityReport, content_hash};
 use crate::error::{Error, Result};
-use crate::io::bag::ros1::Ros1Bag;
+use crate::io::bag::cdr::{self, CdrMessage};
+use crate::io::bag::roles::{Kind, choose_dvl, kind};
+use crate::io::bag::{Bag, Serialization, Topic};
 use crate::time::RawTime;
-
-/// The topic of the raw JSON strings.
-pub const JSON_TOPIC: &str = "/dvl/json_data";
-/// The message type of the driver's decoded reports.
-pub const DVL_MSG_TYPE: &str = "waterlinked_a50_ros_driver/DVL";
-
-/// How the messages of a topic are decoded.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Kind {
-    JsonString,
-    DvlMsg,
-}
-
-fn kind_of(tp: &str) -> Option<Kind> {
-    if tp == "std_msgs/String" {
-        Some(Kind::JsonString)
-    } else if tp == DVL_MSG_TYPE || tp.ends_with("/DVL") {
-        Some(Kind::DvlMsg)
-    } else {
-        None
-    }
-}
 
 /// Callback receiving each decoded message (stats, 1-based message number, result).
 pub type Sink<'a> =
     dyn FnMut(&mut DvlLogStats, usize, std::result::Result<Parsed, Reject>) -> Result<()> + 'a;
 
-/// Reads the DVL topic of a ROS1 bag, handing every message to `sink`.
+/// Reads the DVL topic of a bag (ROS 1, or ROS 2 in either storage), handing every message to
+/// `sink`.
 pub fn read_bag(
     path: &Path,
     opts: &DvlReadOptions,
@@ -53,7 +42,7 @@ pub fn read_bag(
     })) {
         Ok(r) => r,
         Err(_) => Err(Error::Input(format!(
-            "{}: the ROS bag is damaged (the bag reader failed)",
+            "{}: the bag is damaged (the bag reader failed)",
             path.display()
         ))),
     }
@@ -65,11 +54,11 @@ fn read_bag_inner(
     stats: &mut DvlLogStats,
     sink: &mut Sink<'_>,
 ) -> Result<()> {
-    let bag = Ros1Bag::open(path)?;
+    let bag = Bag::open(path)?;
     let damage = |stats: &mut DvlLogStats, problems: &[String]| -> Result<()> {
         if opts.strict && !problems.is_empty() {
             return Err(Error::Input(format!(
-                "{}: damaged ROS bag: {}",
+                "{}: damaged bag: {}",
                 path.display(),
                 problems.join("; ")
             )));
@@ -80,91 +69,216 @@ fn read_bag_inner(
         Ok(())
     };
     damage(stats, bag.problems())?;
-    let conns: BTreeMap<u32, (String, String)> = bag
-        .connections()
-        .map(|c| (c.id, (c.topic.clone(), c.msg_type.clone())))
-        .collect();
-    let topic = match &opts.topic {
-        Some(t) => t.clone(),
-        None => {
-            let json_topic = conns
-                .values()
-                .find(|(t, tp)| t == JSON_TOPIC && tp == "std_msgs/String");
-            let dvl_topic = conns.values().find(|(_, tp)| tp == DVL_MSG_TYPE);
-            match json_topic.or(dvl_topic) {
-                Some((t, _)) => t.clone(),
-                None => {
-                    return Err(Error::Input(format!(
-                        "{}: no DVL topic in this bag (topics: {}); choose one with --dvl-topic",
-                        path.display(),
-                        topic_list(&conns)
-                    )));
-                }
-            }
-        }
-    };
-    let mut ids: BTreeMap<u32, Kind> = BTreeMap::new();
-    let mut type_name = String::new();
-    for (id, (t, tp)) in &conns {
-        if *t == topic {
-            let kind = kind_of(tp).ok_or_else(|| {
-                Error::Input(format!(
-                    "{}: topic {topic} has type {tp}; expected std_msgs/String (raw JSON) or {DVL_MSG_TYPE}",
-                    path.display()
-                ))
-            })?;
-            ids.insert(*id, kind);
-            type_name = tp.clone();
-        }
-    }
-    if ids.is_empty() {
+    let topics = bag.topics();
+    let Some(idx) = choose_dvl(topics, opts.topic.as_deref())? else {
         return Err(Error::Input(format!(
-            "{}: no topic {topic} in this bag (topics: {})",
+            "{}: no DVL topic in this bag (topics: {}); choose one with --dvl-topic",
             path.display(),
-            topic_list(&conns)
+            topic_list(topics)
         )));
-    }
-    stats.topic = Some(format!("{topic} ({type_name})"));
-    let summary = bag.messages(&|id| ids.contains_key(&id), &mut |msg| {
-        let Some(kind) = ids.get(&msg.conn_id) else {
-            return Ok(());
-        };
+    };
+    let topic = topics[idx].clone();
+    let Some(k) = kind(&topic) else {
+        return Err(Error::Input(format!(
+            "{}: topic {} has type {}, which is not a DVL report",
+            path.display(),
+            topic.name,
+            topic.msg_type
+        )));
+    };
+    stats.topic = Some(format!("{} ({})", topic.name, topic.msg_type));
+    let mut zero_stamps = 0usize;
+    let summary = bag.messages(&|i| i == idx, &mut |msg| {
         let record_time = RawTime {
-            sec: msg.sec as i64,
-            frac: msg.nsec.min(999_999_999) as f64 * 1e-9,
+            sec: msg.log_time_ns.div_euclid(1_000_000_000),
+            frac: msg.log_time_ns.rem_euclid(1_000_000_000) as f64 * 1e-9,
         };
-        let parsed = match kind {
-            Kind::JsonString => decode_string(msg.data).and_then(|s| {
-                let mut p = json::parse_line(s)?;
-                relabel(&mut p, &topic);
-                if let Parsed::Velocity(r) = &mut p {
-                    r.host_time = Some(record_time);
-                    r.host_time_kind = Some("host receive time (bag record time)");
-                }
-                Ok(p)
-            }),
-            Kind::DvlMsg => decode_dvl(msg.data, &topic),
-        };
-        sink(stats, msg.number, parsed)
+        let parsed = decode(k, &topic, msg.data, record_time, &mut zero_stamps);
+        sink(stats, msg.index as usize, parsed)
     })?;
     damage(stats, &summary.problems)?;
-    if let Some(n) = summary.lost_messages.filter(|&n| n > 0) {
-        damage(
-            stats,
-            &[format!(
-                "{n} messages of {topic} that the bag's index lists could not be read"
-            )],
-        )?;
+    if zero_stamps > 0 {
+        stats.warnings.push(format!(
+            "{zero_stamps} messages of {} have a zero header.stamp: their record time is used",
+            topic.name
+        ));
     }
     Ok(())
 }
 
-fn topic_list(conns: &BTreeMap<u32, (String, String)>) -> String {
-    let mut v: Vec<String> = conns
-        .values()
-        .map(|(t, tp)| format!("{t} [{tp}]"))
+/// Decodes one DVL message of kind `k`.
+fn decode(
+    k: Kind,
+    topic: &Topic,
+    data: &[u8],
+    record_time: RawTime,
+    zero_stamps: &mut usize,
+) -> std::result::Result<Parsed, Reject> {
+    let ser = topic.serialization;
+    let name = &topic.name;
+    match k {
+        Kind::String => {
+            let text: std::borrow::Cow<'_, [u8]> = match ser {
+                Serialization::Ros1 => decode_string(data)?.into(),
+                Serialization::Cdr => decode_typed::<cdr::StringMsg>(data, ser)?
+                    .data
+                    .into_bytes()
+                    .into(),
+            };
+            let mut p = json::parse_line(&text)?;
+            relabel(&mut p, name);
+            if let Parsed::Velocity(r) = &mut p {
+                r.host_time = Some(record_time);
+                r.host_time_kind = Some("host receive time (bag record time)");
+            }
+            Ok(p)
+        }
+        Kind::A50Dvl if ser == Serialization::Ros1 => decode_dvl(data, name),
+        Kind::MarineDvl => {
+            let m: cdr::Dvl = decode_typed(data, ser)?;
+            let cov = finite_cov(&m.velocity_covar);
+            typed_report(
+                "marine_acoustic_msgs/Dvl",
+                name,
+                data,
+                [m.velocity.x, m.velocity.y, m.velocity.z],
+                cov,
+                m.beam_velocities_valid,
+                &m.header.stamp,
+                record_time,
+                zero_stamps,
+            )
+        }
+        Kind::Odometry => {
+            let m: cdr::Odometry = decode_typed(data, ser)?;
+            let l = m.twist.twist.linear;
+            typed_report(
+                "nav_msgs/Odometry",
+                name,
+                data,
+                [l.x, l.y, l.z],
+                linear_block(&m.twist.covariance),
+                true,
+                &m.header.stamp,
+                record_time,
+                zero_stamps,
+            )
+        }
+        Kind::TwistCov => {
+            let m: cdr::TwistWithCovarianceStamped = decode_typed(data, ser)?;
+            let l = m.twist.twist.linear;
+            typed_report(
+                "geometry_msgs/TwistWithCovarianceStamped",
+                name,
+                data,
+                [l.x, l.y, l.z],
+                linear_block(&m.twist.covariance),
+                true,
+                &m.header.stamp,
+                record_time,
+                zero_stamps,
+            )
+        }
+        _ => Err(Reject::new(
+            "not a DVL message",
+            format!("{} messages are not DVL reports", topic.msg_type),
+        )),
+    }
+}
+
+/// Decodes a typed message, turning a decoding error into a rejected message.
+fn decode_typed<M: CdrMessage>(data: &[u8], ser: Serialization) -> std::result::Result<M, Reject> {
+    let r = match ser {
+        Serialization::Cdr => M::decode(data),
+        Serialization::Ros1 => Err(Error::Input(format!(
+            "{}: ROS 1 serialisation is not decoded yet",
+            M::TYPE_NAME
+        ))),
+    };
+    r.map_err(|e| Reject::new("malformed message", e.to_string()))
+}
+
+/// The velocity block of a 6x6 row-major twist covariance; `None` when it says nothing (all
+/// zeros, ROS's -1 for "unknown", or a value that is not finite).
+fn linear_block(c: &[f64; 36]) -> Option<[f64; 9]> {
+    let mut out = [0.0; 9];
+    for r in 0..3 {
+        for k in 0..3 {
+            out[r * 3 + k] = c[r * 6 + k];
+        }
+    }
+    finite_cov(&out)
+}
+
+/// A 3x3 covariance, unless it says nothing (all zeros, a negative variance) or is not finite.
+fn finite_cov(c: &[f64; 9]) -> Option<[f64; 9]> {
+    let usable = c.iter().all(|v| v.is_finite())
+        && c.iter().any(|&v| v != 0.0)
+        && [c[0], c[4], c[8]].iter().all(|&v| v >= 0.0);
+    usable.then_some(*c)
+}
+
+/// A velocity report from a typed ROS message: the header stamp is the time of validity (the
+/// record time when the stamp is zero), the record time the host receive time.
+#[allow(clippy::too_many_arguments)]
+fn typed_report(
+    type_label: &str,
+    topic: &str,
+    data: &[u8],
+    v: [f64; 3],
+    cov: Option<[f64; 9]>,
+    valid: bool,
+    stamp: &cdr::Time,
+    record_time: RawTime,
+    zero_stamps: &mut usize,
+) -> std::result::Result<Parsed, Reject> {
+    if v.iter().any(|x| !x.is_finite()) {
+        if !valid {
+            // An invalid report may carry NaN: it is counted as invalid, not malformed.
+            return Ok(Parsed::Velocity(VelocityReport {
+                label: format!("{type_label} (bag {topic})"),
+                v: [0.0; 3],
+                cov: None,
+                valid: false,
+                time_ms: None,
+                time_of_validity_us: None,
+                time_of_transmission_us: None,
+                host_time: Some(record_time),
+                host_time_kind: Some("host receive time (bag record time)"),
+                key: content_hash(data),
+            }));
+        }
+        return Err(Reject::new(
+            "non-finite value",
+            format!("velocity {v:?} in a report marked valid"),
+        ));
+    }
+    let stamp_ns = i64::from(stamp.sec) * 1_000_000_000 + i64::from(stamp.nanosec);
+    let tov_us = if stamp_ns == 0 {
+        *zero_stamps += 1;
+        record_time.sec * 1_000_000 + (record_time.frac * 1e6).round() as i64
+    } else {
+        stamp_ns.div_euclid(1000)
+    };
+    Ok(Parsed::Velocity(VelocityReport {
+        label: format!("{type_label} (bag {topic})"),
+        v,
+        cov,
+        valid,
+        time_ms: None,
+        time_of_validity_us: Some(tov_us),
+        time_of_transmission_us: None,
+        host_time: Some(record_time),
+        host_time_kind: Some("host receive time (bag record time)"),
+        key: content_hash(data),
+    }))
+}
+
+fn topic_list(topics: &[Topic]) -> String {
+    let v: Vec<String> = topics
+        .iter()
+        .map(|t| format!("{} [{}]", t.name, t.msg_type))
         .collect();
-    v.dedup();
     if v.is_empty() {
         "none".to_string()
     } else {

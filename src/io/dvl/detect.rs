@@ -4,22 +4,21 @@ use super::log::{DvlFormat, text_lines};
 
 /// The first bytes of a ROS1 bag.
 pub const ROSBAG_MAGIC: &[u8] = b"#ROSBAG V2.0\n";
-/// The first bytes of an MCAP file (ROS2).
-pub const MCAP_MAGIC: &[u8] = b"\x89MCAP0\r\n";
+use crate::io::bag::MCAP_MAGIC;
 
 /// How many non-blank lines of a text log are looked at.
 const SAMPLE_LINES: usize = 200;
 
 /// The format of a DVL log, or `None` when nothing in it looks like one.
 ///
-/// A ROS1 bag is known by its magic; a text log by a vote over its first non-blank lines:
+/// A bag (ROS 1, or a ROS 2 MCAP or sqlite3 file) is known by its magic; a text log by a vote over its first non-blank lines:
 /// lines starting with `{` count for JSON, lines holding a `wr<letter>` sentence for serial.
 pub fn detect_format(bytes: &[u8]) -> Option<DvlFormat> {
     if bytes.starts_with(ROSBAG_MAGIC) {
         return Some(DvlFormat::RosBag);
     }
-    if bytes.starts_with(MCAP_MAGIC) {
-        return None;
+    if bytes.starts_with(MCAP_MAGIC) || bytes.starts_with(crate::io::bag::SQLITE_MAGIC) {
+        return Some(DvlFormat::RosBag);
     }
     let (mut json, mut serial) = (0usize, 0usize);
     for (_, line) in text_lines(bytes).take(SAMPLE_LINES) {
@@ -40,7 +39,3 @@ pub fn detect_format(bytes: &[u8]) -> Option<DvlFormat> {
     }
 }
 
-/// Whether `bytes` start like an MCAP (ROS2) file, which is not read yet.
-pub fn is_mcap(bytes: &[u8]) -> bool {
-    bytes.starts_with(MCAP_MAGIC)
-}

@@ -56,23 +56,25 @@ const MAX_REBUILT_MS: f64 = 9_223_372_036_854_775_808.0;
 /// velocity report; the time source asked for is absent; or, in strict mode, the first
 /// malformed line (named `file:line`).
 pub fn read_dvl_log(path: &Path, opts: &DvlReadOptions) -> Result<DvlLog> {
-    let bytes = crate::files::read_bytes(path)?;
-    if detect::is_mcap(&bytes) {
-        return Err(Error::Input(format!(
-            "{}: ROS2 (MCAP) logs are not read yet; export /dvl/json_data as JSON lines",
-            path.display()
-        )));
+    // A bag (a ROS 2 bag folder, or a file of tens of GB) is streamed, never read whole.
+    let is_bag = crate::io::bag::is_bag(path);
+    if is_bag && matches!(opts.format, None | Some(DvlFormat::RosBag)) {
+        return read_bag_log(path, opts);
     }
+    let bytes = crate::files::read_bytes(path)?;
     let format = match opts.format {
         Some(f) => f,
         None => detect_format(&bytes).ok_or_else(|| {
             Error::Input(format!(
-                "{}: not a recognised DVL log (JSON lines, serial sentences or ROS1 bag); \
+                "{}: not a recognised DVL log (JSON lines, serial sentences or a ROS bag); \
                  use --dvl-format to force one",
                 path.display()
             ))
         })?,
     };
+    if format == DvlFormat::RosBag {
+        return read_bag_log(path, opts);
+    }
     let mut stats = DvlLogStats {
         path: path.to_path_buf(),
         format: Some(format),
@@ -91,12 +93,23 @@ pub fn read_dvl_log(path: &Path, opts: &DvlReadOptions) -> Result<DvlLog> {
                 acc.push(path, opts.strict, &mut stats, line, parsed)?;
             }
         }
-        DvlFormat::RosBag => {
-            bag::read_bag(path, opts, &mut stats, &mut |stats, line, parsed| {
-                acc.push(path, opts.strict, stats, line, parsed)
-            })?;
-        }
+        DvlFormat::RosBag => return read_bag_log(path, opts),
     }
+    acc.finish(path, opts, stats)
+}
+
+/// [`read_dvl_log`] on a bag: its DVL topic, streamed.
+fn read_bag_log(path: &Path, opts: &DvlReadOptions) -> Result<DvlLog> {
+    let mut stats = DvlLogStats {
+        path: path.to_path_buf(),
+        format: Some(DvlFormat::RosBag),
+        time_source: opts.time_source,
+        ..Default::default()
+    };
+    let mut acc = Accumulator::default();
+    bag::read_bag(path, opts, &mut stats, &mut |stats, line, parsed| {
+        acc.push(path, opts.strict, stats, line, parsed)
+    })?;
     acc.finish(path, opts, stats)
 }
 
