@@ -5,9 +5,9 @@
 //!
 //! ```sh
 //! python3 -m venv /tmp/rb && /tmp/rb/bin/pip install rosbags numpy pillow
-//! /tmp/rb/bin/python scripts/make_bench_bag.py --jpeg-sample --out /tmp/dvlcal-bench/stereo_jpeg.mcap
-//! /tmp/rb/bin/python scripts/make_bench_bag.py --gb 1 --out /tmp/dvlcal-bench/raw_1gb.mcap
-//! /tmp/rb/bin/python scripts/make_bench_bag.py --gb 5 --out /tmp/dvlcal-bench/raw_5gb.mcap
+//! /tmp/rb/bin/python scripts/make_bench_bag.py --jpeg-sample --out /tmp/dvlcal-bench/stereo_jpeg
+//! /tmp/rb/bin/python scripts/make_bench_bag.py --gb 1 --out /tmp/dvlcal-bench/raw_1gb
+//! /tmp/rb/bin/python scripts/make_bench_bag.py --gb 5 --out /tmp/dvlcal-bench/raw_5gb
 //! ```
 //!
 //! 1. Throughput: `sample_data/stereo` (251 JPEG stereo frames) read from its folder, and the
@@ -88,6 +88,19 @@ fn run_folder(threads: usize) -> (usize, usize, f64) {
     )
 }
 
+/// The bytes of a bag: a file, or the files of a ROS 2 bag folder.
+fn bag_bytes(path: &Path) -> Option<u64> {
+    let meta = std::fs::metadata(path).ok()?;
+    if meta.is_file() {
+        return Some(meta.len());
+    }
+    let mut n = 0;
+    for e in std::fs::read_dir(path).ok()? {
+        n += e.ok()?.metadata().ok()?.len();
+    }
+    Some(n)
+}
+
 fn best<F: FnMut() -> (usize, usize, f64)>(mut f: F) -> (usize, usize, f64) {
     let mut out = f();
     for _ in 0..2 {
@@ -107,7 +120,7 @@ fn main() {
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
     println!("| input | frames | posed | threads | seconds | images/s |");
     println!("|---|---|---|---|---|---|");
-    let jpeg = dir.join("stereo_jpeg.mcap");
+    let jpeg = dir.join("stereo_jpeg");
     let mut rates = Vec::new();
     for t in [1, threads] {
         let (n, p, s) = best(|| run_folder(t));
@@ -135,9 +148,9 @@ fn main() {
     println!();
     println!("| raw mono8 MCAP bag | size GB | frames | posed | seconds | images/s | peak RSS MB |");
     println!("|---|---|---|---|---|---|---|");
-    for name in ["raw_1gb.mcap", "raw_5gb.mcap"] {
+    for name in ["raw_1gb", "raw_5gb"] {
         let bag = dir.join(name);
-        let Ok(meta) = std::fs::metadata(&bag) else {
+        let Some(bytes) = bag_bytes(&bag) else {
             eprintln!(
                 "skipped {}: make it with scripts/make_bench_bag.py --gb N",
                 bag.display()
@@ -148,7 +161,7 @@ fn main() {
         let (n, p, s) = run_bag(&bag, threads);
         println!(
             "| {name} | {:.2} | {n} | {p} | {s:.1} | {:.1} | {:.0} |",
-            meta.len() as f64 / 1e9,
+            bytes as f64 / 1e9,
             2.0 * n as f64 / s,
             peak_rss_mb()
         );

@@ -7,6 +7,12 @@ and never committed.
     python3 -m venv /tmp/rbs && /tmp/rbs/bin/pip install rosbags numpy pillow
     /tmp/rbs/bin/python scripts/make_bench_bag.py --gb 5                     # -> /tmp/dvlcal_bench_5gb/
     /tmp/rbs/bin/python scripts/make_bench_bag.py --gb 1 --out /tmp/b1 --compression zstd
+    /tmp/rbs/bin/python scripts/make_bench_bag.py --jpeg-sample --out /tmp/dvlcal-bench/stereo_jpeg
+
+--jpeg-sample writes instead all 251 stereo frames of sample_data/stereo as
+sensor_msgs/CompressedImage (the JPEG files' bytes unchanged) on /cam0/image_raw/compressed and
+/cam1/image_raw/compressed, with header stamps from the file names, and every velocity report of
+its dvl.jsonl as Dvl: the same images as the folder, for comparing the two readers' throughput.
 
 The images loop over --frames distinct frames of sample_data/stereo (decoded once with Pillow,
 the only image data held in memory), while the stamps advance by 50 ms per stereo pair and never
@@ -34,8 +40,11 @@ from make_sample_bags import (  # noqa: E402  (the typestore with Dvl and the me
     DVL,
     STEREO,
     TS2,
+    compressed_msg,
     dvl_msg,
     image_msg,
+    jpeg_path,
+    tov_ns,
     latency_ns,
     mono8,
     read_reports,
@@ -51,12 +60,23 @@ DVL_OFFSET_NS = 25_000_000  # DVL stamps between the image stamps
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--gb", type=float, required=True, help="serialized message bytes to write, in 10^9 bytes")
+    ap.add_argument("--gb", type=float, help="serialized message bytes to write, in 10^9 bytes")
+    ap.add_argument("--jpeg-sample", action="store_true", help="the whole sample_data/stereo as CompressedImage")
     ap.add_argument("--out", type=Path, help="bag folder to create (default /tmp/dvlcal_bench_<N>gb)")
     ap.add_argument("--compression", choices=("none", "zstd"), default="none")
     ap.add_argument("--frames", type=int, default=8, help="distinct stereo frames to loop over (memory: 0.72 MB each)")
     ap.add_argument("--force", action="store_true", help="replace --out if it exists")
     args = ap.parse_args()
+    if args.jpeg_sample:
+        out = args.out or Path("/tmp/dvlcal-bench/stereo_jpeg")
+        if out.exists():
+            if not args.force:
+                raise SystemExit(f"{out} exists; pass --force to replace it")
+            shutil.rmtree(out)
+        jpeg_sample(out)
+        return
+    if args.gb is None:
+        raise SystemExit("give --gb N or --jpeg-sample")
     out = args.out or Path(f"/tmp/dvlcal_bench_{args.gb:g}gb")
     if out.exists():
         if not args.force:
@@ -111,6 +131,33 @@ def main() -> None:
         f"{out}: {images} images, {dvls} Dvl, {written / 1e9:.3f} GB of messages, {size / 1e9:.3f} GB on disk "
         f"({args.compression}), {elapsed:.1f} s ({written / 1e6 / elapsed:.0f} MB/s)"
     )
+
+
+def jpeg_sample(out: Path) -> None:
+    """All of sample_data/stereo as CompressedImage (JPEG bytes unchanged) plus its DVL log."""
+    out.parent.mkdir(parents=True, exist_ok=True)
+    stamps = sorted(int(p.stem) for p in (STEREO / "cam0").glob("*.jpg"))
+    msgs = []
+    for t in stamps:
+        for cam in ("cam0", "cam1"):
+            jpeg = jpeg_path(cam, t).read_bytes()
+            data = TS2.serialize_cdr(compressed_msg(t, cam, jpeg), "sensor_msgs/msg/CompressedImage")
+            msgs.append((t + latency_ns(cam, t), cam, data))
+    for _, rep in read_reports(STEREO / "dvl.jsonl"):
+        t = tov_ns(rep)
+        data = TS2.serialize_cdr(dvl_msg(rep), DVL)
+        msgs.append((t + latency_ns("/dvl/velocity_report", t), "dvl", data))
+    writer = Writer(out, version=Writer.VERSION_LATEST, storage_plugin=StoragePlugin.MCAP)
+    with writer:
+        conns = {
+            "cam0": writer.add_connection("/cam0/image_raw/compressed", "sensor_msgs/msg/CompressedImage", typestore=TS2),
+            "cam1": writer.add_connection("/cam1/image_raw/compressed", "sensor_msgs/msg/CompressedImage", typestore=TS2),
+            "dvl": writer.add_connection("/dvl/velocity_report", DVL, typestore=TS2),
+        }
+        for rec, key, data in sorted(msgs, key=lambda m: (m[0], m[1])):
+            writer.write(conns[key], rec, data)
+    size = sum(p.stat().st_size for p in out.iterdir())
+    print(f"{out}: {len(stamps)} stereo JPEG frames, {size / 1e6:.1f} MB")
 
 
 if __name__ == "__main__":
