@@ -7,6 +7,7 @@
 //! `.db3` file; [`Bag::open`] takes any of these, and a ROS 1 `.bag`.
 
 pub mod cdr;
+pub mod image;
 pub mod mcap;
 pub mod ros1;
 pub mod sqlite;
