@@ -67,8 +67,9 @@ fn q() -> Quaternion {
     }
 }
 
-fn header(sec: i32, nanosec: u32, frame: &str) -> Header {
+fn header(sec: i64, nanosec: u32, frame: &str) -> Header {
     Header {
+        seq: 0,
         stamp: Time { sec, nanosec },
         frame_id: frame.into(),
     }

@@ -1,49 +1,60 @@
-//! CDR, the serialisation of ROS 2 messages in bags (sqlite3 and MCAP storage alike), and
-//! decoders for the message types dvlcal reads.
+//! The two serialisations of ROS messages in bags, and decoders for the message types dvlcal
+//! reads: CDR, ROS 2's (sqlite3 and MCAP storage alike), and ROS 1's.
 //!
-//! A message is a 4-byte encapsulation header followed by the payload. The header's second
-//! byte says the byte order: `00 01` is plain CDR little-endian (what ROS 2 writes on every
-//! common platform), `00 00` plain CDR big-endian; both are read. The parameter-list and XCDR2
-//! encapsulations are refused with an error that names them. The last two header bytes are
-//! options and are not used.
+//! **CDR.** A message is a 4-byte encapsulation header followed by the payload. The header's
+//! second byte says the byte order: `00 01` is plain CDR little-endian (what ROS 2 writes on
+//! every common platform), `00 00` plain CDR big-endian; both are read. The parameter-list and
+//! XCDR2 encapsulations are refused with an error that names them. The last two header bytes
+//! are options and are not used. In the payload every primitive is aligned to its own size,
+//! counted from the start of the payload (the byte after the header). A string is a `u32`
+//! length that counts a trailing NUL, then the bytes and the NUL. `builtin_interfaces/Time` is
+//! `int32 sec, uint32 nanosec`; `std_msgs/Header` is `Time stamp, string frame_id`.
 //!
-//! In the payload every primitive is aligned to its own size, counted from the start of the
-//! payload (the byte after the header). A string is a `u32` length that counts a trailing NUL,
-//! then the bytes and the NUL; a sequence is a `u32` element count then the elements; a fixed
-//! array is its elements with no count. `bool` is one byte.
+//! **ROS 1.** No header and no alignment: the fields are packed, little-endian. A string is a
+//! `u32` length (no NUL) then the bytes. `time` is `uint32 sec, uint32 nsec`, and
+//! `std_msgs/Header` is `uint32 seq, time stamp, string frame_id`.
+//!
+//! In both, a sequence is a `u32` element count then the elements, a fixed array is its
+//! elements with no count, and `bool` is one byte. One decoder per type reads both: the
+//! [`CdrReader`] knows which serialisation it reads, and [`decode`] takes it as an argument.
+//! A type that exists in one ROS version only (`marine_acoustic_msgs/Dvl`) is read from the
+//! other's bytes with the same field list.
 //!
 //! Nothing read is trusted: every read checks the bytes left, every length is checked against
 //! the bytes left before anything is allocated, and a message that ends early, has a length
-//! running past its end, a string without its NUL or not in UTF-8, a `bool` other than 0 or 1,
-//! or more than three bytes after its last field (the most padding a writer adds), is an
-//! [`Error::Input`] naming what was being read and the byte offset, counted from the start of
-//! the message (header included).
+//! running past its end, a CDR string without its NUL, a string not in UTF-8, a `bool` other
+//! than 0 or 1, or bytes after its last field (CDR: more than three, the most padding a writer
+//! adds; ROS 1: any), is an [`Error::Input`] naming what was being read and the byte offset,
+//! counted from the start of the message (CDR: encapsulation header included).
 
+use super::Serialization;
 use crate::error::{Error, Result};
 
 /// Bytes of the encapsulation header before the payload.
 pub const ENCAPSULATION_LEN: usize = 4;
 
-/// The most bytes accepted after a message's last field (writers pad the payload to a
+/// The most bytes accepted after a CDR message's last field (writers pad the payload to a
 /// multiple of four).
 const MAX_TRAILING: usize = 3;
 
-/// A bounds-checked reader of one CDR message.
+/// A bounds-checked reader of one serialised message, CDR or ROS 1.
 ///
 /// Reads advance through the payload in field order; each takes a `what` naming the field for
 /// the error message.
 #[derive(Clone, Debug)]
 pub struct CdrReader<'a> {
-    /// The payload (the message after the encapsulation header).
+    /// The payload (CDR: the message after the encapsulation header; ROS 1: the message).
     payload: &'a [u8],
     /// The read position in `payload`.
     pos: usize,
     /// Whether the message is big-endian.
     big_endian: bool,
+    /// The serialisation read.
+    ser: Serialization,
 }
 
 impl<'a> CdrReader<'a> {
-    /// A reader of the serialised message `msg`, after checking its encapsulation header.
+    /// A reader of the CDR message `msg`, after checking its encapsulation header.
     pub fn new(msg: &'a [u8]) -> Result<Self> {
         let Some((head, payload)) = msg.split_first_chunk::<ENCAPSULATION_LEN>() else {
             return Err(Error::Input(format!(
@@ -79,34 +90,79 @@ impl<'a> CdrReader<'a> {
             payload,
             pos: 0,
             big_endian,
+            ser: Serialization::Cdr,
         })
     }
 
-    /// Whether the message is big-endian.
+    /// A reader of the ROS 1 message `msg` (which has no header to check).
+    pub fn ros1(msg: &'a [u8]) -> Self {
+        Self {
+            payload: msg,
+            pos: 0,
+            big_endian: false,
+            ser: Serialization::Ros1,
+        }
+    }
+
+    /// A reader of `msg` serialised as `ser`: [`CdrReader::new`] or [`CdrReader::ros1`].
+    pub fn with_serialization(msg: &'a [u8], ser: Serialization) -> Result<Self> {
+        match ser {
+            Serialization::Cdr => Self::new(msg),
+            Serialization::Ros1 => Ok(Self::ros1(msg)),
+        }
+    }
+
+    /// The serialisation this reader reads.
+    pub fn serialization(&self) -> Serialization {
+        self.ser
+    }
+
+    /// Whether the message is ROS 1 (no alignment, strings without NUL, `Header.seq`).
+    pub fn is_ros1(&self) -> bool {
+        self.ser == Serialization::Ros1
+    }
+
+    /// Whether the message is big-endian (only CDR can be).
     pub fn is_big_endian(&self) -> bool {
         self.big_endian
     }
 
-    /// The read position as a byte offset from the start of the message (header included).
+    /// Bytes before the payload: the encapsulation header in CDR, none in ROS 1.
+    fn base(&self) -> usize {
+        match self.ser {
+            Serialization::Cdr => ENCAPSULATION_LEN,
+            Serialization::Ros1 => 0,
+        }
+    }
+
+    /// The read position as a byte offset from the start of the message (CDR: header
+    /// included).
     pub fn offset(&self) -> usize {
-        self.pos + ENCAPSULATION_LEN
+        self.pos + self.base()
     }
 
     /// The payload bytes not read yet.
     pub fn remaining(&self) -> usize {
-        self.payload.len() - self.pos
+        self.payload.len().saturating_sub(self.pos)
     }
 
     /// An error about reading `what` at byte offset `at` of the payload.
     fn err(&self, what: &str, at: usize, msg: &str) -> Error {
+        let kind = match self.ser {
+            Serialization::Cdr => "CDR",
+            Serialization::Ros1 => "ROS 1 message",
+        };
         Error::Input(format!(
-            "CDR: {what} at byte {}: {msg}",
-            at + ENCAPSULATION_LEN
+            "{kind}: {what} at byte {}: {msg}",
+            at + self.base()
         ))
     }
 
-    /// Skips the padding before a primitive of `size` bytes.
+    /// Skips the padding before a primitive of `size` bytes (CDR only: ROS 1 is packed).
     fn align(&mut self, size: usize, what: &str) -> Result<()> {
+        if self.is_ros1() || size <= 1 {
+            return Ok(());
+        }
         let pad = (size - self.pos % size) % size;
         if pad > self.remaining() {
             return Err(self.err(what, self.pos, "the message ends in the alignment padding"));
@@ -117,7 +173,11 @@ impl<'a> CdrReader<'a> {
 
     /// The next `n` bytes, with no alignment.
     fn take(&mut self, n: usize, what: &str) -> Result<&'a [u8]> {
-        if n > self.remaining() {
+        let Some(s) = self
+            .pos
+            .checked_add(n)
+            .and_then(|end| self.payload.get(self.pos..end))
+        else {
             return Err(self.err(
                 what,
                 self.pos,
@@ -126,8 +186,7 @@ impl<'a> CdrReader<'a> {
                     self.remaining()
                 ),
             ));
-        }
-        let s = &self.payload[self.pos..self.pos + n];
+        };
         self.pos += n;
         Ok(s)
     }
@@ -145,7 +204,8 @@ impl<'a> CdrReader<'a> {
 
     /// Reads a `uint8` (or `byte`, `char`).
     pub fn u8(&mut self, what: &str) -> Result<u8> {
-        Ok(self.take(1, what)?[0])
+        let [b] = self.prim::<1>(what)?;
+        Ok(b)
     }
 
     /// Reads a `bool` (one byte, 0 or 1).
@@ -178,8 +238,9 @@ impl<'a> CdrReader<'a> {
         Ok(f64::from_le_bytes(self.prim(what)?))
     }
 
-    /// Reads a `string`: a `u32` length counting the trailing NUL, the bytes and the NUL. A
-    /// length of 0 (no NUL) is read as the empty string, as some writers emit it.
+    /// Reads a `string`. CDR: a `u32` length counting the trailing NUL, the bytes and the NUL
+    /// (a length of 0, no NUL, is read as the empty string, as some writers emit it). ROS 1: a
+    /// `u32` length and the bytes.
     pub fn string(&mut self, what: &str) -> Result<String> {
         let len = self.u32(what)? as usize;
         let at = self.pos;
@@ -187,8 +248,13 @@ impl<'a> CdrReader<'a> {
             return Ok(String::new());
         }
         let bytes = self.take(len, what)?;
-        let Some((&0, text)) = bytes.split_last() else {
-            return Err(self.err(what, at, "the string does not end in a NUL byte"));
+        let text = if self.is_ros1() {
+            bytes
+        } else {
+            let Some((&0, text)) = bytes.split_last() else {
+                return Err(self.err(what, at, "the string does not end in a NUL byte"));
+            };
+            text
         };
         match std::str::from_utf8(text) {
             Ok(s) => Ok(s.to_owned()),
@@ -249,9 +315,11 @@ impl<'a> CdrReader<'a> {
         Ok(a)
     }
 
-    /// Checks that the message ends here, allowing at most three bytes of padding.
+    /// Checks that the message ends here: CDR allows at most three bytes of padding, ROS 1
+    /// none.
     pub fn finish(&self, what: &str) -> Result<()> {
-        if self.remaining() > MAX_TRAILING {
+        let allowed = if self.is_ros1() { 0 } else { MAX_TRAILING };
+        if self.remaining() > allowed {
             return Err(self.err(
                 what,
                 self.pos,
@@ -265,28 +333,46 @@ impl<'a> CdrReader<'a> {
     }
 }
 
-/// A message type with a CDR decoder.
+/// Decodes one whole serialised message of type `M`, serialised as `ser` (CDR: encapsulation
+/// header included). Bytes after the last field are an error (CDR: beyond three of padding).
+pub fn decode<M: CdrMessage>(data: &[u8], ser: Serialization) -> Result<M> {
+    let mut r = CdrReader::with_serialization(data, ser)?;
+    let m = M::read(&mut r)?;
+    r.finish(M::TYPE_NAME)?;
+    Ok(m)
+}
+
+/// Reads only the leading `std_msgs/Header` of a message that starts with one (a stamped
+/// message, an image, an odometry, ...), serialised as `ser`, and ignores the rest: the cheap
+/// way to the stamp of a large message, as nothing after the header is read or copied.
+pub fn decode_header(data: &[u8], ser: Serialization) -> Result<Header> {
+    let mut r = CdrReader::with_serialization(data, ser)?;
+    Header::read(&mut r)
+}
+
+/// A message type with a decoder of both serialisations (the name is CDR's, for history).
 pub trait CdrMessage: Sized {
     /// The ROS 2 type name (`package/msg/Type`).
     const TYPE_NAME: &'static str;
 
-    /// Reads the message's fields from `r`, in the order of the type's definition.
+    /// Reads the message's fields from `r`, in the order of the type's definition, in the
+    /// reader's serialisation.
     fn read(r: &mut CdrReader<'_>) -> Result<Self>;
 
-    /// Decodes one whole serialised message (encapsulation header included).
+    /// Decodes one whole CDR message (encapsulation header included); [`decode`] reads
+    /// either serialisation.
     fn decode(msg: &[u8]) -> Result<Self> {
-        let mut r = CdrReader::new(msg)?;
-        let m = Self::read(&mut r)?;
-        r.finish(Self::TYPE_NAME)?;
-        Ok(m)
+        decode(msg, Serialization::Cdr)
     }
 }
 
-/// `builtin_interfaces/msg/Time`: `int32 sec`, `uint32 nanosec`.
+/// A time stamp: `builtin_interfaces/msg/Time` in ROS 2 (`int32 sec`, `uint32 nanosec`), the
+/// primitive `time` in ROS 1 (`uint32 sec`, `uint32 nsec`). The seconds are held in an `i64`,
+/// which holds both: ROS 1 times after 2038 stay positive.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Time {
     /// Whole seconds (since the Unix epoch for wall-clock stamps).
-    pub sec: i32,
+    pub sec: i64,
     /// Nanoseconds within the second.
     pub nanosec: u32,
 }
@@ -294,23 +380,39 @@ pub struct Time {
 impl Time {
     /// The time in seconds.
     pub fn as_secs_f64(&self) -> f64 {
-        f64::from(self.sec) + f64::from(self.nanosec) * 1e-9
+        self.sec as f64 + f64::from(self.nanosec) * 1e-9
+    }
+
+    /// The time in nanoseconds (saturating at the ends of `i64`, some 292 years from 1970,
+    /// which no message read can reach).
+    pub fn as_nanos(&self) -> i64 {
+        self.sec
+            .saturating_mul(1_000_000_000)
+            .saturating_add(i64::from(self.nanosec))
     }
 }
 
 impl CdrMessage for Time {
     const TYPE_NAME: &'static str = "builtin_interfaces/msg/Time";
     fn read(r: &mut CdrReader<'_>) -> Result<Self> {
+        let sec = if r.is_ros1() {
+            i64::from(r.u32("Time.sec")?)
+        } else {
+            i64::from(r.i32("Time.sec")?)
+        };
         Ok(Self {
-            sec: r.i32("Time.sec")?,
+            sec,
             nanosec: r.u32("Time.nanosec")?,
         })
     }
 }
 
-/// `std_msgs/msg/Header`: `builtin_interfaces/Time stamp`, `string frame_id`.
+/// `std_msgs/msg/Header`: ROS 2 `builtin_interfaces/Time stamp`, `string frame_id`; ROS 1
+/// `uint32 seq`, `time stamp`, `string frame_id`.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct Header {
+    /// The ROS 1 sequence number (0 when read from CDR, which has none).
+    pub seq: u32,
     /// The time of the data.
     pub stamp: Time,
     /// The frame the data is in.
@@ -320,14 +422,17 @@ pub struct Header {
 impl CdrMessage for Header {
     const TYPE_NAME: &'static str = "std_msgs/msg/Header";
     fn read(r: &mut CdrReader<'_>) -> Result<Self> {
+        let seq = if r.is_ros1() { r.u32("Header.seq")? } else { 0 };
         Ok(Self {
+            seq,
             stamp: Time::read(r)?,
             frame_id: r.string("Header.frame_id")?,
         })
     }
 }
 
-/// The smallest serialised `Header`: stamp and an empty string's length.
+/// The smallest serialised `Header` in either serialisation: CDR's stamp and an empty
+/// string's length (ROS 1 adds four bytes of `seq`).
 const HEADER_MIN: usize = 12;
 
 /// `std_msgs/msg/String`: `string data`.
@@ -755,6 +860,48 @@ pub struct Image {
 impl CdrMessage for Image {
     const TYPE_NAME: &'static str = "sensor_msgs/msg/Image";
     fn read(r: &mut CdrReader<'_>) -> Result<Self> {
+        Ok(ImageView::read(r)?.to_image())
+    }
+}
+
+impl Image {
+    /// The image as an [`ImageView`] borrowing its pixels.
+    pub fn view(&self) -> ImageView<'_> {
+        ImageView {
+            header: self.header.clone(),
+            height: self.height,
+            width: self.width,
+            encoding: self.encoding.clone(),
+            is_bigendian: self.is_bigendian,
+            step: self.step,
+            data: &self.data,
+        }
+    }
+}
+
+/// A `sensor_msgs/Image` whose pixels are borrowed from the serialised message, so that
+/// converting an image does not copy megabytes first. The fields are those of [`Image`].
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct ImageView<'a> {
+    /// Stamp (of the exposure) and camera frame.
+    pub header: Header,
+    /// Rows.
+    pub height: u32,
+    /// Columns.
+    pub width: u32,
+    /// Pixel encoding (`mono8`, `bgr8`, `rgb8`, `mono16`, ...).
+    pub encoding: String,
+    /// Whether multi-byte pixels are big-endian (as sent: any nonzero value means yes).
+    pub is_bigendian: u8,
+    /// Bytes per row.
+    pub step: u32,
+    /// The pixels, `step * height` bytes in a well-formed message.
+    pub data: &'a [u8],
+}
+
+impl<'a> ImageView<'a> {
+    /// Reads the fields of a `sensor_msgs/Image` from `r`.
+    pub fn read(r: &mut CdrReader<'a>) -> Result<Self> {
         Ok(Self {
             header: Header::read(r)?,
             height: r.u32("Image.height")?,
@@ -762,8 +909,29 @@ impl CdrMessage for Image {
             encoding: r.string("Image.encoding")?,
             is_bigendian: r.u8("Image.is_bigendian")?,
             step: r.u32("Image.step")?,
-            data: r.byte_seq("Image.data")?.to_vec(),
+            data: r.byte_seq("Image.data")?,
         })
+    }
+
+    /// Decodes one whole `sensor_msgs/Image` serialised as `ser`, borrowing its pixels.
+    pub fn decode(data: &'a [u8], ser: Serialization) -> Result<Self> {
+        let mut r = CdrReader::with_serialization(data, ser)?;
+        let m = Self::read(&mut r)?;
+        r.finish(Image::TYPE_NAME)?;
+        Ok(m)
+    }
+
+    /// The image with its pixels copied.
+    pub fn to_image(&self) -> Image {
+        Image {
+            header: self.header.clone(),
+            height: self.height,
+            width: self.width,
+            encoding: self.encoding.clone(),
+            is_bigendian: self.is_bigendian,
+            step: self.step,
+            data: self.data.to_vec(),
+        }
     }
 }
 
@@ -782,11 +950,59 @@ pub struct CompressedImage {
 impl CdrMessage for CompressedImage {
     const TYPE_NAME: &'static str = "sensor_msgs/msg/CompressedImage";
     fn read(r: &mut CdrReader<'_>) -> Result<Self> {
+        Ok(CompressedImageView::read(r)?.to_compressed_image())
+    }
+}
+
+impl CompressedImage {
+    /// The image as a [`CompressedImageView`] borrowing its bytes.
+    pub fn view(&self) -> CompressedImageView<'_> {
+        CompressedImageView {
+            header: self.header.clone(),
+            format: self.format.clone(),
+            data: &self.data,
+        }
+    }
+}
+
+/// A `sensor_msgs/CompressedImage` whose file bytes are borrowed from the serialised message.
+/// The fields are those of [`CompressedImage`].
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct CompressedImageView<'a> {
+    /// Stamp and camera frame.
+    pub header: Header,
+    /// The format (`jpeg`, `png`, or image_transport's `bgr8; jpeg compressed bgr8`).
+    pub format: String,
+    /// The compressed image file.
+    pub data: &'a [u8],
+}
+
+impl<'a> CompressedImageView<'a> {
+    /// Reads the fields of a `sensor_msgs/CompressedImage` from `r`.
+    pub fn read(r: &mut CdrReader<'a>) -> Result<Self> {
         Ok(Self {
             header: Header::read(r)?,
             format: r.string("CompressedImage.format")?,
-            data: r.byte_seq("CompressedImage.data")?.to_vec(),
+            data: r.byte_seq("CompressedImage.data")?,
         })
+    }
+
+    /// Decodes one whole `sensor_msgs/CompressedImage` serialised as `ser`, borrowing its
+    /// bytes.
+    pub fn decode(data: &'a [u8], ser: Serialization) -> Result<Self> {
+        let mut r = CdrReader::with_serialization(data, ser)?;
+        let m = Self::read(&mut r)?;
+        r.finish(CompressedImage::TYPE_NAME)?;
+        Ok(m)
+    }
+
+    /// The image with its bytes copied.
+    pub fn to_compressed_image(&self) -> CompressedImage {
+        CompressedImage {
+            header: self.header.clone(),
+            format: self.format.clone(),
+            data: self.data.to_vec(),
+        }
     }
 }
 
@@ -821,7 +1037,8 @@ impl CdrMessage for RegionOfInterest {
 
 /// `sensor_msgs/msg/CameraInfo`: `std_msgs/Header header`, `uint32 height`, `uint32 width`,
 /// `string distortion_model`, `float64[] d`, `float64[9] k`, `float64[9] r`,
-/// `float64[12] p`, `uint32 binning_x`, `uint32 binning_y`, `RegionOfInterest roi`.
+/// `float64[12] p`, `uint32 binning_x`, `uint32 binning_y`, `RegionOfInterest roi`. ROS 1
+/// names the four matrices `D`, `K`, `R`, `P`, with the same layout.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CameraInfo {
     /// Stamp and camera frame.
@@ -934,5 +1151,81 @@ mod tests {
         let ok = [0, 1, 0, 0, 2, 0, 0, 0, b'a', 0, 0, 0];
         assert_eq!(StringMsg::decode(&ok).unwrap().data, "a");
         assert!(StringMsg::decode(&[ok.as_slice(), &[0, 0]].concat()).is_err());
+    }
+    /// A ROS 1 `Header`: seq, sec, nsec, a string without NUL.
+    fn ros1_header(seq: u32, sec: u32, nsec: u32, frame: &str) -> Vec<u8> {
+        [
+            &seq.to_le_bytes()[..],
+            &sec.to_le_bytes(),
+            &nsec.to_le_bytes(),
+            &(frame.len() as u32).to_le_bytes(),
+            frame.as_bytes(),
+        ]
+        .concat()
+    }
+
+    #[test]
+    fn ros1_is_packed_with_seq_and_unsigned_seconds() {
+        // Seconds past 2038 (beyond i32) stay positive.
+        let m = ros1_header(7, 3_000_000_000, 5, "cam");
+        let h: Header = decode(&m, Serialization::Ros1).unwrap();
+        assert_eq!(h.seq, 7);
+        assert_eq!(h.stamp.sec, 3_000_000_000);
+        assert_eq!(h.stamp.as_nanos(), 3_000_000_000_000_000_005);
+        assert_eq!(h.frame_id, "cam");
+        // No alignment: a u8 then an f64 right after it.
+        let m = [&[9u8][..], &2.5f64.to_le_bytes()].concat();
+        let mut r = CdrReader::ros1(&m);
+        assert_eq!(r.u8("a").unwrap(), 9);
+        assert_eq!(r.f64("b").unwrap(), 2.5);
+        r.finish("x").unwrap();
+        // Any byte after the last field is an error, with the offset counted from byte 0.
+        let m = [ros1_header(1, 2, 3, "").as_slice(), &[0]].concat();
+        let e = decode::<Header>(&m, Serialization::Ros1)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("ROS 1 message: ") && e.contains("at byte 16"),
+            "{e}"
+        );
+        // A CDR stamp with a negative second stays negative.
+        let m = [&[0u8, 1, 0, 0][..], &(-2i32).to_le_bytes(), &[0; 8]].concat();
+        let h = Header::decode(&m).unwrap();
+        assert_eq!((h.seq, h.stamp.sec), (0, -2));
+        assert_eq!(h.stamp.as_nanos(), -2_000_000_000);
+    }
+
+    #[test]
+    fn ros1_strings_have_no_nul() {
+        let m = [&3u32.to_le_bytes()[..], b"abc"].concat();
+        assert_eq!(
+            decode::<StringMsg>(&m, Serialization::Ros1).unwrap().data,
+            "abc"
+        );
+        // The CDR reading of the same bytes misses its NUL.
+        let cdr = [&[0u8, 1, 0, 0][..], &m].concat();
+        assert!(StringMsg::decode(&cdr).is_err());
+        let bad = [&2u32.to_le_bytes()[..], &[0xff, 0xfe]].concat();
+        let e = decode::<StringMsg>(&bad, Serialization::Ros1)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("String.data at byte 4") && e.contains("UTF-8"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn decode_header_reads_only_the_header() {
+        // A header followed by bytes that are no valid rest of anything.
+        let m = [ros1_header(3, 10, 20, "cam0").as_slice(), &[0xff; 9]].concat();
+        let h = decode_header(&m, Serialization::Ros1).unwrap();
+        assert_eq!((h.seq, h.stamp.sec, h.stamp.nanosec), (3, 10, 20));
+        assert!(decode_header(&m[..10], Serialization::Ros1).is_err());
+        let cdr = [
+            0, 1, 0, 0, 10, 0, 0, 0, 20, 0, 0, 0, 1, 0, 0, 0, 0, 0xff, 0xff,
+        ];
+        let h = decode_header(&cdr, Serialization::Cdr).unwrap();
+        assert_eq!((h.seq, h.stamp.sec, h.frame_id.as_str()), (0, 10, ""));
     }
 }

@@ -6,7 +6,9 @@
 //! A ROS 2 bag is a folder with `metadata.yaml` and its storage files, or one bare `.mcap` or
 //! `.db3` file; [`Bag::open`] takes any of these, and a ROS 1 `.bag`.
 
+pub mod camera_info;
 pub mod cdr;
+pub mod image;
 pub mod mcap;
 pub mod roles;
 pub mod ros1;
