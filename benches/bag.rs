@@ -23,9 +23,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use dvlcal::io::bag::roles::BagOptions;
-use dvlcal::pipeline::{
-    OpenBag, VisionOptions, plan_frames, poses_from_bag, poses_from_images,
-};
+use dvlcal::pipeline::{OpenBag, VisionOptions, plan_frames, poses_from_bag, poses_from_images};
 use dvlcal::vision::camera::Camchain;
 
 fn sample(rel: &str) -> PathBuf {
@@ -146,7 +144,9 @@ fn main() {
         println!("bag / folder images per second, {t} threads: {r:.3}");
     }
     println!();
-    println!("| raw mono8 MCAP bag | size GB | frames | posed | seconds | images/s | peak RSS MB |");
+    println!(
+        "| raw mono8 MCAP bag | size GB | frames | posed | seconds | images/s | peak RSS MB |"
+    );
     println!("|---|---|---|---|---|---|---|");
     for name in ["raw_1gb", "raw_5gb"] {
         let bag = dir.join(name);

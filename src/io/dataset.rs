@@ -51,11 +51,17 @@ pub struct DatasetFiles {
 impl DatasetFiles {
     /// The input files (camchain, target, DVL log, pose file): what no output may overwrite.
     pub fn inputs(&self) -> Vec<PathBuf> {
-        [&self.camchain, &self.target, &self.dvl, &self.poses, &self.bag]
-            .into_iter()
-            .flatten()
-            .cloned()
-            .collect()
+        [
+            &self.camchain,
+            &self.target,
+            &self.dvl,
+            &self.poses,
+            &self.bag,
+        ]
+        .into_iter()
+        .flatten()
+        .cloned()
+        .collect()
     }
 
     /// Whether the camera trajectory comes from images that have no camchain: the cameras must

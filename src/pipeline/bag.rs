@@ -15,7 +15,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use crate::error::{Error, Result};
-use crate::io::bag::cdr::{self, CdrMessage};
+use crate::io::bag::cdr;
 use crate::io::bag::roles::{self, BagOptions, BagTime, Kind, Roles};
 use crate::io::bag::{Bag, BagMessage, Serialization, Topic};
 use crate::lie::Se3;
@@ -174,11 +174,8 @@ pub fn plan_frames(ob: &OpenBag, tolerance_ns: i64) -> Result<BagFrames> {
                 }
             };
             if sizes[c].is_none() {
-                match crate::io::bag::image::message_to_gray(
-                    m.data,
-                    t.serialization,
-                    &t.type_name,
-                ) {
+                match crate::io::bag::image::message_to_gray(m.data, t.serialization, &t.type_name)
+                {
                     Ok(img) => sizes[c] = Some((img.width(), img.height())),
                     Err(e) => size_errors[c] = Some(format!("{} message {}: {e}", t.name, m.index)),
                 }
@@ -268,48 +265,50 @@ pub fn plan_frames(ob: &OpenBag, tolerance_ns: i64) -> Result<BagFrames> {
 /// reading thread) in one pass.
 pub fn frame_source<'a>(path: &'a Path, plan: &'a BagFrames) -> FrameSource<'a> {
     let cams = plan.topics.len();
-    let produce = Box::new(move |send: &mut dyn FnMut(usize, FrameBytes) -> Result<()>| {
-        // Where each message goes: (camera, message number) -> frame.
-        let mut slot: HashMap<(usize, u64), usize> = HashMap::new();
-        let mut expected = vec![0usize; plan.frames.len()];
-        for (fi, f) in plan.frames.iter().enumerate() {
-            for (c, r) in f.images.iter().enumerate() {
-                if let Some(ImageRef::Message { index, .. }) = r {
-                    slot.insert((c, *index), fi);
-                    expected[fi] += 1;
+    let produce = Box::new(
+        move |send: &mut dyn FnMut(usize, FrameBytes) -> Result<()>| {
+            // Where each message goes: (camera, message number) -> frame.
+            let mut slot: HashMap<(usize, u64), usize> = HashMap::new();
+            let mut expected = vec![0usize; plan.frames.len()];
+            for (fi, f) in plan.frames.iter().enumerate() {
+                for (c, r) in f.images.iter().enumerate() {
+                    if let Some(ImageRef::Message { index, .. }) = r {
+                        slot.insert((c, *index), fi);
+                        expected[fi] += 1;
+                    }
                 }
             }
-        }
-        let bag = Bag::open(path)?;
-        let cam_of: HashMap<usize, usize> = plan
-            .topics
-            .iter()
-            .enumerate()
-            .map(|(c, t)| (t.topic, c))
-            .collect();
-        let mut partial: BTreeMap<usize, FrameBytes> = BTreeMap::new();
-        bag.messages(&|i| cam_of.contains_key(&i), &mut |m| {
-            let Some(&c) = cam_of.get(&m.topic) else {
-                return Ok(());
-            };
-            let Some(&fi) = slot.get(&(c, m.index)) else {
-                return Ok(());
-            };
-            let entry = partial.entry(fi).or_insert_with(|| vec![None; cams]);
-            entry[c] = Some(m.data.to_vec());
-            if entry.iter().filter(|b| b.is_some()).count() >= expected[fi] {
-                if let Some(bytes) = partial.remove(&fi) {
-                    send(fi, bytes)?;
+            let bag = Bag::open(path)?;
+            let cam_of: HashMap<usize, usize> = plan
+                .topics
+                .iter()
+                .enumerate()
+                .map(|(c, t)| (t.topic, c))
+                .collect();
+            let mut partial: BTreeMap<usize, FrameBytes> = BTreeMap::new();
+            bag.messages(&|i| cam_of.contains_key(&i), &mut |m| {
+                let Some(&c) = cam_of.get(&m.topic) else {
+                    return Ok(());
+                };
+                let Some(&fi) = slot.get(&(c, m.index)) else {
+                    return Ok(());
+                };
+                let entry = partial.entry(fi).or_insert_with(|| vec![None; cams]);
+                entry[c] = Some(m.data.to_vec());
+                if entry.iter().filter(|b| b.is_some()).count() >= expected[fi] {
+                    if let Some(bytes) = partial.remove(&fi) {
+                        send(fi, bytes)?;
+                    }
                 }
+                Ok(())
+            })?;
+            // Frames whose images did not all come (a bag cut short): what came is used.
+            for (fi, bytes) in std::mem::take(&mut partial) {
+                send(fi, bytes)?;
             }
             Ok(())
-        })?;
-        // Frames whose images did not all come (a bag cut short): what came is used.
-        for (fi, bytes) in std::mem::take(&mut partial) {
-            send(fi, bytes)?;
-        }
-        Ok(())
-    });
+        },
+    );
     let topics = &plan.topics;
     FrameSource::Stream(FrameStream {
         frames: &plan.frames,
@@ -626,9 +625,7 @@ pub fn read_bag_poses(ob: &OpenBag) -> Result<BagPoses> {
             "{}: no usable pose on {}{}",
             ob.path().display(),
             topic.name,
-            warnings
-                .last()
-                .map_or(String::new(), |w| format!(" ({w})"))
+            warnings.last().map_or(String::new(), |w| format!(" ({w})"))
         )));
     };
     let epoch = Epoch::at(raw_time(t0));
@@ -643,7 +640,11 @@ pub fn read_bag_poses(ob: &OpenBag) -> Result<BagPoses> {
     let source = if child.is_empty() {
         format!("{} ({})", topic.name, topic.type_name())
     } else {
-        format!("{} ({}, child frame {child})", topic.name, topic.type_name())
+        format!(
+            "{} ({}, child frame {child})",
+            topic.name,
+            topic.type_name()
+        )
     };
     Ok(BagPoses {
         epoch,

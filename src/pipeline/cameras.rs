@@ -173,30 +173,25 @@ pub(crate) fn calibrate_cameras_from_frames<'a>(
     let mut seconds_fit = 0.0;
 
     let start = Instant::now();
+    let src = source();
     let (dets, mut detect) =
-        pool.install(|| detect_source_tags(source(), &sizes, None, &det, opts.vision.progress))?;
+        pool.install(|| detect_source_tags(src, &sizes, None, &det, opts.vision.progress))?;
     seconds_detect += start.elapsed().as_secs_f64();
     let start = Instant::now();
-    let mut result = pool
-        .install(|| calibrate_cameras(board, &frame_tags(frames, dets), &sizes, &opts.camcal))?;
+    let mut result =
+        pool.install(|| calibrate_cameras(board, &frame_tags(frames, dets), &sizes, &opts.camcal))?;
     seconds_fit += start.elapsed().as_secs_f64();
     let mut passes = 1;
     if opts.second_pass {
         let start = Instant::now();
+        let src = source();
         let (dets, d2) = pool.install(|| {
-            detect_source_tags(
-                source(),
-                &sizes,
-                Some(&result.chain),
-                &det,
-                opts.vision.progress,
-            )
+            detect_source_tags(src, &sizes, Some(&result.chain), &det, opts.vision.progress)
         })?;
         seconds_detect += start.elapsed().as_secs_f64();
         let start = Instant::now();
-        let second = pool.install(|| {
-            calibrate_cameras(board, &frame_tags(frames, dets), &sizes, &opts.camcal)
-        });
+        let second = pool
+            .install(|| calibrate_cameras(board, &frame_tags(frames, dets), &sizes, &opts.camcal));
         seconds_fit += start.elapsed().as_secs_f64();
         // The second pass is the better one when it works; when it does not, the first stands
         // and says why.

@@ -9,7 +9,10 @@ use crate::io::dvl::{DvlLog, DvlReadOptions, read_dvl_log};
 use crate::io::tum::read_tum;
 use crate::types::PoseMeasurement;
 
-use super::bag::{OpenBag, calibrate_cameras_from_bag, camera_from_info, plan_frames, poses_from_bag, read_bag_poses};
+use super::bag::{
+    OpenBag, calibrate_cameras_from_bag, camera_from_info, plan_frames, poses_from_bag,
+    read_bag_poses,
+};
 use super::cameras::{CameraCalOptions, CameraCalRun, calibrate_cameras_from_images};
 use super::vision::{VisionOptions, VisionRun, poses_from_images, poses_from_images_with_chain};
 

@@ -102,7 +102,7 @@ fn for_each_frame<R: Send>(
                             let name = f.images.get(c).cloned().flatten()?;
                             let b = bytes.get(c).and_then(|b| b.as_deref());
                             Some(match b {
-                                Some(b) => decode(b)
+                                Some(b) => decode(c, b)
                                     .map_err(|e| crate::Error::Input(format!("{name}: {e}"))),
                                 None => Err(crate::Error::Input(format!(
                                     "{name}: not delivered by the stream"

@@ -467,7 +467,10 @@ mod tests {
         let topics = vec![
             t("/dvl/odom", "nav_msgs/msg/Odometry"),
             t("/dvl/velocity_report", "marine_acoustic_msgs/msg/Dvl"),
-            t("/dvl/dead_reckoning_report", "geometry_msgs/msg/PoseWithCovarianceStamped"),
+            t(
+                "/dvl/dead_reckoning_report",
+                "geometry_msgs/msg/PoseWithCovarianceStamped",
+            ),
             t("/mocap/rig/pose", "geometry_msgs/msg/PoseStamped"),
         ];
         let r = assign(&topics, &BagOptions::default()).unwrap();
@@ -482,7 +485,10 @@ mod tests {
         let topics = vec![
             t("/stereo/right/image_raw", "sensor_msgs/msg/Image"),
             t("/stereo/left/image_raw", "sensor_msgs/msg/Image"),
-            t("/stereo/left/image_raw/compressed", "sensor_msgs/msg/CompressedImage"),
+            t(
+                "/stereo/left/image_raw/compressed",
+                "sensor_msgs/msg/CompressedImage",
+            ),
             t("/stereo/left/camera_info", "sensor_msgs/msg/CameraInfo"),
             t("/stereo/right/camera_info", "sensor_msgs/msg/CameraInfo"),
         ];
@@ -493,8 +499,13 @@ mod tests {
             t("/a/image", "sensor_msgs/Image"),
             t("/b/image", "sensor_msgs/Image"),
         ];
-        let e = assign(&topics, &BagOptions::default()).unwrap_err().to_string();
-        assert!(e.contains("/a/image") && e.contains("--image-topics"), "{e}");
+        let e = assign(&topics, &BagOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("/a/image") && e.contains("--image-topics"),
+            "{e}"
+        );
         let named = BagOptions {
             image_topics: Some(vec!["/b/image".into(), "/a/image".into()]),
             ..BagOptions::default()
@@ -510,7 +521,10 @@ mod tests {
         ];
         let e = choose_dvl(&topics, None).unwrap_err().to_string();
         assert!(e.contains("/dvl_a/") && e.contains("/dvl_b/") && e.contains("--dvl-topic"));
-        assert_eq!(choose_dvl(&topics, Some("/dvl_b/velocity_report")).unwrap(), Some(1));
+        assert_eq!(
+            choose_dvl(&topics, Some("/dvl_b/velocity_report")).unwrap(),
+            Some(1)
+        );
         let topics = vec![
             t("/vio/pose", "geometry_msgs/msg/PoseWithCovarianceStamped"),
             t("/vio/odom", "nav_msgs/msg/Odometry"),

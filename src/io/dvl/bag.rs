@@ -188,14 +188,7 @@ fn decode(
 
 /// Decodes a typed message, turning a decoding error into a rejected message.
 fn decode_typed<M: CdrMessage>(data: &[u8], ser: Serialization) -> std::result::Result<M, Reject> {
-    let r = match ser {
-        Serialization::Cdr => M::decode(data),
-        Serialization::Ros1 => Err(Error::Input(format!(
-            "{}: ROS 1 serialisation is not decoded yet",
-            M::TYPE_NAME
-        ))),
-    };
-    r.map_err(|e| Reject::new("malformed message", e.to_string()))
+    cdr::decode::<M>(data, ser).map_err(|e| Reject::new("malformed message", e.to_string()))
 }
 
 /// The velocity block of a 6x6 row-major twist covariance; `None` when it says nothing (all
@@ -253,7 +246,7 @@ fn typed_report(
             format!("velocity {v:?} in a report marked valid"),
         ));
     }
-    let stamp_ns = i64::from(stamp.sec) * 1_000_000_000 + i64::from(stamp.nanosec);
+    let stamp_ns = stamp.as_nanos();
     let tov_us = if stamp_ns == 0 {
         *zero_stamps += 1;
         record_time.sec * 1_000_000 + (record_time.frac * 1e6).round() as i64

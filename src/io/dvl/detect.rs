@@ -38,4 +38,3 @@ pub fn detect_format(bytes: &[u8]) -> Option<DvlFormat> {
         _ => Some(DvlFormat::Serial),
     }
 }
-
