@@ -468,10 +468,12 @@ fn detection_and_unreadable_inputs() {
     assert_eq!(detect_format(&b), Some(DvlFormat::RosBag));
     assert_eq!(detect_format(b"hello\nworld\n"), None);
     assert_eq!(detect_format(b""), None);
+    // An MCAP file (a ROS 2 bag) is a bag; one cut right after its magic is an error naming it.
     let mcap = dir.join("x.mcap");
     std::fs::write(&mcap, b"\x89MCAP0\r\nrest").unwrap();
+    assert_eq!(detect_format(b"\x89MCAP0\r\nrest"), Some(DvlFormat::RosBag));
     let e = read_dvl_log(&mcap, &lenient()).unwrap_err().to_string();
-    assert!(e.contains("MCAP"), "{e}");
+    assert!(e.contains("x.mcap"), "{e}");
     // A truncated bag is an error or a warning, never a panic.
     let cut = dir.join("cut.bag");
     std::fs::write(&cut, &b[..b.len() / 2]).unwrap();
