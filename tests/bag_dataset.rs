@@ -326,3 +326,71 @@ fn tf_poses_need_the_child_frame_named() {
     assert_eq!(p.poses.len(), 20);
     assert!(p.source.contains("rig_b"), "{}", p.source);
 }
+
+#[test]
+fn unknown_image_encodings_are_counted_and_named_never_reinterpreted() {
+    use dvlcal::io::bag::roles::BagOptions;
+    use dvlcal::pipeline::{OpenBag, VisionOptions, plan_frames, poses_from_bag};
+    use dvlcal::vision::camera::{Camchain, Camera, Distortion};
+    let ob = OpenBag::open(&fixture("bad_encoding.mcap"), &BagOptions::default()).unwrap();
+    let plan = plan_frames(&ob, 2_000_000).unwrap();
+    assert_eq!(plan.frames.len(), 7);
+    assert_eq!(plan.sizes, vec![(4, 3)]);
+    let chain = Camchain::mono(Camera {
+        fu: 4.0,
+        fv: 4.0,
+        pu: 2.0,
+        pv: 1.5,
+        distortion: Distortion::None,
+        width: 4,
+        height: 3,
+    });
+    let opts = VisionOptions {
+        threads: Some(2),
+        ..VisionOptions::default()
+    };
+    let run = poses_from_bag(&ob, &plan, chain, &sample("stereo/target.yaml"), &opts).unwrap();
+    // Three mono8 images decoded (no board in 4x3 pixels), four refused by name.
+    assert_eq!(run.stats.images, 3, "{:?}", run.stats.problems);
+    assert_eq!(run.stats.unreadable, 4, "{:?}", run.stats.problems);
+    let p = run.stats.problems.join("\n");
+    assert_eq!(p.matches("32FC1").count(), 2, "{p}");
+    assert_eq!(p.matches("yuv422").count(), 2, "{p}");
+    assert!(p.contains("/cam0/image_raw message 2"), "{p}");
+    assert!(run.require_poses().is_err());
+}
+
+#[test]
+fn calibrate_cameras_from_a_bag_gives_the_folders_camchain() {
+    use dvlcal::vision::camera::Camchain;
+    let tmp = TmpDir::new("bag-cameras");
+    let target = sample("stereo/target.yaml");
+    let run = |src: &[&str], out: &Path| {
+        let mut a = vec!["calibrate-cameras"];
+        a.extend_from_slice(src);
+        a.extend_from_slice(&[
+            "--target",
+            target.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--no-progress",
+        ]);
+        let (ok, stdout, stderr) = dvlcal(&a);
+        assert!(ok, "{stdout}\n{stderr}");
+        Camchain::load(out).unwrap()
+    };
+    let bag = sample("bags/stereo_sqlite3");
+    let a = run(&["--bag", bag.to_str().unwrap()], &tmp.0.join("bag.yaml"));
+    let folder = sample("stereo");
+    let b = run(
+        &["--images", folder.to_str().unwrap()],
+        &tmp.0.join("folder.yaml"),
+    );
+    assert_eq!(a.cams, b.cams);
+    assert_eq!(a.t_cn_c0, b.t_cn_c0);
+    // The chain names the bag's topics.
+    assert_eq!(
+        a.topics[1].as_deref(),
+        Some("/stereo/right/image_raw/compressed")
+    );
+}

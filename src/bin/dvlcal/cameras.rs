@@ -7,16 +7,26 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 
 use dvlcal::camcal::{CamCalOptions, CameraModel};
-use dvlcal::pipeline::{CameraCalOptions, calibrate_cameras_from_images};
+use dvlcal::pipeline::{
+    CameraCalOptions, OpenBag, calibrate_cameras_from_bag, calibrate_cameras_from_images,
+    plan_frames,
+};
 
 use crate::detect::DetectTuning;
 
 #[derive(Args, Debug)]
+#[command(group(clap::ArgGroup::new("source").required(true).args(["images", "bag"])))]
 pub struct CalibrateCamerasArgs {
     /// Image folder: DIR/cam0/<t_ns>.png (+ DIR/cam1/...) or EuRoC's DIR/mav0/camN/data.csv; every
     /// camN folder present is calibrated.
     #[arg(long, value_name = "DIR")]
-    pub images: PathBuf,
+    pub images: Option<PathBuf>,
+    /// A bag (ROS 1 .bag, ROS 2 .mcap / .db3 or bag folder) whose image topics are calibrated
+    /// (streamed; one pass per detection pass).
+    #[arg(long, value_name = "BAG")]
+    pub bag: Option<PathBuf>,
+    #[command(flatten)]
+    pub bag_args: crate::bag::BagArgs,
     /// Board YAML (dvlcal grid or tag list, or Kalibr aprilgrid target); the board must be flat.
     #[arg(long, value_name = "FILE")]
     pub target: PathBuf,
@@ -52,8 +62,18 @@ pub fn run(a: CalibrateCamerasArgs) -> Result<()> {
         },
         second_pass: !a.single_pass,
     };
-    let run = calibrate_cameras_from_images(&a.images, &a.target, &opts)
-        .with_context(|| format!("calibrating the cameras of {}", a.images.display()))?;
+    let run = match (&a.images, &a.bag) {
+        (Some(dir), _) => calibrate_cameras_from_images(dir, &a.target, &opts)
+            .with_context(|| format!("calibrating the cameras of {}", dir.display()))?,
+        (None, Some(bag)) => {
+            let ob = OpenBag::open(bag, &a.bag_args.options(None))?;
+            let tol_ns = (opts.vision.pair_tolerance_ms * 1e6).round() as i64;
+            let plan = plan_frames(&ob, tol_ns)?;
+            calibrate_cameras_from_bag(&ob, &plan, &a.target, &opts)
+                .with_context(|| format!("calibrating the cameras of {}", bag.display()))?
+        }
+        (None, None) => bail!("give --images DIR or --bag BAG"),
+    };
     print!("{}", run.summary());
     run.write_camchain(&a.out)?;
     println!("wrote {}", a.out.display());
