@@ -124,17 +124,6 @@ def messages(ts):
             ),
         )
         out.append(("/pose", POSE, t, pose))
-        if k % 2 == 1:
-            img = T[IMAGE](
-                header=header(stamp, "cam0"),
-                height=4,
-                width=8,
-                encoding="mono8",
-                is_bigendian=0,
-                step=8,
-                data=np.array([(k * 7 + i) % 256 for i in range(32)], dtype=np.uint8),
-            )
-            out.append(("/cam0/image_raw", IMAGE, t + 1_000_000, img))
         if k >= 2:
             dvl = T[DVL](
                 header=header(stamp, "dvl_link"),
@@ -158,6 +147,17 @@ def messages(ts):
             )
             # The same record time as the pose: ties keep their record order.
             out.append(("/dvl/velocity_report", DVL, t, dvl))
+        if k % 2 == 1:
+            img = T[IMAGE](
+                header=header(stamp, "cam0"),
+                height=4,
+                width=8,
+                encoding="mono8",
+                is_bigendian=0,
+                step=8,
+                data=np.array([(k * 7 + i) % 256 for i in range(32)], dtype=np.uint8),
+            )
+            out.append(("/cam0/image_raw", IMAGE, t + 1_000_000, img))
     return out
 
 
