@@ -1,5 +1,6 @@
 //! The fuzz corpora and the inputs that once broke a parser, replayed on the stable compiler.
-//! The ros1_bag inputs are bags written to a temporary file, as the fuzz target does.
+//! The ros1_bag and ros2_bag inputs are bags written to a temporary file, as the fuzz targets
+//! do.
 //!
 //! Every file under `fuzz/corpus/<target>/` and `fuzz/regressions/<target>/` goes through the
 //! same library calls as the fuzz target of that name (`fuzz/fuzz_targets/<target>.rs`): each
@@ -19,9 +20,10 @@ use dvlcal::vision::board::Board;
 use dvlcal::vision::camera::Camchain;
 
 /// The fuzz targets, as named in `fuzz/Cargo.toml`.
-const TARGETS: [&str; 8] = [
+const TARGETS: [&str; 9] = [
     "dvl_log",
     "ros1_bag",
+    "ros2_bag",
     "tum",
     "camchain",
     "board",
@@ -71,6 +73,9 @@ fn run(target: &str, data: &[u8]) -> Vec<Outcome> {
     }
     if target == "ros1_bag" {
         return ros1_bag(data);
+    }
+    if target == "ros2_bag" {
+        return ros2_bag(data);
     }
     let Ok(text) = std::str::from_utf8(data) else {
         return vec![];
@@ -140,6 +145,46 @@ fn ros1_bag(data: &[u8]) -> Vec<Outcome> {
             dvl_summary,
         ),
     ];
+    let _ = std::fs::remove_file(&path);
+    out
+}
+
+/// A scratch file of this process and thread for a bag input, with extension `ext`.
+fn scratch_file(ext: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("dvlcal-fuzz-replay-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temporary folder");
+    let id = std::thread::current().id();
+    dir.join(format!("{id:?}.{ext}").replace(['(', ')'], ""))
+}
+
+/// The ros2_bag target: the bytes follow the MCAP magic (unless they start with 0x89, then
+/// they are the whole file); the bag is opened through `Bag`, every message is read, then the
+/// first topic's alone.
+fn ros2_bag(data: &[u8]) -> Vec<Outcome> {
+    use dvlcal::io::bag::{Bag, MCAP_MAGIC};
+    let mut bytes = if data.first() == Some(&0x89) {
+        Vec::new()
+    } else {
+        MCAP_MAGIC.to_vec()
+    };
+    bytes.extend_from_slice(data);
+    let path = scratch_file("mcap");
+    std::fs::write(&path, &bytes).expect("write the bag");
+    let out = match Bag::open(&path) {
+        Err(e) => vec![Err(e.to_string())],
+        Ok(bag) => {
+            let all = bag
+                .messages(&|_| true, &mut |_| Ok(()))
+                .map(|s| format!("{} messages", s.messages));
+            let first = bag
+                .messages(&|t| t == 0, &mut |_| Ok(()))
+                .map(|s| format!("{} messages", s.messages));
+            vec![
+                all.map_err(|e| e.to_string()),
+                first.map_err(|e| e.to_string()),
+            ]
+        }
+    };
     let _ = std::fs::remove_file(&path);
     out
 }

@@ -13,93 +13,16 @@ pub mod mcap;
 pub mod roles;
 pub mod ros1;
 pub mod sqlite;
+mod types;
 
 use std::path::{Path, PathBuf};
 
+pub use types::{
+    BagMessage, BagReadSummary, MCAP_MAGIC, SQLITE_MAGIC, Serialization, Storage, Topic,
+    normalize_type,
+};
+
 use crate::error::{Error, Result};
-
-/// How the messages of a topic are serialised.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Serialization {
-    /// ROS 2's CDR (an encapsulation header, aligned primitives).
-    Cdr,
-    /// ROS 1's serialisation (packed little-endian, `Header` with a `seq`).
-    Ros1,
-}
-
-/// The storage a bag was read from.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Storage {
-    /// A ROS 1 bag (format 2.0).
-    Ros1,
-    /// ROS 2, MCAP storage.
-    Mcap,
-    /// ROS 2, sqlite3 storage.
-    Sqlite3,
-}
-
-impl Storage {
-    /// The storage's name in summaries.
-    pub fn name(self) -> &'static str {
-        match self {
-            Storage::Ros1 => "ROS 1 bag",
-            Storage::Mcap => "ROS 2 bag (MCAP)",
-            Storage::Sqlite3 => "ROS 2 bag (sqlite3)",
-        }
-    }
-}
-
-/// One topic of a bag.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct Topic {
-    /// The topic's name (`/cam0/image_raw`).
-    pub name: String,
-    /// The message type as the bag stores it (`sensor_msgs/msg/Image` in ROS 2,
-    /// `sensor_msgs/Image` in ROS 1); [`Topic::type_name`] gives one spelling for both.
-    pub msg_type: String,
-    /// How its messages are serialised.
-    pub serialization: Serialization,
-    /// Messages the bag's index, summary or metadata declares for the topic, when it does.
-    pub declared_count: Option<u64>,
-}
-
-impl Topic {
-    /// The message type without ROS 2's `/msg/` (`sensor_msgs/Image` in both ROS versions).
-    pub fn type_name(&self) -> String {
-        normalize_type(&self.msg_type)
-    }
-}
-
-/// `pkg/msg/Type` as `pkg/Type`; any other spelling unchanged.
-pub fn normalize_type(t: &str) -> String {
-    match t.split('/').collect::<Vec<_>>().as_slice() {
-        [pkg, "msg", name] => format!("{pkg}/{name}"),
-        _ => t.to_string(),
-    }
-}
-
-/// One serialised message handed out by [`Bag::messages`].
-#[derive(Clone, Copy, Debug)]
-pub struct BagMessage<'a> {
-    /// The message's topic: an index into [`Bag::topics`].
-    pub topic: usize,
-    /// The record (log) time: when the recorder received the message, Unix nanoseconds.
-    pub log_time_ns: i64,
-    /// The serialised message.
-    pub data: &'a [u8],
-    /// The 1-based number of this message among its topic's messages read in this pass.
-    pub index: u64,
-}
-
-/// What one pass over the messages found.
-#[derive(Clone, Debug, Default)]
-pub struct BagReadSummary {
-    /// Messages handed to the callback.
-    pub messages: u64,
-    /// Damage met while reading (a chunk that could not be decompressed, a file cut short),
-    /// each with what it cost.
-    pub problems: Vec<String>,
-}
 
 /// A bag opened for reading: its topics and how to stream its messages.
 #[derive(Debug)]
@@ -121,11 +44,6 @@ enum Inner {
     Mcap(mcap::McapBag),
     Sqlite(sqlite::SqliteBag),
 }
-
-/// The first bytes of an MCAP file.
-pub const MCAP_MAGIC: &[u8] = b"\x89MCAP0\r\n";
-/// The first bytes of an sqlite3 database.
-pub const SQLITE_MAGIC: &[u8] = b"SQLite format 3\0";
 
 /// Whether `path` looks like a bag: a folder holding `metadata.yaml`, or a file starting like
 /// a ROS 1 bag, an MCAP file or an sqlite3 database.
