@@ -106,8 +106,11 @@ fn ros1_times_after_2038() {
     assert_eq!(h.frame_id, "late");
 }
 
+/// Decodes a whole message and returns its header.
+type WholeHeader = fn(&[u8], Serialization) -> Header;
+
 /// The stamped fixtures with the decoder of their whole header.
-const STAMPED: &[(&str, fn(&[u8], Serialization) -> Header)] = &[
+const STAMPED: &[(&str, WholeHeader)] = &[
     ("header", |b, s| decode::<Header>(b, s).unwrap()),
     ("pose_stamped", |b, s| {
         decode::<PoseStamped>(b, s).unwrap().header
