@@ -1,6 +1,6 @@
 //! The fuzz corpora and the inputs that once broke a parser, replayed on the stable compiler.
 //! The ros1_bag and ros2_bag inputs are bags written to a temporary file, as the fuzz targets
-//! do.
+//! do; the ros_msg inputs are single serialised messages.
 //!
 //! Every file under `fuzz/corpus/<target>/` and `fuzz/regressions/<target>/` goes through the
 //! same library calls as the fuzz target of that name (`fuzz/fuzz_targets/<target>.rs`): each
@@ -20,10 +20,11 @@ use dvlcal::vision::board::Board;
 use dvlcal::vision::camera::Camchain;
 
 /// The fuzz targets, as named in `fuzz/Cargo.toml`.
-const TARGETS: [&str; 9] = [
+const TARGETS: [&str; 10] = [
     "dvl_log",
     "ros1_bag",
     "ros2_bag",
+    "ros_msg",
     "tum",
     "camchain",
     "board",
@@ -76,6 +77,9 @@ fn run(target: &str, data: &[u8]) -> Vec<Outcome> {
     }
     if target == "ros2_bag" {
         return ros2_bag(data);
+    }
+    if target == "ros_msg" {
+        return ros_msg(data);
     }
     let Ok(text) = std::str::from_utf8(data) else {
         return vec![];
@@ -186,6 +190,58 @@ fn ros2_bag(data: &[u8]) -> Vec<Outcome> {
         }
     };
     let _ = std::fs::remove_file(&path);
+    out
+}
+
+/// The ros_msg target: the bytes as every message type, in both serialisations, the header
+/// alone, the camera model of a CameraInfo, and both image messages converted to grey.
+fn ros_msg(data: &[u8]) -> Vec<Outcome> {
+    use dvlcal::io::bag::Serialization;
+    use dvlcal::io::bag::cdr::*;
+    use dvlcal::io::bag::image::message_to_gray;
+    fn d<M: CdrMessage>(data: &[u8], ser: Serialization) -> Outcome {
+        outcome(decode::<M>(data, ser), |_| M::TYPE_NAME.to_string())
+    }
+    let mut out = Vec::new();
+    for ser in [Serialization::Cdr, Serialization::Ros1] {
+        out.push(outcome(decode_header(data, ser), |h| {
+            format!("header {}", h.stamp.as_nanos())
+        }));
+        out.extend([
+            d::<Time>(data, ser),
+            d::<Header>(data, ser),
+            d::<StringMsg>(data, ser),
+            d::<Vector3>(data, ser),
+            d::<Point>(data, ser),
+            d::<Quaternion>(data, ser),
+            d::<Pose>(data, ser),
+            d::<PoseStamped>(data, ser),
+            d::<PoseWithCovariance>(data, ser),
+            d::<PoseWithCovarianceStamped>(data, ser),
+            d::<Twist>(data, ser),
+            d::<TwistWithCovariance>(data, ser),
+            d::<TwistWithCovarianceStamped>(data, ser),
+            d::<Transform>(data, ser),
+            d::<TransformStamped>(data, ser),
+            d::<TfMessage>(data, ser),
+            d::<Odometry>(data, ser),
+            d::<Dvl>(data, ser),
+            d::<Image>(data, ser),
+            d::<CompressedImage>(data, ser),
+            d::<RegionOfInterest>(data, ser),
+        ]);
+        out.push(
+            decode::<CameraInfo>(data, ser)
+                .and_then(|c| c.model())
+                .map(|m| format!("camera {}x{}", m.width, m.height))
+                .map_err(|e| e.to_string()),
+        );
+        for t in ["sensor_msgs/msg/Image", "sensor_msgs/CompressedImage"] {
+            out.push(outcome(message_to_gray(data, ser, t), |g| {
+                format!("{}x{} grey", g.width(), g.height())
+            }));
+        }
+    }
     out
 }
 

@@ -95,13 +95,8 @@ impl CameraInfo {
             )));
         }
         let [fx, skew, cx, k10, fy, cy, k20, k21, k22] = *k;
-        if !k.iter().all(|v| v.is_finite())
-            || !(fx > 0.0 && fy > 0.0)
-            || k10 != 0.0
-            || k20 != 0.0
-            || k21 != 0.0
-            || k22 != 1.0
-        {
+        let finite_positive = k.iter().all(|v| v.is_finite()) && fx > 0.0 && fy > 0.0;
+        if !finite_positive || k10 != 0.0 || k20 != 0.0 || k21 != 0.0 || k22 != 1.0 {
             return Err(Error::Input(format!(
                 "CameraInfo of frame {:?}: K = {k:?} is not an intrinsic matrix \
                  [fx 0 cx; 0 fy cy; 0 0 1] with positive focal lengths",
