@@ -101,6 +101,16 @@ impl RawTime {
         }
     }
 
+    /// A time from integer nanoseconds (ROS stamps, image file names).
+    pub fn from_nanos(ns: i64) -> RawTime {
+        // One division of exact integers: the fraction is the double nearest the decimal one,
+        // as a time written in decimal and parsed is.
+        RawTime {
+            sec: ns.div_euclid(1_000_000_000),
+            frac: ns.rem_euclid(1_000_000_000) as f64 / 1e9,
+        }
+    }
+
     /// Builds a raw time from integer microseconds (the A50's `time_of_validity`).
     pub fn from_micros(us: i64) -> RawTime {
         RawTime {

@@ -480,8 +480,5 @@ fn read_euroc_csv(csv: &Path, data: &Path, ignored: &mut usize) -> Result<Vec<(S
 
 /// Seconds of a nanosecond stamp, exactly, as the crate's raw time.
 pub fn raw_time(t_ns: i64) -> crate::time::RawTime {
-    crate::time::RawTime {
-        sec: t_ns.div_euclid(1_000_000_000),
-        frac: t_ns.rem_euclid(1_000_000_000) as f64 * 1e-9,
-    }
+    crate::time::RawTime::from_nanos(t_ns)
 }

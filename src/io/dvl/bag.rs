@@ -89,10 +89,7 @@ fn read_bag_inner(
     stats.topic = Some(format!("{} ({})", topic.name, topic.msg_type));
     let mut zero_stamps = 0usize;
     let summary = bag.messages(&|i| i == idx, &mut |msg| {
-        let record_time = RawTime {
-            sec: msg.log_time_ns.div_euclid(1_000_000_000),
-            frac: msg.log_time_ns.rem_euclid(1_000_000_000) as f64 * 1e-9,
-        };
+        let record_time = RawTime::from_nanos(msg.log_time_ns);
         let parsed = decode(k, &topic, msg.data, record_time, &mut zero_stamps);
         sink(stats, msg.index as usize, parsed)
     })?;
