@@ -394,3 +394,44 @@ fn calibrate_cameras_from_a_bag_gives_the_folders_camchain() {
         Some("/stereo/right/image_raw/compressed")
     );
 }
+
+#[test]
+fn a_bag_cut_short_gives_the_frames_before_the_cut_and_says_so() {
+    let tmp = TmpDir::new("bag-cut");
+    let whole = std::fs::read(sample("bags/stereo_mcap/stereo_mcap.mcap")).unwrap();
+    let cut = tmp.0.join("cut.mcap");
+    std::fs::write(&cut, &whole[..whole.len() * 6 / 10]).unwrap();
+    let mut args = vec![
+        "detect".to_string(),
+        "--bag".into(),
+        cut.display().to_string(),
+    ];
+    args.extend(chain_and_target());
+    args.extend([
+        "--out".into(),
+        tmp.0.join("poses.txt").display().to_string(),
+        "--no-progress".into(),
+    ]);
+    let a: Vec<&str> = args.iter().map(String::as_str).collect();
+    let (ok, stdout, stderr) = dvlcal(&a);
+    assert!(ok, "{stdout}\n{stderr}");
+    let poses = std::fs::read_to_string(tmp.0.join("poses.txt")).unwrap();
+    let n = poses.lines().filter(|l| !l.starts_with('#')).count();
+    assert!((10..42).contains(&n), "{n} poses from a bag cut at 60 %");
+    assert!(
+        stderr.contains("warning: ") && stderr.contains("cut.mcap"),
+        "{stderr}"
+    );
+    // And a bag with nothing dvlcal can use is an error that lists what it holds.
+    let (ok, _, stderr) = dvlcal(&[
+        "calibrate",
+        fixture("twist.db3").to_str().unwrap(),
+        "--out",
+        tmp.0.join("c.yaml").to_str().unwrap(),
+    ]);
+    assert!(!ok);
+    assert!(
+        stderr.contains("no image or pose topic") && stderr.contains("/dvl/twist"),
+        "{stderr}"
+    );
+}

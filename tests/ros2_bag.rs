@@ -218,8 +218,7 @@ fn the_messages_decode_to_the_values_written() {
             assert_eq!(p.header.frame_id, "map");
             assert_eq!(p.pose.position.x, 0.5 * k as f64);
             // The stamp is 20 ms before the record time.
-            let stamp =
-                i64::from(p.header.stamp.sec) * 1_000_000_000 + i64::from(p.header.stamp.nanosec);
+            let stamp = p.header.stamp.sec * 1_000_000_000 + i64::from(p.header.stamp.nanosec);
             assert_eq!(stamp, m.log_time_ns - 20_000_000);
             n[1] += 1;
         } else if m.topic == image {

@@ -52,6 +52,9 @@ impl FrameSource<'_> {
     }
 }
 
+/// The image of camera `c` of a frame (`None`: the frame has none), loaded on demand.
+type LoadImage<'a> = &'a dyn Fn(usize) -> Option<Result<image::GrayImage>>;
+
 /// Frames a stream may have in flight beyond those being processed, per worker.
 const QUEUE_PER_WORKER: usize = 2;
 
@@ -61,7 +64,7 @@ const QUEUE_PER_WORKER: usize = 2;
 fn for_each_frame<R: Send>(
     src: FrameSource<'_>,
     bar: &ProgressBar,
-    work: &(dyn Fn(&StereoFrame, &dyn Fn(usize) -> Option<Result<image::GrayImage>>) -> R + Sync),
+    work: &(dyn Fn(&StereoFrame, LoadImage<'_>) -> R + Sync),
 ) -> Result<Vec<R>> {
     match src {
         FrameSource::Files(frames) => Ok(frames
