@@ -302,14 +302,25 @@ const REAL_LOGS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/a50
 
 #[test]
 fn discovery_recognises_real_a50_logs_and_bags() {
-    // The folder of real driver logs: eight candidate DVL logs, no camera data.
+    // The folder of real driver logs: four candidate DVL logs (and four bags), no camera data.
     let e = discover(Path::new(REAL_LOGS), &DatasetOverrides::default())
         .unwrap_err()
         .to_string();
     assert!(
-        e.contains("DVL log") && e.contains("dvl_circle.bag") && e.contains("dvl.jsonl"),
+        e.contains("DVL log") && e.contains("dvl_circle.jsonl") && e.contains("dvl.jsonl"),
         "{e}"
     );
+    // With the JSON logs named away, the four bags compete: named too.
+    let e = discover(
+        Path::new(REAL_LOGS),
+        &DatasetOverrides {
+            dvl: Some(Path::new(REAL_LOGS).join("dvl.jsonl")),
+            ..Default::default()
+        },
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("bag") && e.contains("dvl_circle.bag"), "{e}");
     // A bag beside a pose file is found as the DVL log; a README is ignored with a reason.
     let tmp = TmpDir::new("eval-bag");
     let d = tmp.0.join("run");
@@ -323,6 +334,8 @@ fn discovery_recognises_real_a50_logs_and_bags() {
     std::fs::copy(Path::new(REAL_LOGS).join("README.md"), d.join("README.md")).unwrap();
     let f = discover(&d, &DatasetOverrides::default()).unwrap();
     assert_eq!(f.dvl.as_deref(), Some(d.join("dvl.bag").as_path()));
+    // The pose file gives the camera data; the bag only the DVL's.
+    assert!(f.poses.is_some() && f.bag.is_none());
     assert!(
         f.ignored.iter().any(|(p, _)| p.ends_with("README.md")),
         "{:?}",
