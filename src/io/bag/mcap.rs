@@ -853,8 +853,8 @@ fn open_file(path: &Path, problems: &mut Vec<String>) -> Result<(McapFile, FileI
     }
     if let Some((start, end)) = summary {
         match read_summary(&mut r, start, end) {
-            Ok(info) if !info.channels.is_empty() => {
-                file.chunk_channels = info.chunk_channels.clone();
+            Ok(mut info) if !info.channels.is_empty() => {
+                file.chunk_channels = std::mem::take(&mut info.chunk_channels);
                 return Ok((file, info));
             }
             Ok(_) => {} // No channel copies in the summary: look in the data.
