@@ -265,9 +265,13 @@ def expected(msgs):
 
 
 def main():
-    if OUT.exists():
-        shutil.rmtree(OUT)
-    OUT.mkdir(parents=True)
+    # Everything is written anew except the folder's README.
+    OUT.mkdir(parents=True, exist_ok=True)
+    for p in OUT.iterdir():
+        if p.is_dir():
+            shutil.rmtree(p)
+        elif p.name != "README.md":
+            p.unlink()
 
     write_rosbags2(OUT / "mcap_zstd", StoragePlugin.MCAP, True)
 
@@ -293,7 +297,7 @@ def main():
     )
     print(f"rosbags {version('rosbags')}, mcap {version('mcap')}: wrote {OUT}")
     for p in sorted(OUT.rglob("*")):
-        if p.is_file():
+        if p.is_file() and p.name != "README.md":
             print(f"  {p.relative_to(OUT)}: {p.stat().st_size} bytes")
 
 

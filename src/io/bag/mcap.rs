@@ -366,7 +366,9 @@ fn decompress(
     out: &mut Vec<u8>,
 ) -> std::result::Result<(), String> {
     out.clear();
-    out.reserve(usize::try_from(size.min(stored.saturating_mul(8) + (1 << 16))).unwrap_or(0));
+    out.reserve(
+        usize::try_from(size.min(stored.saturating_mul(8).saturating_add(1 << 16))).unwrap_or(0),
+    );
     let src = (&mut r.inner).take(stored);
     let res = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| match compression {
         "zstd" => {
@@ -677,11 +679,11 @@ impl McapFile {
             r.read_into(records_at, stored, &mut bufs.chunk)?;
         } else {
             r.goto(records_at)?;
-            if let Err(why) = decompress(r, &name, stored, size, &mut bufs.chunk) {
-                // A cut chunk gives what decompressed before the cut.
-                if !cut || bufs.chunk.is_empty() {
-                    return Ok(Some(damage(format!("could not be read ({why})"))));
-                }
+            // A cut chunk gives what decompressed before the cut (the cut is told below).
+            if let Err(why) = decompress(r, &name, stored, size, &mut bufs.chunk)
+                && !cut
+            {
+                return Ok(Some(damage(format!("could not be read ({why})"))));
             }
             if bufs.chunk.len() as u64 > size {
                 return Ok(Some(damage(format!(
@@ -851,8 +853,8 @@ fn open_file(path: &Path, problems: &mut Vec<String>) -> Result<(McapFile, FileI
     }
     if let Some((start, end)) = summary {
         match read_summary(&mut r, start, end) {
-            Ok(info) if !info.channels.is_empty() => {
-                file.chunk_channels = info.chunk_channels.clone();
+            Ok(mut info) if !info.channels.is_empty() => {
+                file.chunk_channels = std::mem::take(&mut info.chunk_channels);
                 return Ok((file, info));
             }
             Ok(_) => {} // No channel copies in the summary: look in the data.
