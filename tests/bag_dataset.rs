@@ -224,10 +224,10 @@ fn record_times_are_used_only_when_asked_and_move_the_clock_offset() {
     let a = read_calib_yaml(&tmp.0.join("header.yaml")).unwrap();
     let b = read_calib_yaml(&tmp.0.join("record.yaml")).unwrap();
     let (pa, pb) = (a.to_params().unwrap(), b.to_params().unwrap());
-    // Both clocks are late by 15-45 ms at random when record times are used: the offset moves
-    // by less than the latency's spread, and the rest stays put.
+    // Poses and DVL alike are late by 15-45 ms at random when record times are used: the mean
+    // latency cancels in the offset, the jitter moves it a little.
     let d = (pa.time_offset_s - pb.time_offset_s).abs();
-    assert!(d > 0.0 && d < 0.02, "offset moved by {d} s");
+    assert!(d > 1e-6 && d < 0.002, "offset moved by {d} s");
 }
 
 #[test]
