@@ -435,3 +435,42 @@ fn a_bag_cut_short_gives_the_frames_before_the_cut_and_says_so() {
         "{stderr}"
     );
 }
+
+#[test]
+fn camera_info_gives_a_single_cameras_model() {
+    use dvlcal::io::bag::roles::BagOptions;
+    use dvlcal::pipeline::{OpenBag, camera_from_info};
+    use dvlcal::vision::camera::Camchain;
+    let opts = BagOptions {
+        image_topics: Some(vec!["/cam1/image_raw".into()]),
+        ..BagOptions::default()
+    };
+    let ob = OpenBag::open(&sample("bags/stereo_mcap"), &opts).unwrap();
+    let cam = camera_from_info(&ob, 0)
+        .unwrap()
+        .expect("a CameraInfo beside /cam1/image_raw");
+    let chain = Camchain::load(&sample("stereo/camchain.yaml")).unwrap();
+    assert_eq!(cam, chain.cams[1]);
+}
+
+#[test]
+fn a_folder_holding_a_bag_is_a_dataset_and_evaluate_takes_a_bag() {
+    let tmp = TmpDir::new("bag-in-folder");
+    let dir = tmp.0.join("run");
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::copy(sample("bags/poses_mcap.mcap"), dir.join("run.mcap")).unwrap();
+    let out = tmp.0.join("c.yaml");
+    let (stdout, _) = calibrate(&dir, &[], &out);
+    assert!(
+        stdout.contains("bag ") && stdout.contains("run.mcap"),
+        "{stdout}"
+    );
+    let (ok, stdout, stderr) = dvlcal(&[
+        "evaluate",
+        "--calib",
+        out.to_str().unwrap(),
+        sample("bags/poses_mcap.mcap").to_str().unwrap(),
+    ]);
+    assert!(ok, "{stdout}\n{stderr}");
+    assert!(stdout.contains("ATE"), "{stdout}");
+}
