@@ -23,13 +23,12 @@ use crate::time::Epoch;
 use crate::types::PoseMeasurement;
 use crate::vision::board::Board;
 use crate::vision::camera::{Camchain, Camera, Distortion};
-use crate::vision::detect::DetectorSettings;
 use crate::vision::frames::{FrameBytes, FrameSource, FrameStream, detect_source};
 use crate::vision::images::{ImageRef, Layout, ScanStats, StereoFrame, pair_frames, raw_time};
 use crate::vision::pnp::PnpOptions;
 
 use super::cameras::{CameraCalOptions, CameraCalRun, calibrate_cameras_from_frames};
-use super::vision::{VisionOptions, VisionRun, posed_frames};
+use super::vision::{VisionOptions, VisionRun, detector_settings, posed_frames};
 
 /// A bag opened, with the parts its topics play.
 #[derive(Debug)]
@@ -322,16 +321,6 @@ pub fn frame_source<'a>(path: &'a Path, plan: &'a BagFrames) -> FrameSource<'a> 
     })
 }
 
-/// The detector settings the image pipeline uses for a board.
-fn detector(board: &Board, vision: &VisionOptions) -> DetectorSettings {
-    DetectorSettings {
-        family: board.family,
-        decimate: vision.decimate,
-        threads: 1,
-        ..DetectorSettings::default()
-    }
-}
-
 /// Camera poses from a bag's images, as [`super::poses_from_images_with_chain`] does for a
 /// folder: the frames planned from the header stamps, the images streamed, detected and
 /// solved on `opts.threads` workers.
@@ -368,7 +357,7 @@ pub fn poses_from_bag(
         sigma_px: opts.pixel_sigma,
         ..PnpOptions::default()
     };
-    let det = detector(&board, opts);
+    let det = detector_settings(&board, opts);
     let pool = crate::parallel::worker_pool(opts.threads)?;
     let start = Instant::now();
     let (results, mut stats) = pool.install(|| {

@@ -17,11 +17,10 @@ use crate::io::write_atomic;
 use crate::report::{CamCalReportInput, render_camcal_html};
 use crate::vision::board::Board;
 use crate::vision::camera::Camchain;
-use crate::vision::detect::DetectorSettings;
 use crate::vision::frames::{DetectStats, FrameSource, detect_source_tags};
 use crate::vision::images::{ScanStats, StereoFrame, camera_count, scan_images};
 
-use super::vision::VisionOptions;
+use super::vision::{VisionOptions, detector_settings};
 
 /// What to do when a camera calibration made from a DVL recording is weak: a recording made for
 /// the DVL rotates less than one made for the cameras.
@@ -162,12 +161,7 @@ pub(crate) fn calibrate_cameras_from_frames<'a>(
     source: &dyn Fn() -> FrameSource<'a>,
     opts: &CameraCalOptions,
 ) -> Result<CameraCalRun> {
-    let det = DetectorSettings {
-        family: board.family,
-        decimate: opts.vision.decimate,
-        threads: 1,
-        ..DetectorSettings::default()
-    };
+    let det = detector_settings(board, &opts.vision);
     let pool = crate::parallel::worker_pool(opts.vision.threads)?;
     let mut seconds_detect = 0.0;
     let mut seconds_fit = 0.0;

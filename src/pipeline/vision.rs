@@ -121,12 +121,7 @@ pub fn poses_from_images_with_chain(
     let board = Board::load(target)?;
     let tol_ns = (opts.pair_tolerance_ms * 1e6).round() as i64;
     let (frames, scan) = scan_images(images, chain.cams.len(), tol_ns)?;
-    let det = DetectorSettings {
-        family: board.family,
-        decimate: opts.decimate,
-        threads: 1,
-        ..DetectorSettings::default()
-    };
+    let det = detector_settings(&board, opts);
     let pnp = PnpOptions {
         min_corners: opts.min_corners,
         sigma_px: opts.pixel_sigma,
@@ -149,6 +144,17 @@ pub fn poses_from_images_with_chain(
         stats,
         seconds,
     })
+}
+
+/// The detector settings of the image pipeline for `board`: one thread per detector (the frames
+/// run in parallel), the decimation of `opts`.
+pub(crate) fn detector_settings(board: &Board, opts: &VisionOptions) -> DetectorSettings {
+    DetectorSettings {
+        family: board.family,
+        decimate: opts.decimate,
+        threads: 1,
+        ..DetectorSettings::default()
+    }
 }
 
 /// The poses of the posed frames, with their times relative to `epoch`.

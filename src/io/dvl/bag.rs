@@ -146,32 +146,27 @@ fn decode(
                 zero_stamps,
             )
         }
-        Kind::Odometry => {
-            let m: cdr::Odometry = decode_typed(data, ser)?;
-            let l = m.twist.twist.linear;
+        Kind::Odometry | Kind::TwistCov => {
+            let (label, stamp, twist) = if k == Kind::Odometry {
+                let m: cdr::Odometry = decode_typed(data, ser)?;
+                ("nav_msgs/Odometry", m.header.stamp, m.twist)
+            } else {
+                let m: cdr::TwistWithCovarianceStamped = decode_typed(data, ser)?;
+                (
+                    "geometry_msgs/TwistWithCovarianceStamped",
+                    m.header.stamp,
+                    m.twist,
+                )
+            };
+            let l = twist.twist.linear;
             typed_report(
-                "nav_msgs/Odometry",
+                label,
                 name,
                 data,
                 [l.x, l.y, l.z],
-                linear_block(&m.twist.covariance),
+                linear_block(&twist.covariance),
                 true,
-                &m.header.stamp,
-                record_time,
-                zero_stamps,
-            )
-        }
-        Kind::TwistCov => {
-            let m: cdr::TwistWithCovarianceStamped = decode_typed(data, ser)?;
-            let l = m.twist.twist.linear;
-            typed_report(
-                "geometry_msgs/TwistWithCovarianceStamped",
-                name,
-                data,
-                [l.x, l.y, l.z],
-                linear_block(&m.twist.covariance),
-                true,
-                &m.header.stamp,
+                &stamp,
                 record_time,
                 zero_stamps,
             )
