@@ -45,18 +45,29 @@ enum Inner {
     Sqlite(sqlite::SqliteBag),
 }
 
+/// The storage a file's first bytes announce, if any.
+fn storage_of_file(path: &Path) -> std::io::Result<Option<Storage>> {
+    let mut head = [0u8; 16];
+    let n = std::io::Read::read(&mut std::fs::File::open(path)?, &mut head)?;
+    let head = &head[..n];
+    Ok(if head.starts_with(ros1::MAGIC) {
+        Some(Storage::Ros1)
+    } else if head.starts_with(MCAP_MAGIC) {
+        Some(Storage::Mcap)
+    } else if head.starts_with(SQLITE_MAGIC) {
+        Some(Storage::Sqlite3)
+    } else {
+        None
+    })
+}
+
 /// Whether `path` looks like a bag: a folder holding `metadata.yaml`, or a file starting like
 /// a ROS 1 bag, an MCAP file or an sqlite3 database.
 pub fn is_bag(path: &Path) -> bool {
     if path.is_dir() {
         return path.join("metadata.yaml").is_file();
     }
-    let mut head = [0u8; 16];
-    let n = std::fs::File::open(path)
-        .and_then(|mut f| std::io::Read::read(&mut f, &mut head))
-        .unwrap_or(0);
-    let head = &head[..n];
-    head.starts_with(ros1::MAGIC) || head.starts_with(MCAP_MAGIC) || head.starts_with(SQLITE_MAGIC)
+    storage_of_file(path).ok().flatten().is_some()
 }
 
 impl Bag {
@@ -68,66 +79,15 @@ impl Bag {
         if path.is_dir() {
             return open_ros2_folder(path);
         }
-        let mut head = [0u8; 16];
-        let n = std::fs::File::open(path)
-            .and_then(|mut f| std::io::Read::read(&mut f, &mut head))
-            .map_err(|e| Error::io(path, e))?;
-        let head = &head[..n];
-        if head.starts_with(ros1::MAGIC) {
-            let bag = ros1::Ros1Bag::open(path)?;
-            let mut topics: Vec<Topic> = Vec::new();
-            let mut conn_topic = std::collections::BTreeMap::new();
-            for c in bag.connections() {
-                let i = match topics
-                    .iter()
-                    .position(|t| t.name == c.topic && t.msg_type == c.msg_type)
-                {
-                    Some(i) => i,
-                    None => {
-                        topics.push(Topic {
-                            name: c.topic.clone(),
-                            msg_type: c.msg_type.clone(),
-                            serialization: Serialization::Ros1,
-                            declared_count: None,
-                        });
-                        topics.len() - 1
-                    }
-                };
-                conn_topic.insert(c.id, i);
-            }
-            return Ok(Bag {
-                path: path.to_path_buf(),
-                storage: Storage::Ros1,
-                topics,
-                problems: bag.problems().to_vec(),
-                inner: Inner::Ros1 { bag, conn_topic },
-            });
+        match storage_of_file(path).map_err(|e| Error::io(path, e))? {
+            Some(Storage::Ros1) => open_ros1(path),
+            Some(storage) => open_ros2(path, storage, &[path.to_path_buf()]),
+            None => Err(Error::Input(format!(
+                "{}: not a bag (neither a ROS 1 bag, an MCAP file, an sqlite3 database, nor a \
+                 ROS 2 bag folder with metadata.yaml)",
+                path.display()
+            ))),
         }
-        if head.starts_with(MCAP_MAGIC) {
-            let bag = mcap::McapBag::open(&[path.to_path_buf()])?;
-            return Ok(Bag {
-                path: path.to_path_buf(),
-                storage: Storage::Mcap,
-                topics: bag.topics().to_vec(),
-                problems: bag.problems().to_vec(),
-                inner: Inner::Mcap(bag),
-            });
-        }
-        if head.starts_with(SQLITE_MAGIC) {
-            let bag = sqlite::SqliteBag::open(&[path.to_path_buf()])?;
-            return Ok(Bag {
-                path: path.to_path_buf(),
-                storage: Storage::Sqlite3,
-                topics: bag.topics().to_vec(),
-                problems: bag.problems().to_vec(),
-                inner: Inner::Sqlite(bag),
-            });
-        }
-        Err(Error::Input(format!(
-            "{}: not a bag (neither a ROS 1 bag, an MCAP file, an sqlite3 database, nor a ROS 2 \
-             bag folder with metadata.yaml)",
-            path.display()
-        )))
     }
 
     /// The bag's path as given.
@@ -192,6 +152,62 @@ impl Bag {
     }
 }
 
+/// A ROS 1 bag: one topic per (name, type), whatever the number of connections.
+fn open_ros1(path: &Path) -> Result<Bag> {
+    let bag = ros1::Ros1Bag::open(path)?;
+    let mut topics: Vec<Topic> = Vec::new();
+    let mut conn_topic = std::collections::BTreeMap::new();
+    for c in bag.connections() {
+        let i = match topics
+            .iter()
+            .position(|t| t.name == c.topic && t.msg_type == c.msg_type)
+        {
+            Some(i) => i,
+            None => {
+                topics.push(Topic {
+                    name: c.topic.clone(),
+                    msg_type: c.msg_type.clone(),
+                    serialization: Serialization::Ros1,
+                    declared_count: None,
+                });
+                topics.len() - 1
+            }
+        };
+        conn_topic.insert(c.id, i);
+    }
+    Ok(Bag {
+        path: path.to_path_buf(),
+        storage: Storage::Ros1,
+        topics,
+        problems: bag.problems().to_vec(),
+        inner: Inner::Ros1 { bag, conn_topic },
+    })
+}
+
+/// The ROS 2 storage files `files` (in order) of the bag at `path`.
+fn open_ros2(path: &Path, storage: Storage, files: &[PathBuf]) -> Result<Bag> {
+    let (inner, topics, problems) = match storage {
+        Storage::Mcap => {
+            let b = mcap::McapBag::open(files)?;
+            let (t, p) = (b.topics().to_vec(), b.problems().to_vec());
+            (Inner::Mcap(b), t, p)
+        }
+        Storage::Sqlite3 => {
+            let b = sqlite::SqliteBag::open(files)?;
+            let (t, p) = (b.topics().to_vec(), b.problems().to_vec());
+            (Inner::Sqlite(b), t, p)
+        }
+        Storage::Ros1 => return open_ros1(path),
+    };
+    Ok(Bag {
+        path: path.to_path_buf(),
+        storage,
+        topics,
+        problems,
+        inner,
+    })
+}
+
 /// A ROS 2 bag folder: its `metadata.yaml` names the storage and the files.
 fn open_ros2_folder(dir: &Path) -> Result<Bag> {
     let meta_path = dir.join("metadata.yaml");
@@ -213,17 +229,9 @@ fn open_ros2_folder(dir: &Path) -> Result<Bag> {
             )));
         }
     }
-    let (storage, inner, topics, problems) = match info.storage.as_str() {
-        "mcap" => {
-            let b = mcap::McapBag::open(&files)?;
-            let (t, p) = (b.topics().to_vec(), b.problems().to_vec());
-            (Storage::Mcap, Inner::Mcap(b), t, p)
-        }
-        "sqlite3" => {
-            let b = sqlite::SqliteBag::open(&files)?;
-            let (t, p) = (b.topics().to_vec(), b.problems().to_vec());
-            (Storage::Sqlite3, Inner::Sqlite(b), t, p)
-        }
+    let storage = match info.storage.as_str() {
+        "mcap" => Storage::Mcap,
+        "sqlite3" => Storage::Sqlite3,
         other => {
             return Err(Error::Input(format!(
                 "{}: storage_identifier {other:?} is not read (mcap and sqlite3 are)",
@@ -231,19 +239,13 @@ fn open_ros2_folder(dir: &Path) -> Result<Bag> {
             )));
         }
     };
-    let mut topics = topics;
-    for t in &mut topics {
+    let mut bag = open_ros2(dir, storage, &files)?;
+    for t in &mut bag.topics {
         if t.declared_count.is_none() {
             t.declared_count = info.counts.get(&t.name).copied();
         }
     }
-    Ok(Bag {
-        path: dir.to_path_buf(),
-        storage,
-        topics,
-        problems,
-        inner,
-    })
+    Ok(bag)
 }
 
 /// What dvlcal reads of a ROS 2 bag's `metadata.yaml`.
