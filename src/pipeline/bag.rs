@@ -65,17 +65,7 @@ impl OpenBag {
 
     /// The topics with their types, for error messages.
     pub fn topic_list(&self) -> String {
-        let v: Vec<String> = self
-            .bag
-            .topics()
-            .iter()
-            .map(|t| format!("{} [{}]", t.name, t.type_name()))
-            .collect();
-        if v.is_empty() {
-            "none".into()
-        } else {
-            v.join(", ")
-        }
+        roles::topic_list(self.bag.topics())
     }
 }
 

@@ -184,6 +184,15 @@ fn find(topics: &[Topic], name: &str) -> Option<usize> {
     topics.iter().position(|t| t.name == name)
 }
 
+/// Every topic with its type (`/cam0/image_raw [sensor_msgs/Image], ...`; `none` for none),
+/// for error messages.
+pub fn topic_list(topics: &[Topic]) -> String {
+    if topics.is_empty() {
+        return "none".into();
+    }
+    listing(topics, &(0..topics.len()).collect::<Vec<_>>())
+}
+
 fn listing(topics: &[Topic], idx: &[usize]) -> String {
     idx.iter()
         .filter_map(|&i| topics.get(i))
@@ -210,7 +219,7 @@ pub fn choose_dvl(topics: &[Topic], named: Option<&str>) -> Result<Option<usize>
         let Some(i) = find(topics, n) else {
             return Err(Error::Input(format!(
                 "--dvl-topic {n}: no such topic (topics: {})",
-                listing(topics, &(0..topics.len()).collect::<Vec<_>>())
+                topic_list(topics)
             )));
         };
         if !kind(&topics[i]).is_some_and(Kind::is_dvl) {
@@ -354,7 +363,7 @@ pub fn choose_pose(
         let Some(i) = find(topics, n) else {
             return Err(Error::Input(format!(
                 "--pose-topic {n}: no such topic (topics: {})",
-                listing(topics, &(0..topics.len()).collect::<Vec<_>>())
+                topic_list(topics)
             )));
         };
         if !kind(&topics[i]).is_some_and(Kind::is_pose) {

@@ -19,7 +19,7 @@ use super::log::{DvlLogStats, DvlReadOptions};
 use super::report::{Parsed, Reject, VelocityReport, content_hash};
 use crate::error::{Error, Result};
 use crate::io::bag::cdr::{self, CdrMessage};
-use crate::io::bag::roles::{Kind, choose_dvl, kind};
+use crate::io::bag::roles::{Kind, choose_dvl, kind, topic_list};
 use crate::io::bag::{Bag, Serialization, Topic};
 use crate::time::RawTime;
 
@@ -257,18 +257,6 @@ fn typed_report(
         host_time_kind: Some("host receive time (bag record time)"),
         key: content_hash(data),
     }))
-}
-
-fn topic_list(topics: &[Topic]) -> String {
-    let v: Vec<String> = topics
-        .iter()
-        .map(|t| format!("{} [{}]", t.name, t.msg_type))
-        .collect();
-    if v.is_empty() {
-        "none".to_string()
-    } else {
-        v.join(", ")
-    }
 }
 
 fn relabel(p: &mut Parsed, topic: &str) {
