@@ -747,3 +747,135 @@ fn a_kalibr_board_reads_back_as_a_kalibr_print() {
     // The same tag corners either way: one printed board, one geometry.
     assert_eq!(ours.tags, b.tags);
 }
+
+/// The first number in `attr="..."` of the first line containing `marker`.
+fn svg_number(svg: &str, marker: &str, attr: &str) -> f64 {
+    let line = svg
+        .lines()
+        .find(|l| l.contains(marker))
+        .unwrap_or_else(|| panic!("no line with {marker}"));
+    let key = format!(" {attr}=\"");
+    let start = line
+        .find(&key)
+        .unwrap_or_else(|| panic!("{attr} in {line}"))
+        + key.len();
+    let end = start + line[start..].find('"').unwrap();
+    line[start..end].trim_end_matches("mm").parse().unwrap()
+}
+
+/// The SVG rendered by headless Chromium at 96 dpi (px per mm = 96 / 25.4), as grey.
+fn render_svg(svg: &str, name: &str) -> image::GrayImage {
+    let d = vision_seq::fresh_dir(name);
+    let (file, png) = (d.join("board.svg"), d.join("board.png"));
+    std::fs::write(&file, svg).unwrap();
+    let px = 96.0 / 25.4;
+    let w = (svg_number(svg, "<svg", "width") * px).ceil() as u32 + 2;
+    let h = (svg_number(svg, "<svg", "height") * px).ceil() as u32 + 2;
+    let browser = std::env::var("CHROMIUM").unwrap_or_else(|_| "chromium".into());
+    let out = std::process::Command::new(&browser)
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--hide-scrollbars",
+            "--force-device-scale-factor=1",
+            "--default-background-color=ffffffff",
+        ])
+        .arg(format!("--window-size={w},{h}"))
+        .arg(format!("--screenshot={}", png.display()))
+        .arg(format!("file://{}", file.display()))
+        .output()
+        .unwrap_or_else(|e| {
+            panic!("run {browser} (install Debian's chromium, or DVLCAL_SKIP_BROWSER=1): {e}")
+        });
+    assert!(png.exists(), "{}", String::from_utf8_lossy(&out.stderr));
+    let img = image::open(&png).unwrap().to_luma8();
+    let _ = std::fs::remove_dir_all(&d);
+    img
+}
+
+/// A printed board, rendered: every tag is found; the scale bar measures its stated length
+/// against the tags' own edges; the origin ticks sit on the first tag's lower-left corner; the id
+/// labels stand level with their rows.
+#[test]
+fn a_printed_board_shows_its_scale_ids_and_origin_without_hiding_a_tag() {
+    if std::env::var("DVLCAL_SKIP_BROWSER").is_ok_and(|v| v == "1") {
+        eprintln!("DVLCAL_SKIP_BROWSER=1: render of the board print skipped");
+        return;
+    }
+    let px = 96.0 / 25.4;
+    for (yaml, name, first) in [
+        (
+            "family: tag36h11\nrows: 3\ncols: 4\ntag_size: 0.04\nspacing: 0.3\nfirst_id: 10\n",
+            "print-scale-dvlcal",
+            10u32,
+        ),
+        (
+            "target_type: 'aprilgrid'\ntagCols: 4\ntagRows: 3\ntagSize: 0.04\ntagSpacing: 0.3\n",
+            "print-scale-kalibr",
+            0,
+        ),
+    ] {
+        let svg = print_board(yaml, name);
+        let img = render_svg(&svg, name);
+        let mut det = Detector::new(&DetectorSettings::default()).unwrap();
+        let found: BTreeMap<u32, TagDetection> =
+            det.detect(&img).into_iter().map(|d| (d.id, d)).collect();
+        let ids: Vec<u32> = found.keys().copied().collect();
+        assert_eq!(ids, (first..first + 12).collect::<Vec<_>>(), "{name}");
+        // Tag edge in pixels, from the detected corners of every tag.
+        let edges: Vec<f64> = found
+            .values()
+            .flat_map(|d| (0..4).map(move |k| (d.corners[(k + 1) % 4] - d.corners[k]).norm()))
+            .collect();
+        let edge_px = edges.iter().sum::<f64>() / edges.len() as f64;
+        assert!(
+            (edge_px / (40.0 * px) - 1.0).abs() < 0.01,
+            "{name}: {edge_px}"
+        );
+
+        // The scale bar, measured along its middle row: its outline's first and last dark pixels.
+        let len_mm = svg_number(&svg, "id=\"scale-bar\"", "data-length-mm");
+        let bar = "fill=\"none\" stroke=\"black\" stroke-width=\"0.2\"";
+        let (bx, by) = (svg_number(&svg, bar, "x"), svg_number(&svg, bar, "y"));
+        let row = ((by + 1.0) * px) as u32;
+        let dark: Vec<u32> = (0..img.width())
+            .filter(|&x| img.get_pixel(x, row)[0] < 128)
+            .collect();
+        let (x0, x1) = (dark[0], *dark.last().unwrap());
+        assert!(
+            (x0 as f64 - bx * px).abs() < 2.0,
+            "{name}: bar starts at {x0}"
+        );
+        let bar_px = (x1 - x0 + 1) as f64;
+        let ratio = (bar_px / edge_px) / (len_mm / 40.0);
+        assert!(
+            (ratio - 1.0).abs() < 0.01,
+            "{name}: the {len_mm} mm bar is {bar_px} px against {edge_px} px per 40 mm tag"
+        );
+
+        // Origin ticks on the first tag's lower-left corner (OpenCV convention: page * px - 0.5).
+        let c = found[&first].corners[0];
+        let ox = svg_number(&svg, "id=\"board-axes\"", "data-origin-x-mm") * px - 0.5;
+        let oy = svg_number(&svg, "id=\"board-axes\"", "data-origin-y-mm") * px - 0.5;
+        assert!(
+            (ox - c.x).abs() < 1.0 && (oy - c.y).abs() < 1.0,
+            "{name}: {ox},{oy} vs {c}"
+        );
+
+        // Each row's id labels: the row's ids left to right, level with the detected centres.
+        for line in svg.lines().filter(|l| l.contains("data-ids=")) {
+            let start = line.find("data-ids=\"").unwrap() + 10;
+            let row_ids: Vec<u32> = line[start..start + line[start..].find('"').unwrap()]
+                .split(' ')
+                .map(|v| v.parse().unwrap())
+                .collect();
+            let centre = |id: &u32| found[id].corners.iter().sum::<Vector2<f64>>() / 4.0;
+            let xs: Vec<f64> = row_ids.iter().map(|id| centre(id).x).collect();
+            assert!(xs.windows(2).all(|w| w[0] < w[1]), "{name}: {line}");
+            let label_y = svg_number(line, "data-ids", "y") * px;
+            let row_y = centre(&row_ids[0]).y;
+            assert!((label_y - row_y).abs() < 0.25 * edge_px, "{name}: {line}");
+        }
+    }
+}

@@ -2,6 +2,15 @@
 //! the paper around them, and the board definition printed underneath. A board read from a
 //! Kalibr aprilgrid YAML is printed as Kalibr prints it ([`TagPrint::Kalibr`]): two-bit borders
 //! and the corner squares (group `corner-squares`), so that Kalibr reads the same sheet.
+//!
+//! Outside the board's paper, where nothing can disturb the detector, the sheet carries what a
+//! user needs to check and use the print:
+//! - a scale bar of known length (group `scale-bar`, its length in `data-length-mm`), to measure
+//!   after printing;
+//! - the tag ids of each row of tags in the left and right margins (group `id-labels`): the
+//!   first and last id of the row, or every id of a row whose ids do not run one by one;
+//! - the board frame (group `board-axes`): ticks at the origin's x and y on the board's bottom
+//!   and left edges, and arrows for x (right) and y (up); z points out of the page.
 
 use std::fmt::Write as _;
 
@@ -18,6 +27,26 @@ fn legend(board: &Board, source: &str) -> Vec<String> {
     }
     v.push("Print at 100 % scale, no fitting to the page; measure a tag's black square and correct tag_size if it differs.".into());
     v
+}
+
+/// `line` cut at spaces into lines of at most `columns` characters (a longer word stays whole);
+/// continuation lines keep the first line's indentation.
+fn wrap(line: &str, columns: usize) -> Vec<String> {
+    let indent: String = line.chars().take_while(|c| *c == ' ').collect();
+    let mut out: Vec<String> = Vec::new();
+    let mut cur = indent.clone();
+    for word in line.split(' ').filter(|w| !w.is_empty()) {
+        let len = cur.chars().count();
+        if len > indent.len() && len + 1 + word.chars().count() > columns {
+            out.push(std::mem::replace(&mut cur, indent.clone()));
+        }
+        if cur.len() > indent.len() {
+            cur.push(' ');
+        }
+        cur.push_str(word);
+    }
+    out.push(cur);
+    out
 }
 
 fn escape(s: &str) -> String {
@@ -83,13 +112,29 @@ pub fn board_svg(board: &Board, source: &str) -> Result<String> {
             (lo, hi)
         }
     };
-    let lines = legend(board, source);
+    let mut lines = legend(board, source);
     let font = 3.0; // mm
     let margin = 2.0; // mm around the paper
     let board_w = (hi.0 - lo.0) * 1e3;
     let board_h = (hi.1 - lo.1) * 1e3;
-    let page_w = board_w + 2.0 * margin;
-    let page_h = board_h + 2.0 * margin + lines.len() as f64 * font * 1.3;
+    let rows = tag_rows(board);
+    // Bands outside the paper: ids left and right, axes and the scale bar below.
+    let label_w = |row: &TagRow| row.label(true).len().max(row.label(false).len()) as f64;
+    let chars = rows.iter().map(label_w).fold(4.0, f64::max);
+    let side = margin + chars * LABEL_FONT * 0.62 + ID_GAP;
+    let bottom = 24.0;
+    let scale_mm = scale_bar_length(board_w + side - margin);
+    let origin_mm = (-lo.0 * 1e3, -lo.1 * 1e3);
+    lines.push(format!(
+        "Board frame: origin at the ticks marked 0 ({:.1} mm from the left edge of the board's \
+         paper, {:.1} mm from its bottom edge); x to the right, y up, z out of the page.",
+        origin_mm.0, origin_mm.1
+    ));
+    let page_w = board_w + 2.0 * side;
+    // Monospace characters are about 0.6 of the font size wide; wrap to the page.
+    let columns = ((page_w - side) / (font * 0.6)).floor().max(20.0) as usize;
+    let lines: Vec<String> = lines.iter().flat_map(|l| wrap(l, columns)).collect();
+    let page_h = board_h + margin + bottom + lines.len() as f64 * font * 1.3;
     let mut s = String::new();
     let _ = writeln!(
         s,
@@ -97,7 +142,7 @@ pub fn board_svg(board: &Board, source: &str) -> Result<String> {
 <svg xmlns="http://www.w3.org/2000/svg" width="{page_w:.3}mm" height="{page_h:.3}mm" viewBox="0 0 {page_w:.4} {page_h:.4}">
 <title>{}</title>
 <rect x="0" y="0" width="{page_w:.4}" height="{page_h:.4}" fill="white"/>
-<rect x="{margin}" y="{margin}" width="{board_w:.4}" height="{board_h:.4}" fill="white" stroke="#bbbbbb" stroke-width="0.1"/>"##,
+<rect x="{side:.4}" y="{margin}" width="{board_w:.4}" height="{board_h:.4}" fill="white" stroke="#bbbbbb" stroke-width="0.1"/>"##,
         escape(&board.description)
     );
     // Board point (m) -> page (mm): x right from lo.x, y down from hi.y.
@@ -120,7 +165,7 @@ pub fn board_svg(board: &Board, source: &str) -> Result<String> {
         let d = cell * ay.y;
         let bx = o.x * 1e3 + cell * (-off * ax.x + (tw - off) * ay.x);
         let by = o.y * 1e3 + cell * (-off * ax.y + (tw - off) * ay.y);
-        let e = bx - lo.0 * 1e3 + margin;
+        let e = bx - lo.0 * 1e3 + side;
         let f = hi.1 * 1e3 - by + margin;
         let _ = writeln!(
             s,
@@ -160,7 +205,7 @@ pub fn board_svg(board: &Board, source: &str) -> Result<String> {
                 // Board-plane lower-left corner of the square, then its top-left on the page.
                 let x = c as f64 * pitch - gap;
                 let y_top = r as f64 * pitch;
-                let px = x - lo.0 * 1e3 + margin;
+                let px = x - lo.0 * 1e3 + side;
                 let py = hi.1 * 1e3 - y_top + margin;
                 let _ = writeln!(
                     s,
@@ -170,15 +215,321 @@ pub fn board_svg(board: &Board, source: &str) -> Result<String> {
         }
         s.push_str("</g>\n");
     }
-    let mut y = margin + board_h + margin * 0.5 + font;
+    // Board point (mm) -> page (mm).
+    let page = |x: f64, y: f64| (x - lo.0 * 1e3 + side, hi.1 * 1e3 - y + margin);
+    id_labels(&mut s, &rows, &page, side, board_w);
+    let paper_bottom = margin + board_h;
+    board_axes(&mut s, page(0.0, 0.0), (side, side + board_w), paper_bottom);
+    scale_bar(&mut s, side, paper_bottom + 14.0, scale_mm);
+    let mut y = paper_bottom + bottom + font;
     for l in &lines {
         let _ = writeln!(
             s,
-            r#"<text x="{margin}" y="{y:.3}" font-family="monospace" font-size="{font}" fill="black" xml:space="preserve">{}</text>"#,
+            r#"<text x="{side:.3}" y="{y:.3}" font-family="monospace" font-size="{font}" fill="black" xml:space="preserve">{}</text>"#,
             escape(l)
         );
         y += font * 1.3;
     }
     s.push_str("</svg>\n");
     Ok(s)
+}
+
+/// Font size of the margin labels, mm.
+const LABEL_FONT: f64 = 3.5;
+
+/// Room between the left id labels and the paper, for the y axis, mm.
+const ID_GAP: f64 = 9.0;
+
+/// Tags whose centres lie at one height of the board: a printed row.
+struct TagRow {
+    /// Centre height, mm in the board frame.
+    y_mm: f64,
+    /// Ids in order of x.
+    ids: Vec<u32>,
+}
+
+impl TagRow {
+    /// The label beside the row: its first (left) or last (right) id when the ids run one by
+    /// one from left to right, otherwise every id on the left and nothing on the right.
+    fn label(&self, left: bool) -> String {
+        let run = self.ids.windows(2).all(|w| w[1] == w[0] + 1);
+        match (run, left, self.ids.first(), self.ids.last()) {
+            (true, true, Some(a), _) => format!("{a}"),
+            (true, false, _, Some(b)) if self.ids.len() > 1 => format!("{b}"),
+            (false, true, _, _) => self
+                .ids
+                .iter()
+                .map(u32::to_string)
+                .collect::<Vec<_>>()
+                .join(" "),
+            _ => String::new(),
+        }
+    }
+}
+
+/// The board's tags grouped into rows by the height of their centres (within half the smallest
+/// tag), bottom row first.
+fn tag_rows(board: &Board) -> Vec<TagRow> {
+    let mut centres: Vec<(f64, f64, u32, f64)> = board
+        .tags
+        .iter()
+        .map(|t| {
+            let c = t.pose().trans * 1e3;
+            (c.y, c.x, t.id, t.size_m * 1e3)
+        })
+        .collect();
+    centres.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
+    // Per row: the first centre's height, the smallest tag, and (x, id, y) of each member.
+    let mut rows: Vec<(f64, f64, Vec<(f64, u32, f64)>)> = Vec::new();
+    for (y, x, id, size) in centres {
+        match rows.last_mut() {
+            Some((y0, s0, members)) if (y - *y0).abs() < 0.5 * size.min(*s0) => {
+                *s0 = s0.min(size);
+                members.push((x, id, y));
+            }
+            _ => rows.push((y, size, vec![(x, id, y)])),
+        }
+    }
+    rows.into_iter()
+        .map(|(_, _, mut m)| {
+            m.sort_by(|a, b| a.0.total_cmp(&b.0));
+            TagRow {
+                y_mm: m.iter().map(|r| r.2).sum::<f64>() / m.len() as f64,
+                ids: m.into_iter().map(|(_, id, _)| id).collect(),
+            }
+        })
+        .collect()
+}
+
+/// The ids of each row in the side margins, level with the row's centres.
+fn id_labels(
+    s: &mut String,
+    rows: &[TagRow],
+    page: &dyn Fn(f64, f64) -> (f64, f64),
+    side: f64,
+    board_w: f64,
+) {
+    let _ = writeln!(
+        s,
+        r#"<g id="id-labels" font-family="monospace" font-size="{LABEL_FONT}" fill="black">"#
+    );
+    for row in rows {
+        let (_, y) = page(0.0, row.y_mm);
+        let y = y + LABEL_FONT * 0.35;
+        let (left, right) = (row.label(true), row.label(false));
+        let _ = writeln!(
+            s,
+            r#"<text x="{:.3}" y="{y:.3}" text-anchor="end" data-ids="{}">{}</text>"#,
+            side - ID_GAP,
+            row.ids
+                .iter()
+                .map(u32::to_string)
+                .collect::<Vec<_>>()
+                .join(" "),
+            escape(&left)
+        );
+        if !right.is_empty() {
+            let _ = writeln!(
+                s,
+                r#"<text x="{:.3}" y="{y:.3}">{}</text>"#,
+                side + board_w + 2.0,
+                escape(&right)
+            );
+        }
+    }
+    s.push_str("</g>\n");
+}
+
+/// Ticks at the board origin's x (below the paper) and y (left of it), marked 0, and arrows
+/// along the board's x and y axes in the margins. `origin` is the origin on the page; `span` the
+/// paper's left and right edges; `bottom` its bottom edge (all mm).
+fn board_axes(s: &mut String, origin: (f64, f64), span: (f64, f64), bottom: f64) {
+    let (ox, oy) = origin;
+    let (left, right) = span;
+    let red = "#c0392b";
+    let green = "#1e8449";
+    let _ = writeln!(
+        s,
+        r#"<g id="board-axes" data-origin-x-mm="{ox:.4}" data-origin-y-mm="{oy:.4}" stroke-width="0.3" font-family="monospace" font-size="{LABEL_FONT}">"#
+    );
+    // x: a tick under the paper at the origin's x, an arrow to the right.
+    if (left..=right).contains(&ox) {
+        let _ = writeln!(
+            s,
+            r#"<line x1="{ox:.4}" y1="{bottom:.4}" x2="{ox:.4}" y2="{:.4}" stroke="{red}"/>"#,
+            bottom + 4.0
+        );
+        let y = bottom + 2.5;
+        let end = (ox + 25.0).min(right + 8.0);
+        let _ = writeln!(
+            s,
+            r#"<line x1="{ox:.4}" y1="{y:.4}" x2="{end:.4}" y2="{y:.4}" stroke="{red}"/>"#
+        );
+        let _ = writeln!(
+            s,
+            r#"<path d="M {end:.4} {y:.4} l -2 -1 l 0 2 z" fill="{red}" stroke="none"/>"#
+        );
+        let _ = writeln!(
+            s,
+            r#"<text x="{:.4}" y="{:.4}" fill="{red}" stroke="none">0</text>"#,
+            ox - 1.0,
+            bottom + 4.0 + LABEL_FONT
+        );
+        let _ = writeln!(
+            s,
+            r#"<text x="{:.4}" y="{:.4}" fill="{red}" stroke="none">x</text>"#,
+            end + 1.0,
+            y + 1.2
+        );
+    }
+    // y: a tick left of the paper at the origin's y, an arrow up.
+    if oy >= 0.0 && oy <= bottom {
+        let x = left - 3.5;
+        let _ = writeln!(
+            s,
+            r#"<line x1="{left:.4}" y1="{oy:.4}" x2="{:.4}" y2="{oy:.4}" stroke="{green}"/>"#,
+            left - 5.0
+        );
+        let end = (oy - 25.0).max(1.0);
+        let _ = writeln!(
+            s,
+            r#"<line x1="{x:.4}" y1="{oy:.4}" x2="{x:.4}" y2="{end:.4}" stroke="{green}"/>"#
+        );
+        let _ = writeln!(
+            s,
+            r#"<path d="M {x:.4} {end:.4} l -1 2 l 2 0 z" fill="{green}" stroke="none"/>"#
+        );
+        let _ = writeln!(
+            s,
+            r#"<text x="{:.4}" y="{:.4}" fill="{green}" stroke="none" text-anchor="end">0</text>"#,
+            left - 5.5,
+            oy + 1.2
+        );
+        let _ = writeln!(
+            s,
+            r#"<text x="{:.4}" y="{:.4}" fill="{green}" stroke="none" text-anchor="end">y</text>"#,
+            x - 1.0,
+            end + 2.0
+        );
+    }
+    s.push_str("</g>\n");
+}
+
+/// The longest of 200, 100, 50, 20 and 10 mm that fits in `room` mm (10 mm at the least).
+fn scale_bar_length(room: f64) -> f64 {
+    [200.0, 100.0, 50.0, 20.0, 10.0]
+        .into_iter()
+        .find(|&l| l <= room)
+        .unwrap_or(10.0)
+}
+
+/// A scale bar of `length` mm from (x, y): alternate black and white 10 mm (or 5 mm) segments
+/// in a black outline, its length written beside it.
+fn scale_bar(s: &mut String, x: f64, y: f64, length: f64) {
+    let step = if length >= 50.0 { 10.0 } else { 5.0 };
+    let h = 2.0;
+    let _ = writeln!(
+        s,
+        r#"<g id="scale-bar" data-length-mm="{length}" shape-rendering="crispEdges">"#
+    );
+    let n = (length / step).round() as usize;
+    for k in (0..n).step_by(2) {
+        let _ = writeln!(
+            s,
+            r#"<rect x="{:.4}" y="{y:.4}" width="{step}" height="{h}" fill="black"/>"#,
+            x + k as f64 * step
+        );
+    }
+    let _ = writeln!(
+        s,
+        r#"<rect x="{x:.4}" y="{y:.4}" width="{length}" height="{h}" fill="none" stroke="black" stroke-width="0.2"/>"#
+    );
+    let _ = writeln!(
+        s,
+        r#"<text x="{x:.4}" y="{:.4}" font-family="monospace" font-size="3" fill="black">{length} mm: measure this bar after printing; if it is not {length} mm, the print was scaled</text>"#,
+        y + h + 4.0
+    );
+    s.push_str("</g>\n");
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::lie::Se3;
+    use crate::vision::board::{BoardTag, TagFamily};
+    use nalgebra::{Matrix3, Vector3};
+
+    fn list_board(tags: &[(u32, f64, f64)]) -> Board {
+        Board {
+            family: TagFamily::Tag36h11,
+            tags: tags
+                .iter()
+                .map(|&(id, x, y)| {
+                    BoardTag::from_pose(
+                        id,
+                        0.05,
+                        &Se3::new(Matrix3::identity(), Vector3::new(x, y, 0.0)),
+                    )
+                })
+                .collect(),
+            description: "list".into(),
+            grid: None,
+            print: TagPrint::Apriltag,
+        }
+    }
+
+    #[test]
+    fn rows_group_by_height_and_read_left_to_right() {
+        // Two rows; the upper one slightly uneven and its ids out of order.
+        let b = list_board(&[
+            (7, 0.2, 0.0),
+            (5, 0.0, 0.0),
+            (6, 0.1, 0.0),
+            (9, 0.1, 0.101),
+            (3, 0.0, 0.1),
+            (12, 0.2, 0.099),
+        ]);
+        let rows = tag_rows(&b);
+        assert_eq!(rows.len(), 2);
+        assert_eq!(rows[0].ids, vec![5, 6, 7]);
+        assert_eq!(
+            (rows[0].label(true), rows[0].label(false)),
+            ("5".into(), "7".into())
+        );
+        assert!((rows[0].y_mm - 0.0).abs() < 1e-9);
+        assert_eq!(rows[1].ids, vec![3, 9, 12]);
+        assert_eq!(rows[1].label(true), "3 9 12");
+        assert_eq!(rows[1].label(false), "");
+        assert!((rows[1].y_mm - 100.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_list_board_prints_every_id_and_the_origin() {
+        let b = list_board(&[(1, 0.0, 0.0), (4, 0.1, 0.0), (2, 0.05, 0.1)]);
+        let svg = board_svg(&b, "list.yaml").unwrap_or_default();
+        assert!(svg.contains(r#"data-ids="1 4""#), "{svg}");
+        assert!(svg.contains(r#"data-ids="2""#));
+        assert!(svg.contains(r#"<g id="board-axes""#));
+        assert!(svg.contains(r#"<g id="scale-bar" data-length-mm="100""#));
+    }
+
+    #[test]
+    fn the_scale_bar_is_the_longest_round_length_that_fits() {
+        assert_eq!(scale_bar_length(500.0), 200.0);
+        assert_eq!(scale_bar_length(199.0), 100.0);
+        assert_eq!(scale_bar_length(60.0), 50.0);
+        assert_eq!(scale_bar_length(12.0), 10.0);
+        assert_eq!(scale_bar_length(3.0), 10.0);
+    }
+
+    #[test]
+    fn long_legend_lines_wrap_at_spaces_keeping_their_indent() {
+        let w = wrap("  aaa bbb ccc ddd", 9);
+        assert_eq!(w, vec!["  aaa bbb", "  ccc ddd"]);
+        assert_eq!(
+            wrap("averyveryverylongword x", 5),
+            vec!["averyveryverylongword", "x"]
+        );
+        assert_eq!(wrap("short", 80), vec!["short"]);
+    }
 }
