@@ -280,7 +280,8 @@ fn tag_rows(board: &Board) -> Vec<TagRow> {
         .collect();
     centres.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
     // Per row: the first centre's height, the smallest tag, and (x, id, y) of each member.
-    let mut rows: Vec<(f64, f64, Vec<(f64, u32, f64)>)> = Vec::new();
+    type Members = Vec<(f64, u32, f64)>;
+    let mut rows: Vec<(f64, f64, Members)> = Vec::new();
     for (y, x, id, size) in centres {
         match rows.last_mut() {
             Some((y0, s0, members)) if (y - *y0).abs() < 0.5 * size.min(*s0) => {
