@@ -11,16 +11,22 @@
 //! the DVL log's summary and the result file.
 
 mod cameras;
+mod correlation;
 mod data;
+mod failure;
 mod input;
 mod page;
+mod reprojection;
+mod rotation;
 mod svg;
+mod timeline;
 mod words;
 
 pub use cameras::{
     CAMCAL_CAMERA_PLOT_IDS, CAMCAL_PLOT_IDS, CAMCAL_SECTION_IDS, CamCalReportInput,
     camcal_plot_ids, render_camcal_html,
 };
+pub use failure::{FAILURE_PLOT_IDS, FAILURE_SECTION_IDS, FailureReportInput, render_failure_html};
 pub use input::{FrameStat, ReportInput, frame_stats};
 pub use words::sound_speed_words;
 
@@ -30,6 +36,9 @@ use crate::error::Result;
 /// for `--method bcd`, no image statistics for `--poses` runs) are still present, marked
 /// `data-empty="true"` and saying why.
 pub const PLOT_IDS: &[&str] = &[
+    "residual-time-x",
+    "residual-time-y",
+    "residual-time-z",
     "velocity-before-x",
     "velocity-after-x",
     "velocity-before-y",
@@ -48,6 +57,10 @@ pub const PLOT_IDS: &[&str] = &[
     "cost",
     "frames-tags",
     "frames-rms",
+    "reprojection-map-cam0",
+    "reprojection-time-cam0",
+    "reprojection-map-cam1",
+    "reprojection-time-cam1",
     "pose-residual-pos",
     "pose-residual-rot",
     "trajectory",
@@ -57,7 +70,9 @@ pub const PLOT_IDS: &[&str] = &[
 pub const SECTION_IDS: &[&str] = &[
     "summary",
     "results",
+    "correlation",
     "warnings",
+    "residual-time",
     "velocity",
     "robustness",
     "residuals",
@@ -65,6 +80,7 @@ pub const SECTION_IDS: &[&str] = &[
     "clock-offset",
     "refinement",
     "frames",
+    "reprojection",
     "trajectory-fit",
     "dvl-log",
     "result-file",
@@ -75,3 +91,7 @@ pub fn render_html(input: &ReportInput) -> Result<String> {
     let d = data::Derived::compute(input)?;
     Ok(page::render(input, &d))
 }
+
+#[cfg(test)]
+#[path = "report_tests.rs"]
+mod report_tests;
