@@ -140,18 +140,18 @@ pub(super) fn correlation_section(o: &CalibrationOutcome) -> String {
         .map(|k| PARAM_NAMES[k].0)
         .collect();
     if !held.is_empty() {
-        let _ = write!(
+        let _ = writeln!(
             s,
-            "<p>Not estimated in this run, so without a correlation: {}.</p>\n",
+            "<p>Not estimated in this run, so without a correlation: {}.</p>",
             escape(&held.join(", "))
         );
     }
     let strong = c.strong_pairs();
     if strong.is_empty() {
-        let _ = write!(
+        let _ = writeln!(
             s,
             "<p id=\"correlation-words\">No pair of estimated parameters is correlated beyond \
-             {STRONG}: the recording separates them.</p>\n"
+             {STRONG}: the recording separates them.</p>"
         );
     } else {
         s.push_str("<ul id=\"correlation-words\" class=\"warn\">");

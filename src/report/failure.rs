@@ -161,9 +161,9 @@ pub fn render_failure_html(input: &FailureReportInput) -> String {
     for m in msgs.iter().filter(|m| !m.is_empty()) {
         let _ = write!(s, "<li>{}</li>", escape(m));
     }
-    let _ = write!(
+    let _ = writeln!(
         s,
-        "</ul><p id=\"advice\">{}</p></div></section>\n",
+        "</ul><p id=\"advice\">{}</p></div></section>",
         escape(advice(input.error))
     );
 
@@ -256,11 +256,11 @@ pub fn render_failure_html(input: &FailureReportInput) -> String {
         plot =
             plot.series(Series::line("DVL samples", "#e8710a", vec![(a, 0.0), (b, 0.0)]).size(8.0));
     }
-    let _ = write!(
+    let _ = writeln!(
         s,
         "<figure>{}<figcaption>Upper bar: camera poses; lower bar: valid DVL samples. The \
          calibration searches the clock offset among those at which the bars overlap once \
-         shifted.</figcaption></figure></section>\n",
+         shifted.</figcaption></figure></section>",
         plot.render()
     );
 

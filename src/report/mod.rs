@@ -3,12 +3,18 @@
 //!
 //! [`render_html`] is pure: it takes a [`ReportInput`] and returns the page; the caller writes it.
 //! The page holds the estimates with their standard deviations and the observability verdicts
-//! in words, every warning, and the plots listed in [`PLOT_IDS`] (each an `<svg>` with that id):
-//! measured against predicted DVL velocities per axis before and after the refinement, residual
+//! in words (the rotation also as roll, pitch, yaw and axis-angle), the correlation matrix of the
+//! estimates, every warning, and the plots listed in [`PLOT_IDS`] (each an `<svg>` with that id):
+//! the DVL residuals over time with the stated 3-sigma band, measured against predicted DVL
+//! velocities per axis before and after the refinement, residual
 //! histograms, the angular velocity with the calm samples of the clock-offset search shaded, the
 //! lever-arm velocity against the speed, the clock-offset objective, the cost per iteration,
-//! per-frame detection statistics, pose residuals and a top view of the trajectory, followed by
-//! the DVL log's summary and the result file.
+//! per-frame detection statistics, each camera's reprojection errors over the image and over
+//! time, pose residuals and a top view of the trajectory, followed by the DVL log's summary and
+//! the result file.
+//!
+//! A calibration that stopped with an error gets [`render_failure_html`]: what was found and why
+//! it stopped.
 
 mod cameras;
 mod correlation;

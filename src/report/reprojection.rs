@@ -104,7 +104,7 @@ pub(super) fn reprojection_section(
         String::new()
     };
     if frames.is_some() {
-        let _ = write!(
+        let _ = writeln!(
             s,
             "<p>Left: the board corners each camera saw, at their detected position, coloured \
              by how far the pose reprojects them (a pattern here points at the lens model: \
@@ -112,7 +112,7 @@ pub(super) fn reprojection_section(
              frame's reprojection RMS in that camera (dots) and the drawn corners' errors (grey) \
              over time. Each frame keeps up to {CORNER_SAMPLE_PER_CAMERA} of its corners per \
              camera for these plots, evenly spaced through the board; at most \
-             {MAX_CORNERS_PER_CAMERA} per camera are drawn over the recording.</p>\n"
+             {MAX_CORNERS_PER_CAMERA} per camera are drawn over the recording.</p>"
         );
     }
     let mut words = Vec::new();

@@ -58,20 +58,20 @@ pub(super) fn rotation_table(r: &Matrix3<f64>, start: &Matrix3<f64>) -> String {
          <span class=\"start\">([{:.3}, {:.3}, {:.3}])</span></td></tr>",
         rpy[0], rpy[1], rpy[2], rpy0[0], rpy0[1], rpy0[2]
     );
-    let _ = write!(
+    let _ = writeln!(
         s,
         "<tr><td>axis and angle (the axis has the same coordinates in the camera and the DVL \
          frame)</td><td class=\"num\">{}<br>\
-         <span class=\"start\">({})</span></td></tr></table>\n",
+         <span class=\"start\">({})</span></td></tr></table>",
         escape(&axis_words(axis, angle)),
         escape(&axis_words(axis0, angle0))
     );
     if rpy[1].abs() > 85.0 {
-        let _ = write!(
+        let _ = writeln!(
             s,
             "<p>The pitch is {:.1} deg, near 90: roll and yaw then turn about nearly the same \
              axis, so small changes of the rotation move them a lot; the quaternion and the \
-             axis-angle form are the stable ones to compare.</p>\n",
+             axis-angle form are the stable ones to compare.</p>",
             rpy[1]
         );
     }

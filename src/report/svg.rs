@@ -994,6 +994,10 @@ mod tests {
         assert!((sc.py(0.0) - (t + h)).abs() < 1e-9, "y grows upward");
         assert!((sc.py(5.0) - t).abs() < 1e-9);
         assert!((sc.px(5.0) - (l + w / 2.0)).abs() < 1e-9);
+        // Image rows: y grows downward.
+        let sc = p.clone().y_down().pixel_scale().expect("data");
+        assert!((sc.py(0.0) - t).abs() < 1e-9, "row 0 at the top");
+        assert!((sc.py(5.0) - (t + h)).abs() < 1e-9);
     }
 
     #[test]

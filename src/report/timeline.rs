@@ -234,9 +234,9 @@ pub(super) fn residual_time_section(samples: &[Sample], dvl_gaps: &[(f64, f64)])
         }
         words.push(w);
     }
-    let _ = write!(
+    let _ = writeln!(
         s,
-        "<p class=\"meta\" id=\"residual-time-words\">{}.</p></section>\n",
+        "<p class=\"meta\" id=\"residual-time-words\">{}.</p></section>",
         escape(&words.join(". "))
     );
     s
