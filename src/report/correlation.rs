@@ -18,11 +18,14 @@ pub(super) struct Correlation {
     pub r: [[Option<f64>; NPARAM]; NPARAM],
     /// Whether each parameter was estimated.
     pub estimated: [bool; NPARAM],
+    /// Whether the lever arm was held at the broad default prior (the motion did not observe
+    /// it): its variance is the prior's, with no covariance with anything else.
+    pub lever_arm_held: bool,
 }
 
 impl Correlation {
     pub fn of(o: &CalibrationOutcome) -> Correlation {
-        let held = match o.method {
+        let mut held = match o.method {
             Method::Fixed {
                 estimate_offset, ..
             } => [
@@ -38,6 +41,18 @@ impl Correlation {
             _ => [false; NPARAM],
         };
         let c = &o.covariance;
+        let lever = 3..6;
+        let lever_arm_held = o.lever_arm_from_default_prior
+            && lever.clone().all(|k| {
+                (0..NPARAM)
+                    .filter(|j| !lever.contains(j))
+                    .all(|j| c[(k, j)] == 0.0 && c[(j, k)] == 0.0)
+            });
+        if lever_arm_held {
+            for h in &mut held[lever] {
+                *h = true;
+            }
+        }
         let mut estimated = [false; NPARAM];
         for k in 0..NPARAM {
             let v = c[(k, k)];
@@ -57,7 +72,11 @@ impl Correlation {
                 }
             }
         }
-        Correlation { r, estimated }
+        Correlation {
+            r,
+            estimated,
+            lever_arm_held,
+        }
     }
 
     /// The pairs `(i, j, r)`, `i < j`, with `|r| > STRONG`, strongest first.
@@ -142,8 +161,13 @@ pub(super) fn correlation_section(o: &CalibrationOutcome) -> String {
     if !held.is_empty() {
         let _ = writeln!(
             s,
-            "<p>Not estimated in this run, so without a correlation: {}.</p>",
-            escape(&held.join(", "))
+            "<p>Not estimated in this run, so without a correlation: {}{}.</p>",
+            escape(&held.join(", ")),
+            if c.lever_arm_held {
+                " (the lever arm held at the broad default prior: the motion did not observe it)"
+            } else {
+                ""
+            }
         );
     }
     let strong = c.strong_pairs();

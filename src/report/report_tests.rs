@@ -180,6 +180,36 @@ fn fixed_parameters_have_no_correlation() {
     assert!(html.contains("Not estimated in this run"));
 }
 
+#[test]
+fn a_lever_arm_held_at_the_default_prior_has_no_correlation() {
+    // Held, the lever arm has the prior's variance and no covariance with the rest.
+    let mut o = with_sigma().clone();
+    o.lever_arm_from_default_prior = true;
+    for k in 3..6 {
+        for j in 0..NPARAM {
+            if !(3..6).contains(&j) {
+                o.covariance[(k, j)] = 0.0;
+                o.covariance[(j, k)] = 0.0;
+            }
+        }
+        o.covariance[(k, k)] = 1.0;
+    }
+    let c = Correlation::of(&o);
+    assert!(c.lever_arm_held);
+    assert_eq!(
+        c.estimated,
+        [true, true, true, false, false, false, true, true]
+    );
+    assert!(c.r[0][3].is_none() && c.r[6][7].is_some());
+    let html = super::correlation::correlation_section(&o);
+    assert!(html.contains("held at the broad default prior"));
+    // Determined by the data (covariance with the rest), it is estimated whatever the flag says.
+    let mut o = with_sigma().clone();
+    o.lever_arm_from_default_prior = true;
+    let c = Correlation::of(&o);
+    assert!(!c.lever_arm_held && c.estimated.iter().all(|&e| e));
+}
+
 fn frame(t: f64, cams: usize, per_cam: usize) -> FrameStat {
     let corners = (0..cams)
         .flat_map(|c| {
