@@ -10,11 +10,13 @@
 set -euo pipefail
 trap 'echo "FAIL: $0 stopped at line $LINENO" >&2' ERR
 
-PLOTS="velocity-before-x velocity-after-x velocity-before-y velocity-after-y velocity-before-z
-velocity-after-z residuals-x residuals-y residuals-z angular-velocity lever-arm offset-global offset-coarse
-offset-fine cost frames-tags frames-rms pose-residual-pos pose-residual-rot trajectory"
-SECTIONS="summary results warnings velocity residuals motion clock-offset refinement frames
-trajectory-fit dvl-log result-file"
+PLOTS="residual-time-x residual-time-y residual-time-z velocity-before-x velocity-after-x
+velocity-before-y velocity-after-y velocity-before-z velocity-after-z residuals-x residuals-y residuals-z
+angular-velocity lever-arm offset-global offset-coarse offset-fine cost frames-tags frames-rms
+reprojection-map-cam0 reprojection-time-cam0 reprojection-map-cam1 reprojection-time-cam1
+pose-residual-pos pose-residual-rot trajectory"
+SECTIONS="summary results correlation warnings residual-time velocity residuals motion clock-offset
+refinement frames reprojection trajectory-fit dvl-log result-file"
 
 if [[ $# -lt 1 || $# -gt 2 ]]; then
     echo "usage: $0 REPORT.html [SCREENSHOT.png]" >&2
@@ -37,6 +39,12 @@ if grep -q '<body data-report="camcal"' "$report"; then
     for c in $cams; do
         PLOTS+=" residual-hist-cam$c residual-map-cam$c coverage-grid-cam$c"
     done
+fi
+# The report of a calibration that stopped with an error (`<body data-report="failure">`); these
+# lists match FAILURE_SECTION_IDS and FAILURE_PLOT_IDS in src/report/failure.rs.
+if grep -q '<body data-report="failure"' "$report"; then
+    SECTIONS="failure inputs counts time-spans detection dvl-log"
+    PLOTS="time-spans"
 fi
 browser=${CHROMIUM:-}
 if [[ -z $browser ]]; then

@@ -9,11 +9,13 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::OnceLock;
 
+use dvlcal::calib::Status;
 use dvlcal::calib::offset::DvlObs;
 use dvlcal::calib::{CalibOptions, CalibrationOutcome, Method, calibrate};
 use dvlcal::io::dvl::DvlLogStats;
 use dvlcal::report::{FrameStat, PLOT_IDS, ReportInput, SECTION_IDS, render_html};
 use dvlcal::sim::dataset::{MotionKind, SimConfig, SimDataset, simulate};
+use dvlcal::vision::pnp::CornerResidual;
 use nalgebra::{Matrix3, Vector3};
 
 struct Run {
@@ -52,20 +54,50 @@ fn stats() -> DvlLogStats {
     }
 }
 
-/// Frame statistics at the pose times, every tenth frame without a pose.
+/// Frame statistics at the pose times, every tenth frame without a pose; two cameras, cam1's
+/// corners twice as far off as cam0's, growing toward the image edge.
 fn frames(ds: &SimDataset) -> Vec<FrameStat> {
     ds.poses
         .iter()
         .enumerate()
-        .map(|(k, p)| FrameStat {
-            t: p.t,
-            posed: k % 10 != 3,
-            tags_detected: 20 + k % 7,
-            tags_used: if k % 10 != 3 { 18 + k % 5 } else { 0 },
-            rms_px: (k % 10 != 3).then_some(0.2 + 0.01 * (k % 13) as f64),
+        .map(|(k, p)| {
+            let posed = k % 10 != 3;
+            let corners = (0..2u8)
+                .flat_map(|cam| {
+                    (0..12).map(move |j| {
+                        let u = ((k * 37 + j * 61) % 752) as f32;
+                        let v = ((k * 23 + j * 41) % 480) as f32;
+                        let edge = ((u - 376.0).abs() / 376.0).max((v - 240.0).abs() / 240.0);
+                        CornerResidual {
+                            cam,
+                            u,
+                            v,
+                            du: (0.1 + 0.9 * edge) * (1 + cam) as f32,
+                            dv: 0.05,
+                        }
+                    })
+                })
+                .filter(|_| posed)
+                .collect();
+            FrameStat {
+                t: p.t,
+                posed,
+                tags_detected: 20 + k % 7,
+                tags_used: if posed { 18 + k % 5 } else { 0 },
+                rms_px: posed.then_some(0.2 + 0.01 * (k % 13) as f64),
+                rms_px_per_cam: if posed {
+                    vec![Some(0.15 + 0.01 * (k % 13) as f64), Some(0.3)]
+                } else {
+                    Vec::new()
+                },
+                corners,
+            }
         })
         .collect()
 }
+
+/// The image size of both cameras.
+const SIZES: &[(u32, u32)] = &[(752, 480), (752, 480)];
 
 fn svg_of<'a>(html: &'a str, id: &str) -> &'a str {
     let start = html
@@ -84,6 +116,7 @@ fn full_report(r: &Run, frames: &[FrameStat], st: &DvlLogStats) -> String {
         result_name: Some("out/<result>.yaml"),
         result_yaml: Some("time_offset_s: 0.07 # <&>\n"),
         elapsed_s: Some(1.25),
+        image_sizes: Some(SIZES),
         ..ReportInput::new(&r.outcome, &r.ds.poses)
     };
     render_html(&input).expect("report")
@@ -129,6 +162,48 @@ fn report_has_every_section_and_plot_with_data() {
     assert!(svg_of(&html, "angular-velocity").contains("class=\"sp\""));
     assert!(html.contains("is well determined"));
     assert!(html.len() < 1_500_000, "{} bytes", html.len());
+    // Roll, pitch, yaw and axis-angle beside the quaternion; the correlation matrix with a cell
+    // per pair; the residuals over time with their band; each camera's reprojection.
+    assert!(html.contains("roll, pitch, yaw (deg; R = Rz(yaw) Ry(pitch) Rx(roll)"));
+    assert!(html.contains("axis and angle"));
+    let corr = &html[html.find("id=\"correlation-matrix\"").expect("matrix")..];
+    let corr = &corr[..corr.find("</table>").expect("table end")];
+    assert_eq!(corr.matches("<td class=\"num\"").count(), 64);
+    assert_eq!(corr.matches(">+1.00</td>").count(), 8);
+    assert!(html.contains("id=\"correlation-words\""));
+    for axis in ["x", "y", "z"] {
+        let svg = svg_of(&html, &format!("residual-time-{axis}"));
+        assert!(svg.contains("±3σ stated noise"), "{axis}");
+        assert!(svg.contains("stroke-dasharray"), "{axis}: the band");
+    }
+    assert!(html.contains("every sample drawn"));
+    for cam in ["cam0", "cam1"] {
+        let map = svg_of(&html, &format!("reprojection-map-{cam}"));
+        assert!(
+            map.contains("&lt; 0.25 px") || map.contains("0.25–0.5 px"),
+            "{cam}"
+        );
+        assert!(map.contains("≥ 1 px"), "{cam}: the edge corners");
+        assert!(svg_of(&html, &format!("reprojection-time-{cam}")).contains("frame RMS"));
+    }
+    let words = &html[html.find("id=\"reprojection-words\"").expect("words")..];
+    let posed = fr.iter().filter(|f| f.posed).count();
+    for cam in ["cam0", "cam1"] {
+        let said = format!("{cam}: {posed} frames with corners");
+        assert!(words.contains(&said), "{said}: {}", &words[..300]);
+    }
+}
+
+#[test]
+fn failed_status_is_at_the_top_with_its_reasons() {
+    let r = run();
+    let mut o = r.outcome.clone();
+    o.status = Status::Failed(vec!["the velocity scale <0.5> is implausible".into()]);
+    let html = render_html(&ReportInput::new(&o, &r.ds.poses)).expect("report");
+    let failed = html.find("id=\"failed\"").expect("failure box");
+    assert!(failed < html.find("<section id=\"results\"").expect("results"));
+    assert!(html.contains("Calibration failed: this result cannot be trusted."));
+    assert!(html.contains("<li>the velocity scale &lt;0.5&gt; is implausible</li>"));
 }
 
 #[test]
@@ -182,6 +257,12 @@ fn long_logs_give_a_small_report() {
     for id in PLOT_IDS {
         svg_of(&html, id);
     }
+    // The residual timeline is decimated, and says so.
+    assert!(html.contains("drawn decimated: the lowest and highest residual of each of"));
+    for axis in ["x", "y", "z"] {
+        let svg = svg_of(&html, &format!("residual-time-{axis}"));
+        assert!(svg.len() < 200_000, "{axis}: {} bytes", svg.len());
+    }
 }
 
 #[test]
@@ -194,7 +275,14 @@ fn plots_without_data_say_why() {
     };
     let o = calibrate(&r.ds.poses, &r.ds.dvl, &opts).expect("calibration");
     let html = render_html(&ReportInput::new(&o, &r.ds.poses)).expect("report");
-    for id in ["offset-coarse", "offset-fine", "frames-tags", "frames-rms"] {
+    for id in [
+        "offset-coarse",
+        "offset-fine",
+        "frames-tags",
+        "frames-rms",
+        "reprojection-map-cam0",
+        "reprojection-time-cam1",
+    ] {
         assert!(svg_of(&html, id).contains("data-empty=\"true\""), "{id}");
     }
     for id in ["velocity-after-x", "cost", "trajectory", "lever-arm"] {
@@ -230,6 +318,48 @@ fn check_in_browser(report: &Path, screenshot: &Path) {
     );
     let png = std::fs::read(screenshot).expect("screenshot");
     assert!(png.starts_with(b"\x89PNG") && png.len() > 50_000);
+}
+
+#[test]
+fn a_calibration_that_stops_with_an_error_still_writes_a_report() {
+    // Clock offsets limited to where the two logs cannot overlap: the calibration stops.
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("report-failure");
+    std::fs::create_dir_all(&dir).expect("output dir");
+    let html = dir.join("failed.html");
+    let _ = std::fs::remove_file(&html);
+    let out = Command::new(env!("CARGO_BIN_EXE_dvlcal"))
+        .arg("calibrate")
+        .arg("--poses")
+        .arg(root.join("sample_data/poses/poses.txt"))
+        .arg("--dvl")
+        .arg(root.join("sample_data/poses/dvl.jsonl"))
+        .arg("--offset-range=1000,1100")
+        .arg("--out")
+        .arg(dir.join("failed.yaml"))
+        .arg("--report")
+        .arg(&html)
+        .output()
+        .expect("run dvlcal");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{stderr}");
+    assert!(stderr.contains("do not overlap"), "{stderr}");
+    let text = std::fs::read_to_string(&html).expect("failure report written");
+    assert!(text.contains("<body data-report=\"failure\">"));
+    // The reason, what it means, the counts and the spans.
+    assert!(text.contains("do not overlap by 10 s or more at any clock offset in [1000, 1100] s"));
+    assert!(text.contains("cover no common stretch of time"));
+    assert!(text.contains("<tr><th>camera poses</th><td>601</td></tr>"));
+    assert!(text.contains("0.000 s to 60.000 s (60.0 s)"));
+    assert!(text.contains("with the clocks as recorded"));
+    assert!(text.contains("sample_data/poses/dvl.jsonl"));
+    assert!(
+        !dir.join("failed.yaml").exists(),
+        "no result for a run that stopped"
+    );
+    if !browser_skipped() {
+        check_in_browser(&html, &dir.join("failed.png"));
+    }
 }
 
 #[test]

@@ -9,7 +9,9 @@ use dvlcal::sim::rng::Rng;
 use dvlcal::vision::board::{Board, TagFamily};
 use dvlcal::vision::camera::{Camchain, Camera, Distortion};
 use dvlcal::vision::detect::TagDetection;
-use dvlcal::vision::pnp::{PnpOptions, PoseOutcome, solve_stereo, stereo_pose};
+use dvlcal::vision::pnp::{
+    CORNER_SAMPLE_PER_CAMERA, PnpOptions, PoseOutcome, solve_stereo, stereo_pose,
+};
 
 fn camera(distortion: Distortion) -> Camera {
     Camera {
@@ -219,6 +221,70 @@ fn outlier_tags_are_rejected() {
         assert_eq!(q.tags_rejected, 0);
         assert!(q.rms_px > 2.0 * p.rms_px);
     }
+}
+
+#[test]
+fn per_camera_rms_and_the_corner_sample() {
+    // cam1's corners carry three times cam0's noise: the per-camera RMS tells them apart and
+    // combine to the frame's RMS; the sample holds evenly drawn corners of each camera with
+    // their own residuals.
+    let b = board();
+    let chain = stereo(radtan());
+    let mut rng = Rng::new(11);
+    let t = pose(&mut rng, 1.0);
+    let mut dets = detections(&b, &chain, &t, 0.1, &mut rng);
+    let noisy = detections(&b, &chain, &t, 0.3, &mut rng);
+    dets[1] = noisy[1].clone();
+    let p = stereo_pose(&b, &chain, &dets, &PnpOptions::default())
+        .unwrap()
+        .unwrap();
+    assert_eq!(p.tags_rejected, 0);
+    let r0 = p.rms_px_per_cam[0].expect("cam0 corners");
+    let r1 = p.rms_px_per_cam[1].expect("cam1 corners");
+    assert!(r1 > 2.0 * r0, "cam0 {r0}, cam1 {r1}");
+    let n0 = 4 * dets[0].len();
+    let n1 = 4 * dets[1].len();
+    let all = ((r0 * r0 * n0 as f64 + r1 * r1 * n1 as f64) / (n0 + n1) as f64).sqrt();
+    assert!(
+        (all - p.rms_px).abs() < 1e-9 * p.rms_px,
+        "{all} {}",
+        p.rms_px
+    );
+    for cam in 0..2u8 {
+        let s: Vec<_> = p.corner_sample.iter().filter(|c| c.cam == cam).collect();
+        assert_eq!(
+            s.len(),
+            CORNER_SAMPLE_PER_CAMERA.min(4 * dets[cam as usize].len())
+        );
+        // Each sampled corner is a detected one, spread over the camera's list (not its start).
+        let det: Vec<_> = dets[cam as usize]
+            .iter()
+            .flat_map(|d| d.corners.iter())
+            .collect();
+        let at: Vec<usize> = s
+            .iter()
+            .map(|c| {
+                det.iter()
+                    .position(|d| ((d.x - c.u as f64).abs() + (d.y - c.v as f64).abs()) < 1e-3)
+                    .expect("a detected corner")
+            })
+            .collect();
+        assert_eq!(at[0], 0);
+        assert!(
+            *at.last().unwrap()
+                >= det.len() * (CORNER_SAMPLE_PER_CAMERA - 1) / CORNER_SAMPLE_PER_CAMERA - 1
+        );
+        for c in s {
+            assert!(c.norm() < 6.0 * if cam == 0 { 0.1 } else { 0.3 });
+        }
+    }
+    // Mono: one camera, no entry for a second.
+    let mono = Camchain::mono(chain.cams[0].clone());
+    let p = stereo_pose(&b, &mono, &dets[..1], &PnpOptions::default())
+        .unwrap()
+        .unwrap();
+    assert_eq!(p.rms_px_per_cam.len(), 1);
+    assert!((p.rms_px_per_cam[0].unwrap() - p.rms_px).abs() < 1e-12);
 }
 
 #[test]

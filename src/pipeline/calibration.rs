@@ -19,7 +19,9 @@ use crate::io::dataset::DatasetFiles;
 use crate::io::dvl::DvlLog;
 use crate::io::exports::{FrameNames, kalibr_dvl_block, ros_static_transform};
 use crate::io::write_atomic;
-use crate::report::{ReportInput, frame_stats, render_html};
+use crate::report::{
+    FailureReportInput, ReportInput, frame_stats, render_failure_html, render_html,
+};
 
 use super::cameras::{CameraCalRun, SEPARATE_CAMERA_RECORDING};
 use super::dataset::Dataset;
@@ -466,7 +468,9 @@ pub fn write_report(
     // The result file was just written; a report without it is still useful.
     let yaml = std::fs::read_to_string(result).ok();
     let name = result.display().to_string();
+    let sizes = image_sizes(data);
     let input = ReportInput {
+        image_sizes: sizes.as_deref(),
         dataset: &dataset,
         dvl_stats: Some(&data.log.stats),
         frames: frames.as_deref(),
@@ -476,6 +480,78 @@ pub fn write_report(
         ..ReportInput::new(&run.outcome, &data.poses)
     };
     let html = render_html(&input)?;
+    write_atomic(path, html.as_bytes())
+}
+
+/// Each camera's image size, for runs from images.
+fn image_sizes(data: &Dataset) -> Option<Vec<(u32, u32)>> {
+    data.vision
+        .as_ref()
+        .map(|v| v.chain.cams.iter().map(|c| (c.width, c.height)).collect())
+}
+
+/// What [`calibrate_dataset`] was doing, in words, for its error messages.
+pub fn calibration_context(data: &Dataset) -> String {
+    format!(
+        "calibrating {} against {}",
+        data.dvl_path.display(),
+        data.camera_source.display()
+    )
+}
+
+/// Writes, atomically to `path`, the report of a calibration of `data` that stopped with
+/// `error` ([`calibrate_dataset`] returned it): the inputs found, the counts, the time spans of
+/// the camera and the DVL logs and their overlap, the detection summary, and the error with what
+/// it usually means.
+pub fn write_failure_report(path: &Path, data: &Dataset, error: &Error) -> Result<()> {
+    let files = &data.files;
+    crate::files::refuse_input("--report", path, files.inputs().iter().map(|p| p.as_path()))?;
+    let mut inputs: Vec<(String, String)> = Vec::new();
+    let mut add = |k: &str, p: &Option<PathBuf>| {
+        if let Some(p) = p {
+            inputs.push((k.to_owned(), p.display().to_string()));
+        }
+    };
+    add("images", &files.images);
+    add("poses", &files.poses);
+    add("bag", &files.bag);
+    add("camchain", &files.camchain);
+    add("target", &files.target);
+    add("DVL log", &files.dvl);
+    if files.camchain.is_none()
+        && let Some(cams) = &data.cameras
+    {
+        inputs.push((
+            "camchain".into(),
+            format!("calibrated from the same images ({})", cams.one_line()),
+        ));
+    }
+    for (p, why) in &files.ignored {
+        inputs.push((format!("ignored: {why}"), p.display().to_string()));
+    }
+    let frames = data
+        .vision
+        .as_ref()
+        .map(|v| frame_stats(&v.results, &v.epoch));
+    let detection = data.vision.as_ref().map(|v| v.summary());
+    let context = calibration_context(data);
+    let html = render_failure_html(&FailureReportInput {
+        title: "DVL calibration report: failed",
+        context: &context,
+        error,
+        inputs: &inputs,
+        poses: &data.poses,
+        dvl: &data.log.samples,
+        dvl_stats: Some(&data.log.stats),
+        frames: frames.as_deref(),
+        detection: detection.as_deref(),
+        notes: &data.notes,
+    });
+    if let Some(d) = path.parent()
+        && !d.as_os_str().is_empty()
+    {
+        std::fs::create_dir_all(d).map_err(|e| Error::io(d, e))?;
+    }
     write_atomic(path, html.as_bytes())
 }
 

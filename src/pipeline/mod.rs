@@ -10,7 +10,8 @@
 //!    Images without a camchain are first calibrated with [`calibrate_cameras_from_images`]
 //!    (the run is kept in [`Dataset::cameras`]).
 //! 2. [`calibrate_dataset`] runs the estimator ([`crate::calib::calibrate`]) and builds the
-//!    result file; [`write_results`] and [`write_report`] write it, its exports and the report.
+//!    result file; [`write_results`] and [`write_report`] write it, its exports and the report;
+//!    when it returns an error, [`write_failure_report`] writes what was found and why it failed.
 //! 3. [`odometry_table`] and [`cross_validate`] check calibrations on data.
 //! 4. [`calibrate_cameras_from_images`] calibrates the cameras themselves from board images
 //!    (intrinsics, distortion, stereo extrinsics) and writes a Kalibr camchain and its report.
@@ -34,8 +35,8 @@ pub use bag::{
     camera_from_info, frame_source, plan_frames, poses_from_bag, read_bag_poses,
 };
 pub use calibration::{
-    CalibrationRun, CameraOutputs, ResultPaths, calibrate_dataset, method_name, result_file,
-    sibling, write_report, write_results,
+    CalibrationRun, CameraOutputs, ResultPaths, calibrate_dataset, calibration_context,
+    method_name, result_file, sibling, write_failure_report, write_report, write_results,
 };
 pub use cameras::{
     CameraCalOptions, CameraCalRun, SEPARATE_CAMERA_RECORDING, calibrate_cameras_from_images,

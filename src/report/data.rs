@@ -23,6 +23,9 @@ pub(super) struct Sample {
     pub lever: f64,
     /// Weight of the sample in the result (below 1: down-weighted by the robust loss).
     pub weight: f64,
+    /// The standard deviation per DVL axis the calibration gave the sample (its reported
+    /// covariance, or `--dvl-sigma`), m/s.
+    pub sigma: Vector3<f64>,
 }
 
 /// Everything computed from the input before rendering.
@@ -94,6 +97,8 @@ impl Derived {
                 speed: v.norm(),
                 lever: w.cross(&p.lever_arm_cam_m()).norm(),
                 weight: o.robust.dvl_weights.get(i).copied().unwrap_or(1.0),
+                sigma: Vector3::new(obs.cov[(0, 0)], obs.cov[(1, 1)], obs.cov[(2, 2)])
+                    .map(|v| v.max(0.0).sqrt()),
             });
         }
         if samples.is_empty() {

@@ -6,6 +6,7 @@ use crate::io::dvl::DvlLogStats;
 use crate::time::Epoch;
 use crate::types::PoseMeasurement;
 use crate::vision::frames::{FrameResult, FrameStatus};
+use crate::vision::pnp::CornerResidual;
 
 /// One image frame of a `--images` run.
 #[derive(Clone, Debug, PartialEq)]
@@ -20,6 +21,12 @@ pub struct FrameStat {
     pub tags_used: usize,
     /// Reprojection RMS of the pose, pixels.
     pub rms_px: Option<f64>,
+    /// Reprojection RMS of each camera's corners, pixels (empty without a pose; `None` for a
+    /// camera without used corners).
+    pub rms_px_per_cam: Vec<Option<f64>>,
+    /// An evenly drawn sample of the pose's corner residuals (see
+    /// [`crate::vision::pnp::FramePose::corner_sample`]).
+    pub corners: Vec<CornerResidual>,
 }
 
 /// Per-frame statistics of the detection pipeline's results, on the epoch of the poses.
@@ -32,6 +39,16 @@ pub fn frame_stats(results: &[FrameResult], epoch: &Epoch) -> Vec<FrameStat> {
             tags_detected: r.tags_detected.iter().sum(),
             tags_used: r.pose.as_ref().map_or(0, |p| p.tags_used),
             rms_px: r.pose.as_ref().map(|p| p.rms_px),
+            rms_px_per_cam: r
+                .pose
+                .as_ref()
+                .map(|p| p.rms_px_per_cam.clone())
+                .unwrap_or_default(),
+            corners: r
+                .pose
+                .as_ref()
+                .map(|p| p.corner_sample.clone())
+                .unwrap_or_default(),
         })
         .collect()
 }
@@ -57,6 +74,8 @@ pub struct ReportInput<'a> {
     pub result_yaml: Option<&'a str>,
     /// Wall time of the calibration, seconds.
     pub elapsed_s: Option<f64>,
+    /// Image size (width, height) of each camera, pixels, for runs from images.
+    pub image_sizes: Option<&'a [(u32, u32)]>,
 }
 
 impl<'a> ReportInput<'a> {
@@ -72,6 +91,7 @@ impl<'a> ReportInput<'a> {
             result_name: None,
             result_yaml: None,
             elapsed_s: None,
+            image_sizes: None,
         }
     }
 }

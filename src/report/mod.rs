@@ -3,24 +3,36 @@
 //!
 //! [`render_html`] is pure: it takes a [`ReportInput`] and returns the page; the caller writes it.
 //! The page holds the estimates with their standard deviations and the observability verdicts
-//! in words, every warning, and the plots listed in [`PLOT_IDS`] (each an `<svg>` with that id):
-//! measured against predicted DVL velocities per axis before and after the refinement, residual
+//! in words (the rotation also as roll, pitch, yaw and axis-angle), the correlation matrix of the
+//! estimates, every warning, and the plots listed in [`PLOT_IDS`] (each an `<svg>` with that id):
+//! the DVL residuals over time with the stated 3-sigma band, measured against predicted DVL
+//! velocities per axis before and after the refinement, residual
 //! histograms, the angular velocity with the calm samples of the clock-offset search shaded, the
 //! lever-arm velocity against the speed, the clock-offset objective, the cost per iteration,
-//! per-frame detection statistics, pose residuals and a top view of the trajectory, followed by
-//! the DVL log's summary and the result file.
+//! per-frame detection statistics, each camera's reprojection errors over the image and over
+//! time, pose residuals and a top view of the trajectory, followed by the DVL log's summary and
+//! the result file.
+//!
+//! A calibration that stopped with an error gets [`render_failure_html`]: what was found and why
+//! it stopped.
 
 mod cameras;
+mod correlation;
 mod data;
+mod failure;
 mod input;
 mod page;
+mod reprojection;
+mod rotation;
 mod svg;
+mod timeline;
 mod words;
 
 pub use cameras::{
     CAMCAL_CAMERA_PLOT_IDS, CAMCAL_PLOT_IDS, CAMCAL_SECTION_IDS, CamCalReportInput,
     camcal_plot_ids, render_camcal_html,
 };
+pub use failure::{FAILURE_PLOT_IDS, FAILURE_SECTION_IDS, FailureReportInput, render_failure_html};
 pub use input::{FrameStat, ReportInput, frame_stats};
 pub use words::sound_speed_words;
 
@@ -30,6 +42,9 @@ use crate::error::Result;
 /// for `--method bcd`, no image statistics for `--poses` runs) are still present, marked
 /// `data-empty="true"` and saying why.
 pub const PLOT_IDS: &[&str] = &[
+    "residual-time-x",
+    "residual-time-y",
+    "residual-time-z",
     "velocity-before-x",
     "velocity-after-x",
     "velocity-before-y",
@@ -48,6 +63,10 @@ pub const PLOT_IDS: &[&str] = &[
     "cost",
     "frames-tags",
     "frames-rms",
+    "reprojection-map-cam0",
+    "reprojection-time-cam0",
+    "reprojection-map-cam1",
+    "reprojection-time-cam1",
     "pose-residual-pos",
     "pose-residual-rot",
     "trajectory",
@@ -57,7 +76,9 @@ pub const PLOT_IDS: &[&str] = &[
 pub const SECTION_IDS: &[&str] = &[
     "summary",
     "results",
+    "correlation",
     "warnings",
+    "residual-time",
     "velocity",
     "robustness",
     "residuals",
@@ -65,6 +86,7 @@ pub const SECTION_IDS: &[&str] = &[
     "clock-offset",
     "refinement",
     "frames",
+    "reprojection",
     "trajectory-fit",
     "dvl-log",
     "result-file",
@@ -75,3 +97,7 @@ pub fn render_html(input: &ReportInput) -> Result<String> {
     let d = data::Derived::compute(input)?;
     Ok(page::render(input, &d))
 }
+
+#[cfg(test)]
+#[path = "report_tests.rs"]
+mod report_tests;

@@ -34,7 +34,8 @@ border-bottom:1px solid #ccc;padding-bottom:.2em}\
 th,td{border:1px solid #d0d0d0;padding:3px 8px;text-align:left;vertical-align:top}\
 th{background:#f2f2f2}td.num{font-family:ui-monospace,'DejaVu Sans Mono',monospace;\
 white-space:nowrap}.ok{color:#1b7a2a;font-weight:600}.weak{color:#b3261e;font-weight:600}\
-.fixed{color:#555;font-weight:600}.start{color:#777;font-size:.9em;font-weight:400}ul.warn li{color:#8a4b00}.failed{border:2px solid #b00020;background:#fdecee;padding:.2em 1em;margin:1em 0}.failed strong{color:#b00020}.verdicts li{margin:.25em 0}\
+.fixed{color:#555;font-weight:600}td.fixed-cell{color:#777;background:#f4f4f4;font-style:italic}\
+table.corr td{text-align:right}.start{color:#777;font-size:.9em;font-weight:400}ul.warn li{color:#8a4b00}.failed{border:2px solid #b00020;background:#fdecee;padding:.2em 1em;margin:1em 0}.failed strong{color:#b00020}.verdicts li{margin:.25em 0}\
 .grid{display:flex;flex-wrap:wrap;gap:8px 16px}figure{margin:.4em 0}\
 figcaption{font-size:.88em;color:#444;max-width:940px}\
 svg.plot{max-width:100%;height:auto;border:1px solid #e2e2e2}\
@@ -133,7 +134,12 @@ pub(super) fn render(input: &ReportInput, d: &Derived) -> String {
     );
     summary(&mut s, input, d);
     results(&mut s, o, input.dvl_stats.and_then(|st| st.sound_speed_mps));
+    s.push_str(&super::correlation::correlation_section(o));
     warnings(&mut s, input);
+    s.push_str(&super::timeline::residual_time_section(
+        &d.samples,
+        &d.dvl_gaps,
+    ));
     velocity(&mut s, d);
     robustness(&mut s, o);
     residuals(&mut s, o, d);
@@ -141,6 +147,10 @@ pub(super) fn render(input: &ReportInput, d: &Derived) -> String {
     clock_offset(&mut s, o);
     refinement(&mut s, o);
     frames(&mut s, input.frames);
+    s.push_str(&super::reprojection::reprojection_section(
+        input.frames,
+        input.image_sizes,
+    ));
     trajectory(&mut s, input, d);
     dvl_log(&mut s, input.dvl_stats, o);
     result_file(&mut s, input);
@@ -359,6 +369,10 @@ fn results(s: &mut String, o: &CalibrationOutcome, sound_speed: Option<f64>) {
             ))
         );
     }
+    s.push_str(&super::rotation::rotation_table(
+        &c.t_cam_dvl.rot,
+        &c0.t_cam_dvl.rot,
+    ));
     let r = c.t_cam_dvl.rot;
     put!(
         s,

@@ -124,6 +124,8 @@ pub struct Plot {
     pub y_range: Option<(f64, f64)>,
     /// Shown in the panel when there is nothing to draw.
     pub empty_note: String,
+    /// y grows downward (image rows).
+    pub y_down: bool,
 }
 
 /// Margins around the plotting area, pixels.
@@ -152,6 +154,7 @@ impl Plot {
             x_range: None,
             y_range: None,
             empty_note: "no data".to_owned(),
+            y_down: false,
         }
     }
 
@@ -203,6 +206,12 @@ impl Plot {
 
     pub fn x_range(mut self, lo: f64, hi: f64) -> Plot {
         self.x_range = Some((lo, hi));
+        self
+    }
+
+    /// y grows downward, as the rows of an image.
+    pub fn y_down(mut self) -> Plot {
+        self.y_down = true;
         self
     }
 
@@ -671,6 +680,7 @@ impl Plot {
             y0,
             y1,
             log_y: self.log_y,
+            y_down: self.y_down,
         }
     }
 }
@@ -719,6 +729,8 @@ pub struct Scale {
     pub y0: f64,
     pub y1: f64,
     pub log_y: bool,
+    /// y grows downward.
+    pub y_down: bool,
 }
 
 impl Scale {
@@ -734,7 +746,12 @@ impl Scale {
 
     /// Pixel row of a value on the axis's own (possibly logarithmic) coordinate.
     fn py_t(&self, v: f64) -> f64 {
-        self.top + self.h - (v - self.y0) / (self.y1 - self.y0) * self.h
+        let f = (v - self.y0) / (self.y1 - self.y0) * self.h;
+        if self.y_down {
+            self.top + f
+        } else {
+            self.top + self.h - f
+        }
     }
 }
 
@@ -977,6 +994,10 @@ mod tests {
         assert!((sc.py(0.0) - (t + h)).abs() < 1e-9, "y grows upward");
         assert!((sc.py(5.0) - t).abs() < 1e-9);
         assert!((sc.px(5.0) - (l + w / 2.0)).abs() < 1e-9);
+        // Image rows: y grows downward.
+        let sc = p.clone().y_down().pixel_scale().expect("data");
+        assert!((sc.py(0.0) - t).abs() < 1e-9, "row 0 at the top");
+        assert!((sc.py(5.0) - (t + h)).abs() < 1e-9);
     }
 
     #[test]

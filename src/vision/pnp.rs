@@ -81,6 +81,44 @@ pub struct FramePose {
     pub sigma_px: f64,
     /// Detections whose id is not on the board (ignored).
     pub tags_unknown: usize,
+    /// Reprojection RMS of each camera's used corners, px (`None`: the camera had none).
+    pub rms_px_per_cam: Vec<Option<f64>>,
+    /// The residuals of some of the used corners, for plots: per camera at most
+    /// [`CORNER_SAMPLE_PER_CAMERA`], evenly spaced through that camera's corners in board order
+    /// (all of them when there are fewer), so that memory stays small per frame.
+    pub corner_sample: Vec<CornerResidual>,
+}
+
+/// Most corners per camera and frame kept in [`FramePose::corner_sample`].
+pub const CORNER_SAMPLE_PER_CAMERA: usize = 12;
+
+/// The reprojection residual of one used corner.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CornerResidual {
+    /// The camera that saw it.
+    pub cam: u8,
+    /// The detected corner's column, pixels (OpenCV's convention: the centre of the top-left
+    /// pixel is 0, 0).
+    pub u: f32,
+    /// The detected corner's row, pixels.
+    pub v: f32,
+    /// Reprojected minus detected column, pixels.
+    pub du: f32,
+    /// Reprojected minus detected row, pixels.
+    pub dv: f32,
+}
+
+impl CornerResidual {
+    /// Length of the residual, pixels.
+    pub fn norm(&self) -> f64 {
+        (self.du as f64).hypot(self.dv as f64)
+    }
+}
+
+/// Indices `0..n` of at most `cap` elements, evenly spaced, first included.
+fn even_sample(n: usize, cap: usize) -> impl Iterator<Item = usize> {
+    let k = n.min(cap);
+    (0..k).map(move |i| i * n / k)
 }
 
 /// Why a frame got no pose, or its pose.
@@ -232,6 +270,9 @@ pub fn solve_stereo(
     let mut h = Matrix6::zeros();
     let mut ssr = 0.0;
     let mut m = 0usize;
+    let n_cams = chain.cams.len();
+    let mut per_cam: Vec<Vec<CornerResidual>> = vec![Vec::new(); n_cams];
+    let mut sq_cam = vec![0.0f64; n_cams];
     for (o, _) in obs.iter().zip(&active).filter(|(_, a)| **a) {
         for k in 0..4 {
             let Some((r, j)) = residual(chain, o, k, &t_b_c0) else {
@@ -242,8 +283,25 @@ pub fn solve_stereo(
             h += j.transpose() * j;
             ssr += r.norm_squared();
             m += 2;
+            sq_cam[o.cam] += r.norm_squared();
+            per_cam[o.cam].push(CornerResidual {
+                cam: o.cam.min(u8::MAX as usize) as u8,
+                u: o.px[k].x as f32,
+                v: o.px[k].y as f32,
+                du: r.x as f32,
+                dv: r.y as f32,
+            });
         }
     }
+    let rms_px_per_cam: Vec<Option<f64>> = per_cam
+        .iter()
+        .zip(&sq_cam)
+        .map(|(c, sq)| (!c.is_empty()).then(|| (sq / c.len() as f64).sqrt()))
+        .collect();
+    let corner_sample: Vec<CornerResidual> = per_cam
+        .iter()
+        .flat_map(|c| even_sample(c.len(), CORNER_SAMPLE_PER_CAMERA).map(|i| c[i]))
+        .collect();
     let sigma = match opts.sigma_px {
         Some(s) => s,
         None => (ssr / (m.saturating_sub(6).max(1)) as f64)
@@ -271,6 +329,8 @@ pub fn solve_stereo(
         corners_used: 4 * used,
         sigma_px: sigma,
         tags_unknown: unknown,
+        rms_px_per_cam,
+        corner_sample,
     }))
 }
 

@@ -12,7 +12,8 @@ use dvlcal::calib::robust::Loss;
 use dvlcal::calib::{CalibOptions, Method, Status};
 use dvlcal::io::calib_yaml::{read_calibration_guess, rotation_from_rpy_deg};
 use dvlcal::pipeline::{
-    CameraOutputs, SEPARATE_CAMERA_RECORDING, calibrate_dataset, write_report, write_results,
+    CameraOutputs, SEPARATE_CAMERA_RECORDING, calibrate_dataset, calibration_context,
+    write_failure_report, write_report, write_results,
 };
 use dvlcal::types::CalibrationParams;
 
@@ -243,13 +244,18 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
         st.sound_speed_mps = Some(c);
         st.sound_speed_source = Some("--dvl-sound-speed".into());
     }
-    let run = calibrate_dataset(&data, &opts, a.vision.detect.threads).with_context(|| {
-        format!(
-            "calibrating {} against {}",
-            data.dvl_path.display(),
-            data.camera_source.display()
-        )
-    })?;
+    let run = match calibrate_dataset(&data, &opts, a.vision.detect.threads) {
+        Ok(run) => run,
+        Err(e) => {
+            if let Some(path) = &a.report {
+                match write_failure_report(path, &data, &e) {
+                    Ok(()) => eprintln!("wrote {} (the report of the failure)", path.display()),
+                    Err(w) => eprintln!("could not write the failure report: {w}"),
+                }
+            }
+            return Err(e).context(calibration_context(&data));
+        }
+    };
     let paths = write_results(&a.out, &run, &data, a.force)?;
     print!("{}", run.summary(&data.log));
     match (&paths.tf, &paths.camchain_block) {
