@@ -20,28 +20,54 @@ use crate::types::CalibrationParams;
 /// Tolerance of the rigidity and consistency checks of [`CalibrationFile::to_params`].
 pub const RIGID_TOL: f64 = 1e-6;
 
-/// Standard deviations of the estimated quantities.
+/// Standard deviations of the estimated quantities. A quantity held fixed has none: its entry
+/// is `null` (files of earlier versions wrote 0 for it; they read as they are).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct CalibrationStd {
     /// Rotation, degrees, about the DVL frame's x, y, z axes (a left perturbation of
-    /// `R_dvl_cam`, the estimator's coordinates).
-    pub rotation_deg: [f64; 3],
-    /// Lever arm, metres, camera frame.
-    pub lever_arm_m: [f64; 3],
-    /// Standard deviation of the clock offset `time_offset_s`, s.
-    pub time_offset_s: f64,
-    /// Standard deviation of the DVL velocity scale factor (dimensionless).
-    pub velocity_scale: f64,
+    /// `R_dvl_cam`, the estimator's coordinates); `None` when held fixed.
+    #[serde(default)]
+    pub rotation_deg: Option<[f64; 3]>,
+    /// Lever arm, metres, camera frame; `None` when held fixed.
+    #[serde(default)]
+    pub lever_arm_m: Option<[f64; 3]>,
+    /// Standard deviation of the clock offset `time_offset_s`, s; `None` when held fixed.
+    #[serde(default)]
+    pub time_offset_s: Option<f64>,
+    /// Standard deviation of the DVL velocity scale factor (dimensionless); `None` when held
+    /// fixed.
+    #[serde(default)]
+    pub velocity_scale: Option<f64>,
 }
 
-/// Whether the data constrained a quantity well.
+/// What determined a quantity, and how well.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Observability {
-    /// The quantity's standard deviation is within its limit (or the quantity was held fixed).
+    /// Estimated from the data, with a standard deviation within its limit. (Files of earlier
+    /// versions also wrote `ok` for quantities held fixed.)
     Ok,
-    /// The quantity's standard deviation exceeds its limit: the data constrained it poorly.
+    /// Estimated, with a standard deviation above its limit: the data constrained it poorly.
     Weak,
+    /// Not estimated: held at the value given (`--method fixed --init`); it has no standard
+    /// deviation.
+    Fixed,
+    /// Determined by a prior rather than the data: the broad default prior on an unobserved
+    /// lever arm, or a `--lever-arm-prior` / `--rotation-prior` the data barely sharpened. Its
+    /// standard deviation is about the prior's.
+    Prior,
+}
+
+impl Observability {
+    /// The state in words, as the summary and `compare-calib` print it.
+    pub fn words(self) -> &'static str {
+        match self {
+            Observability::Ok => "ok",
+            Observability::Weak => "WEAK",
+            Observability::Fixed => "fixed (from --init)",
+            Observability::Prior => "from prior",
+        }
+    }
 }
 
 /// Observability of each estimated quantity.

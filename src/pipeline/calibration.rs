@@ -9,7 +9,9 @@ use std::time::Instant;
 use nalgebra::{Matrix4, Vector3};
 
 use crate::calib::offset::OffsetMethod;
-use crate::calib::{CalibOptions, CalibrationOutcome, Method, Status, Verdict, calibrate};
+use crate::calib::{
+    CalibOptions, CalibrationOutcome, DeterminedBy, Method, Status, Verdict, calibrate,
+};
 use crate::error::{Error, Result};
 use crate::io::calib_yaml::{
     CalibrationFile, CalibrationInfo, CalibrationStd, Observability, ObservabilityFlags,
@@ -90,11 +92,18 @@ fn note_cameras(file: &mut CalibrationFile, cams: &CameraCalRun) {
 }
 
 fn flag(v: &Verdict) -> Observability {
-    if v.ok {
-        Observability::Ok
-    } else {
-        Observability::Weak
+    match v.by {
+        DeterminedBy::Fixed => Observability::Fixed,
+        DeterminedBy::Prior => Observability::Prior,
+        DeterminedBy::Data if v.ok => Observability::Ok,
+        DeterminedBy::Data => Observability::Weak,
     }
+}
+
+/// `value` unless the verdict says the parameter was held fixed (it then has no standard
+/// deviation).
+fn unless_fixed<T>(v: &Verdict, value: T) -> Option<T> {
+    (v.by != DeterminedBy::Fixed).then_some(value)
 }
 
 /// The method in words, as the result file and the summary name it.
@@ -121,11 +130,12 @@ pub fn result_file(o: &CalibrationOutcome, log: &DvlLog) -> CalibrationFile {
         }
     }
     let v = |x: &Vector3<f64>| [x.x, x.y, x.z];
+    let vd = &o.verdicts;
     f.std = Some(CalibrationStd {
-        rotation_deg: v(&o.std.rotation_deg),
-        lever_arm_m: v(&o.std.lever_arm_m),
-        time_offset_s: o.std.time_offset_s,
-        velocity_scale: o.std.velocity_scale,
+        rotation_deg: unless_fixed(&vd.rotation, v(&o.std.rotation_deg)),
+        lever_arm_m: unless_fixed(&vd.lever_arm, v(&o.std.lever_arm_m)),
+        time_offset_s: unless_fixed(&vd.time_offset, o.std.time_offset_s),
+        velocity_scale: unless_fixed(&vd.velocity_scale, o.std.velocity_scale),
     });
     f.observability = Some(ObservabilityFlags {
         rotation: flag(&o.verdicts.rotation),
@@ -484,7 +494,6 @@ impl CalibrationRun {
     /// and verdict, the residuals, and every warning.
     pub fn summary(&self, log: &DvlLog) -> String {
         let o = &self.outcome;
-        let ok = |v: &Verdict| if v.ok { "ok" } else { "WEAK" };
         let s = &o.std;
         let st = &log.stats;
         let mut out = String::new();
@@ -502,44 +511,56 @@ impl CalibrationRun {
             o.counts.dvl_outside_span,
             self.elapsed_s
         );
+        // A held parameter has no standard deviation: it says so instead.
+        let spread = |v: &Verdict, sd: String| match v.by {
+            DeterminedBy::Fixed => flag(v).words().to_owned(),
+            _ => format!("std {sd}  {}", flag(v).words()),
+        };
         let q = self.file.quaternion_cam_dvl_xyzw;
         let _ = writeln!(
             out,
-            "rotation  q_cam_dvl (xyzw) [{:.5}, {:.5}, {:.5}, {:.5}]  std [{:.3}, {:.3}, {:.3}] deg  {}",
+            "rotation  q_cam_dvl (xyzw) [{:.5}, {:.5}, {:.5}, {:.5}]  {}",
             q[0],
             q[1],
             q[2],
             q[3],
-            s.rotation_deg.x,
-            s.rotation_deg.y,
-            s.rotation_deg.z,
-            ok(&o.verdicts.rotation)
+            spread(
+                &o.verdicts.rotation,
+                format!(
+                    "[{:.3}, {:.3}, {:.3}] deg",
+                    s.rotation_deg.x, s.rotation_deg.y, s.rotation_deg.z
+                )
+            )
         );
         let p = o.params.lever_arm_cam_m();
         let _ = writeln!(
             out,
-            "lever arm p_cam_dvl [{:.4}, {:.4}, {:.4}] m  std [{:.4}, {:.4}, {:.4}] m  {}",
+            "lever arm p_cam_dvl [{:.4}, {:.4}, {:.4}] m  {}",
             p.x,
             p.y,
             p.z,
-            s.lever_arm_m.x,
-            s.lever_arm_m.y,
-            s.lever_arm_m.z,
-            ok(&o.verdicts.lever_arm)
+            spread(
+                &o.verdicts.lever_arm,
+                format!(
+                    "[{:.4}, {:.4}, {:.4}] m",
+                    s.lever_arm_m.x, s.lever_arm_m.y, s.lever_arm_m.z
+                )
+            )
         );
         let _ = writeln!(
             out,
-            "clock     time_offset_s {:.5} s  std {:.5} s  {}",
+            "clock     time_offset_s {:.5} s  {}",
             o.params.time_offset_s,
-            s.time_offset_s,
-            ok(&o.verdicts.time_offset)
+            spread(&o.verdicts.time_offset, format!("{:.5} s", s.time_offset_s))
         );
         let _ = writeln!(
             out,
-            "scale     velocity_scale {:.5}  std {:.5}  {}",
+            "scale     velocity_scale {:.5}  {}",
             o.params.velocity_scale,
-            s.velocity_scale,
-            ok(&o.verdicts.velocity_scale)
+            spread(
+                &o.verdicts.velocity_scale,
+                format!("{:.5}", s.velocity_scale)
+            )
         );
         let _ = writeln!(
             out,
