@@ -4,7 +4,7 @@
 //! `T_cam_dvl` (4x4, rows), `T_dvl_cam` (its inverse),
 //! `quaternion_cam_dvl_xyzw`, `lever_arm_cam_m` (the translation of `T_cam_dvl`),
 //! `time_offset_s` (`t_cam = t_dvl + time_offset_s`), `velocity_scale`, then the optional
-//! `std`, `observability` and `info` sections.
+//! `std`, `observability`, `info` and `provenance` sections.
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -13,6 +13,7 @@ use std::path::Path;
 use nalgebra::{Matrix3, Matrix4, Vector3};
 use serde::{Deserialize, Serialize};
 
+use super::provenance::Provenance;
 use crate::error::{Error, Result};
 use crate::lie::Se3;
 use crate::types::CalibrationParams;
@@ -145,6 +146,10 @@ pub struct CalibrationFile {
     /// How the result was obtained (optional `info` section).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub info: Option<CalibrationInfo>,
+    /// Version, command line, time and input digests of the run (optional `provenance`
+    /// section).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub provenance: Option<Provenance>,
 }
 
 fn rows(m: &Matrix4<f64>) -> [[f64; 4]; 4] {
@@ -209,6 +214,7 @@ impl CalibrationFile {
             std: None,
             observability: None,
             info: None,
+            provenance: None,
         }
     }
 
@@ -325,12 +331,15 @@ fn to_yaml(path: &Path, c: &CalibrationFile) -> Result<String> {
         observability: &'a Option<ObservabilityFlags>,
         #[serde(skip_serializing_if = "Option::is_none")]
         info: &'a Option<CalibrationInfo>,
+        #[serde(skip_serializing_if = "Option::is_none")]
+        provenance: &'a Option<Provenance>,
     }
-    if c.std.is_some() || c.observability.is_some() || c.info.is_some() {
+    if c.std.is_some() || c.observability.is_some() || c.info.is_some() || c.provenance.is_some() {
         let tail = serde_yaml::to_string(&Optional {
             std: &c.std,
             observability: &c.observability,
             info: &c.info,
+            provenance: &c.provenance,
         })
         .map_err(|e| Error::Input(format!("{}: {e}", path.display())))?;
         s.push_str(&tail);
