@@ -649,15 +649,18 @@ impl CalibrationRun {
                 format!("{:.5}", s.velocity_scale)
             )
         );
-        let _ = writeln!(
-            out,
-            "sound     {}",
+        let sound = if o.verdicts.velocity_scale.by == DeterminedBy::Fixed {
+            "the velocity scale was held at the given value: it says nothing of the water's \
+             sound speed"
+                .to_owned()
+        } else {
             crate::report::sound_speed_words(
                 o.params.velocity_scale,
                 s.velocity_scale,
-                st.sound_speed_mps
+                st.sound_speed_mps,
             )
-        );
+        };
+        let _ = writeln!(out, "sound     {sound}");
         let _ = writeln!(
             out,
             "residuals {:.4} {:.4} {:.4} m/s RMS; normalized cost {:.2}; {} iterations",
