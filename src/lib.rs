@@ -68,14 +68,16 @@
 //! use dvlcal::calib::CalibOptions;
 //! use dvlcal::io::dataset::DatasetOverrides;
 //! use dvlcal::io::dvl::DvlReadOptions;
-//! use dvlcal::pipeline::{Dataset, VisionOptions, calibrate_dataset, dataset_files, write_results};
+//! use dvlcal::pipeline::{
+//!     Dataset, OutputOptions, VisionOptions, calibrate_dataset, dataset_files, write_results,
+//! };
 //! use std::path::Path;
 //!
 //! # fn main() -> dvlcal::Result<()> {
 //! let files = dataset_files(Some(Path::new("my_run")), &DatasetOverrides::default())?;
 //! let data = Dataset::load(files, &VisionOptions::default(), &DvlReadOptions::default(), &mut |_| {})?;
 //! let run = calibrate_dataset(&data, &CalibOptions::default(), None)?;
-//! write_results(Path::new("out/calibration.yaml"), &run, &data, false)?;
+//! write_results(Path::new("out/calibration.yaml"), &run, &data, &OutputOptions::default())?;
 //! print!("{}", run.summary(&data.log));
 //! # Ok(())
 //! # }

@@ -87,7 +87,7 @@ fn a_failed_calibration_exits_non_zero_and_writes_no_exports() {
     assert!(text.contains("status: failed"), "{text}");
     assert!(text.contains("failure:"), "{text}");
     assert!(!tmp.0.join("out/calibration-tf.txt").exists());
-    assert!(!tmp.0.join("out/calibration-camchain-dvl.yaml").exists());
+    assert!(!tmp.0.join("out/calibration-camchain-imucam.yaml").exists());
     // A failed result is no guess.
     let e = read_calibration_guess(&out_yaml).unwrap_err().to_string();
     assert!(e.contains("failed"), "{e}");
@@ -95,7 +95,7 @@ fn a_failed_calibration_exits_non_zero_and_writes_no_exports() {
     let out = dvlcal(&["calibrate", s(&d), "--out", s(&out_yaml), "--force"]);
     assert!(!out.status.success());
     assert!(tmp.0.join("out/calibration-tf.txt").exists());
-    assert!(tmp.0.join("out/calibration-camchain-dvl.yaml").exists());
+    assert!(tmp.0.join("out/calibration-camchain-imucam.yaml").exists());
 }
 
 #[test]

@@ -228,7 +228,12 @@ fn calibrate_a_folder_then_cross_validate_three() {
         stdout.contains("dataset") && stdout.contains("poses.txt"),
         "{stdout}"
     );
-    for f in ["cal.yaml", "cal-tf.txt", "cal-camchain-dvl.yaml"] {
+    for f in [
+        "cal.yaml",
+        "cal-tf.txt",
+        "cal-camchain-imucam.yaml",
+        "cal-urdf.xml",
+    ] {
         assert!(tmp.0.join("res").join(f).is_file(), "{f} missing");
     }
     // compare-calib against the truth: the clock error it prints is the files' difference.

@@ -491,16 +491,16 @@ fn calib_yaml_round_trip() {
 
     // With every optional section, key order as documented.
     file.std = Some(CalibrationStd {
-        rotation_deg: [0.1, 0.2, 0.3],
-        lever_arm_m: [0.001, 0.002, 0.003],
-        time_offset_s: 0.0004,
-        velocity_scale: 0.002,
+        rotation_deg: Some([0.1, 0.2, 0.3]),
+        lever_arm_m: Some([0.001, 0.002, 0.003]),
+        time_offset_s: Some(0.0004),
+        velocity_scale: None,
     });
     file.observability = Some(ObservabilityFlags {
         rotation: Observability::Ok,
         lever_arm: Observability::Weak,
-        time_offset: Observability::Ok,
-        velocity_scale: Observability::Ok,
+        time_offset: Observability::Prior,
+        velocity_scale: Observability::Fixed,
     });
     let mut info = CalibrationInfo {
         method: Some("continuous-time batch".to_string()),
@@ -538,7 +538,62 @@ fn calib_yaml_round_trip() {
         ]
     );
     assert!(text.contains("lever_arm: weak"), "{text}");
+    assert!(text.contains("time_offset: prior"), "{text}");
+    assert!(text.contains("velocity_scale: fixed"), "{text}");
+    // A held parameter has no standard deviation, not a zero one.
+    assert!(text.contains("  velocity_scale: null"), "{text}");
     assert_eq!(read_calib_yaml(&p).unwrap(), file);
+}
+
+/// A result of `--method fixed` as earlier versions wrote it: zero standard deviations and
+/// `ok` for what was held. It still reads, and a comparison counts the zero-std parameters as
+/// held rather than measured.
+#[test]
+fn calib_yaml_of_earlier_versions_still_reads() {
+    let text = "\
+status: ok
+T_cam_dvl:
+  - [1.0, 0.0, 0.0, 0.05]
+  - [0.0, 1.0, 0.0, 0.25]
+  - [0.0, 0.0, 1.0, -0.1]
+  - [0.0, 0.0, 0.0, 1.0]
+T_dvl_cam:
+  - [1.0, 0.0, 0.0, -0.05]
+  - [0.0, 1.0, 0.0, -0.25]
+  - [0.0, 0.0, 1.0, 0.1]
+  - [0.0, 0.0, 0.0, 1.0]
+quaternion_cam_dvl_xyzw: [0.0, 0.0, 0.0, 1.0]
+lever_arm_cam_m: [0.05, 0.25, -0.1]
+time_offset_s: 0.6
+velocity_scale: 1.01
+std:
+  rotation_deg: [0.0, 0.0, 0.0]
+  lever_arm_m: [0.0, 0.0, 0.0]
+  time_offset_s: 0.0021
+  velocity_scale: 0.0004
+observability:
+  rotation: ok
+  lever_arm: ok
+  time_offset: ok
+  velocity_scale: ok
+info:
+  method: fixed extrinsics, estimated clock offset
+";
+    let f = dvlcal::io::calib_yaml::parse_calib_yaml(text, std::path::Path::new("old.yaml"))
+        .expect("an earlier version's file reads");
+    let st = f.std.clone().expect("std section");
+    assert_eq!(st.rotation_deg, Some([0.0; 3]));
+    assert_eq!(st.time_offset_s, Some(0.0021));
+    assert_eq!(
+        f.observability.as_ref().map(|o| o.lever_arm),
+        Some(Observability::Ok)
+    );
+    let mut truth = f.to_params().unwrap();
+    truth.time_offset_s = 0.07;
+    let ce = dvlcal::eval::calibration_error(&f, &truth).unwrap();
+    assert!((0..6).all(|k| ce.held(k)), "{:?}", ce.state);
+    assert!(!ce.held(6) && !ce.held(7), "{:?}", ce.state);
+    assert!((ce.error[7] - 0.53).abs() < 1e-12, "{}", ce.error[7]);
 }
 
 #[test]

@@ -4,7 +4,7 @@
 
 use dvlcal::calib::model::difference;
 use dvlcal::calib::prior::{LeverArmPrior, Priors, RotationPrior};
-use dvlcal::calib::{CalibOptions, calibrate};
+use dvlcal::calib::{CalibOptions, DeterminedBy, calibrate};
 use dvlcal::sim::dataset::{MotionKind, SimConfig, simulate};
 
 fn with_priors(priors: Priors) -> CalibOptions {
@@ -46,6 +46,9 @@ fn a_measured_lever_arm_holds_a_weak_one_without_disturbing_the_rest() {
         "{:?}",
         held.warnings
     );
+    // The lever arm is labelled as the prior's, the rotation as the data's.
+    assert_eq!(held.verdicts.lever_arm.by, DeterminedBy::Prior);
+    assert_eq!(held.verdicts.rotation.by, DeterminedBy::Data);
     // The motion alone leaves the lever arm loose; the prior bounds it by its own sigma.
     assert!(lever_std(&free) > sigma, "{:?}", free.std);
     assert!(lever_std(&held) < sigma, "{:?}", held.std);

@@ -6,7 +6,7 @@
 
 use dvlcal::calib::model::difference;
 use dvlcal::calib::robust::Loss;
-use dvlcal::calib::{CalibOptions, CalibrationOutcome, calibrate};
+use dvlcal::calib::{CalibOptions, CalibrationOutcome, DeterminedBy, calibrate};
 use dvlcal::lie::so3;
 use dvlcal::sim::{
     Corruption, CorruptionLog, MotionKind, SimConfig, SimDataset, corrupt, simulate,
@@ -469,6 +469,7 @@ fn an_unobserved_lever_arm_comes_from_the_default_prior() {
         }
         assert!(!o.verdicts.lever_arm.ok);
         assert!(o.lever_arm_from_default_prior, "seed {seed}");
+        assert_eq!(o.verdicts.lever_arm.by, DeterminedBy::Prior, "seed {seed}");
         assert!(
             o.verdicts.lever_arm.reason.contains("prior"),
             "{}",

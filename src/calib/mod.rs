@@ -227,13 +227,29 @@ impl CalibOptions {
     }
 }
 
+/// What gave a parameter its value.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum DeterminedBy {
+    /// The recording: the parameter was estimated and the data constrain it.
+    #[default]
+    Data,
+    /// Nothing: the parameter was held at the value given (`--method fixed`); it has no
+    /// standard deviation.
+    Fixed,
+    /// A prior rather than the data: the broad default prior that holds an unobserved lever arm,
+    /// or a user's prior whose standard deviation the data barely reduced.
+    Prior,
+}
+
 /// Verdict on one parameter.
 #[derive(Clone, Debug)]
 pub struct Verdict {
     /// Whether the parameter is well determined (or was held fixed).
     pub ok: bool,
-    /// Why the parameter is weak (empty when ok).
+    /// Why the parameter is weak (empty when ok), or how it was held.
     pub reason: String,
+    /// Whether the data, a prior, or nothing (held fixed) gave the value.
+    pub by: DeterminedBy,
 }
 
 /// Verdicts on all parameters.
@@ -774,7 +790,14 @@ pub fn calibrate(
         }
         jw
     };
-    let mut covariance = uncertainty(&jp, &traj, &params, &mask, normalized_cost, &mut warnings)?;
+    let mut covariance = uncertainty(
+        &jp,
+        &traj,
+        &params,
+        (&mask, free),
+        normalized_cost,
+        &mut warnings,
+    )?;
     // The drift check compares the thirds of the recording at the model's offset variance: the
     // halves check below would inflate it for the very drift the check is looking for.
     let model_offset_std = covariance[(7, 7)].max(0.0).sqrt();
@@ -809,6 +832,8 @@ pub fn calibrate(
     }
     let std = param_std(&covariance);
     let mut lever_arm_from_default_prior = lever_held.is_some();
+    // The parameters a user's prior rather than the data determined.
+    let (mut rotation_from_prior, mut lever_arm_from_user_prior) = (false, false);
     if opts.priors.any() || (priors.any() && free.lever_arm && std.lever_arm_m.max() > 0.05) {
         // What the data alone would say, to tell which parameters the priors determined.
         let taken = std::mem::take(&mut jp.priors);
@@ -816,6 +841,22 @@ pub fn calibrate(
         jp.priors = taken;
         if opts.priors.any() {
             warnings.extend(prior_notes(&opts.priors, &data_only, &params));
+            let data_worst = |first: usize| {
+                (first..first + 3)
+                    .map(|k| data_only[(k, k)].max(0.0).sqrt())
+                    .fold(0.0, f64::max)
+            };
+            // The prior determined a parameter when the data alone know it less well than the
+            // prior does (the posterior standard deviation is then above 0.7 times the prior's):
+            // the same test as the notes of prior_notes.
+            if let Some(r) = &opts.priors.rotation {
+                let d = data_worst(0);
+                rotation_from_prior = free.rotation && (d.is_nan() || d > r.sigma_deg.to_radians());
+            }
+            if let Some(l) = &opts.priors.lever_arm {
+                let d = data_worst(3);
+                lever_arm_from_user_prior = free.lever_arm && (d.is_nan() || d > l.sigma_m);
+            }
         }
         if let (None, Some(l)) = (opts.priors.lever_arm, priors.lever_arm) {
             let data = (3..6)
@@ -843,6 +884,7 @@ pub fn calibrate(
                  measure the lever arm and give --lever-arm-prior",
                 unobserved_why(worst)
             ),
+            by: DeterminedBy::Prior,
         };
     } else if lever_arm_from_default_prior {
         verdicts.lever_arm = Verdict {
@@ -850,7 +892,22 @@ pub fn calibrate(
             reason: "not observed by the motion: the value is the broad default prior's \
                      (zero); measure the lever arm and give --lever-arm-prior"
                 .into(),
+            by: DeterminedBy::Prior,
         };
+    }
+    if rotation_from_prior {
+        verdicts.rotation.by = DeterminedBy::Prior;
+        push_reason(
+            &mut verdicts.rotation,
+            "the value comes mainly from --rotation-prior: the data alone determine it less well",
+        );
+    }
+    if lever_arm_from_user_prior {
+        verdicts.lever_arm.by = DeterminedBy::Prior;
+        push_reason(
+            &mut verdicts.lever_arm,
+            "the value comes mainly from --lever-arm-prior: the data alone determine it less well",
+        );
     }
     if let Some(h) = &halves {
         flag_inconsistent(&mut verdicts, h);
@@ -1323,6 +1380,8 @@ fn sanity(
             if poor_match {
                 "a DVL log of another recording, or clocks that do not overlap (the speeds \
                  correlate poorly at every clock offset)"
+            } else if !free.rotation {
+                fixed_guess_advice(free)
             } else {
                 "camera poses in the wrong frame (T_cam_world given for T_world_cam, or poses of \
                  another body), or a DVL covariance far below the real noise (set --dvl-sigma)"
@@ -1367,24 +1426,47 @@ fn sanity(
     }
 }
 
+/// What a held guess that does not fit the data most likely means, and what to run instead.
+fn fixed_guess_advice(free: FreeParams) -> &'static str {
+    if free.time_offset {
+        "the given extrinsics most likely do not fit this rig (a rotation or lever arm of another \
+         mounting, or in another frame); estimate them with --method uic, or refine them with \
+         --method bcd --init"
+    } else {
+        "the given calibration most likely does not fit this recording (a clock offset of another \
+         recording, or extrinsics of another mounting); estimate the clock offset too with \
+         --estimate-offset, or everything with --method uic"
+    }
+}
+
 /// Stage 5: the covariance of the free parameters from the joint problem's information. When
 /// the DVL residuals exceed the stated noise by half or more (`normalized_cost`), the covariance
-/// is inflated by that factor and a warning says so.
+/// is inflated by that factor and a warning says so (with a held guess, that the guess is the
+/// likely cause).
 fn uncertainty(
     jp: &JointProblem,
     traj: &Trajectory,
     params: &CalibrationParams,
-    mask: &[bool; NPARAM],
+    (mask, free): (&[bool; NPARAM], FreeParams),
     normalized_cost: f64,
     warnings: &mut Vec<String>,
 ) -> Result<ParamMat> {
     let (mut covariance, _) = joint_covariance(jp, traj, params, mask)?;
     if normalized_cost > 1.5 {
-        warnings.push(format!(
-            "DVL residuals are {:.1} times the stated DVL variance; the standard deviations are \
-             inflated by that factor (set --dvl-sigma to the real noise)",
-            normalized_cost
-        ));
+        warnings.push(if free.rotation {
+            format!(
+                "DVL residuals are {:.1} times the stated DVL variance; the standard deviations \
+                 are inflated by that factor (set --dvl-sigma to the real noise)",
+                normalized_cost
+            )
+        } else {
+            format!(
+                "DVL residuals are {:.1} times the stated DVL variance with the extrinsics held \
+                 at the given values: {}",
+                normalized_cost,
+                fixed_guess_advice(free)
+            )
+        });
         covariance *= normalized_cost;
     }
     Ok(covariance)
@@ -1697,6 +1779,15 @@ fn halves_notes(h: &HalvesCheck) -> Vec<String> {
         .collect()
 }
 
+/// Appends `reason` to a verdict's reason.
+fn push_reason(v: &mut Verdict, reason: &str) {
+    v.reason = if v.reason.is_empty() {
+        reason.to_owned()
+    } else {
+        format!("{}; {reason}", v.reason)
+    };
+}
+
 /// Verdicts of the parameters whose halves disagree, turned weak with the reason.
 fn flag_inconsistent(v: &mut Verdicts, h: &HalvesCheck) {
     let groups: [(&mut Verdict, std::ops::Range<usize>, &str); 4] = [
@@ -1867,12 +1958,14 @@ fn verdicts(
         if !free {
             Verdict {
                 ok: true,
-                reason: "held fixed at the given value".into(),
+                reason: "held fixed at the value given with --init".into(),
+                by: DeterminedBy::Fixed,
             }
         } else if worst.is_finite() && worst <= limit {
             Verdict {
                 ok: true,
                 reason: String::new(),
+                by: DeterminedBy::Data,
             }
         } else {
             Verdict {
@@ -1880,6 +1973,7 @@ fn verdicts(
                 reason: format!(
                     "{what} standard deviation {worst:.3e} {unit} exceeds {limit} {unit}: {why}"
                 ),
+                by: DeterminedBy::Data,
             }
         }
     };
@@ -1905,6 +1999,7 @@ fn verdicts(
         lever = Verdict {
             ok: false,
             reason: "angular velocity too small to solve the lever arm in closed form".into(),
+            by: DeterminedBy::Data,
         };
     }
     let offset_why = match init.map(|i| i.offset.method) {

@@ -8,6 +8,7 @@ pub mod camera;
 pub mod odometry;
 pub mod spline_baseline;
 
+use crate::io::calib_yaml::Observability;
 use nalgebra::{Vector3, Vector6};
 
 use crate::error::{Error, Result};
@@ -90,15 +91,27 @@ pub fn twist_errors(estimate: &[TwistSample], truth: &[TwistSample]) -> Result<T
 pub struct CalibrationError {
     /// Estimate minus reference in the estimator's coordinates (rad, m, -, s).
     pub error: nalgebra::SVector<f64, { crate::calib::model::NPARAM }>,
-    /// The file's standard deviations in the same order and units, when it has them.
+    /// The file's standard deviations in the same order and units, when it has them (NaN for a
+    /// parameter held fixed).
     pub std: Option<nalgebra::SVector<f64, { crate::calib::model::NPARAM }>>,
+    /// What the file says determined each parameter, in the same order (`None` for a file
+    /// without an `observability` section). A parameter written with a standard deviation of
+    /// exactly zero (files of earlier versions, for held parameters) counts as
+    /// [`Observability::Fixed`].
+    pub state: [Option<Observability>; crate::calib::model::NPARAM],
 }
 
 impl CalibrationError {
-    /// Each error over its standard deviation (`None` without standard deviations; a zero
-    /// deviation gives an infinite or NaN ratio).
+    /// Each error over its standard deviation (`None` without standard deviations; NaN for a
+    /// parameter held fixed).
     pub fn normalized(&self) -> Option<nalgebra::SVector<f64, { crate::calib::model::NPARAM }>> {
         self.std.map(|s| self.error.component_div(&s))
+    }
+
+    /// Whether parameter `k` was held at a given value rather than estimated: its error is a
+    /// difference of inputs, not of a measurement.
+    pub fn held(&self, k: usize) -> bool {
+        self.state[k] == Some(Observability::Fixed)
     }
 }
 
@@ -107,19 +120,42 @@ pub fn calibration_error(
     estimate: &crate::io::calib_yaml::CalibrationFile,
     truth: &crate::types::CalibrationParams,
 ) -> Result<CalibrationError> {
-    use crate::calib::model::difference;
+    use crate::calib::model::{NPARAM, difference};
     let error = difference(&estimate.to_params()?, truth);
+    let nan3 = [f64::NAN; 3];
     let std = estimate.std.as_ref().map(|s| {
-        nalgebra::SVector::<f64, { crate::calib::model::NPARAM }>::from_column_slice(&[
-            s.rotation_deg[0].to_radians(),
-            s.rotation_deg[1].to_radians(),
-            s.rotation_deg[2].to_radians(),
-            s.lever_arm_m[0],
-            s.lever_arm_m[1],
-            s.lever_arm_m[2],
-            s.velocity_scale,
-            s.time_offset_s,
+        let r = s.rotation_deg.unwrap_or(nan3);
+        let l = s.lever_arm_m.unwrap_or(nan3);
+        nalgebra::SVector::<f64, NPARAM>::from_column_slice(&[
+            r[0].to_radians(),
+            r[1].to_radians(),
+            r[2].to_radians(),
+            l[0],
+            l[1],
+            l[2],
+            s.velocity_scale.unwrap_or(f64::NAN),
+            s.time_offset_s.unwrap_or(f64::NAN),
         ])
     });
-    Ok(CalibrationError { error, std })
+    let mut state = [None; NPARAM];
+    if let Some(o) = &estimate.observability {
+        for (k, st) in state.iter_mut().enumerate() {
+            *st = Some(match k {
+                0..3 => o.rotation,
+                3..6 => o.lever_arm,
+                6 => o.velocity_scale,
+                _ => o.time_offset,
+            });
+        }
+    }
+    if let Some(sd) = &std {
+        for (k, st) in state.iter_mut().enumerate() {
+            // No standard deviation, or one of exactly zero (written for held parameters
+            // before the `fixed` state existed): nothing was measured.
+            if sd[k].is_nan() || sd[k] == 0.0 {
+                *st = Some(Observability::Fixed);
+            }
+        }
+    }
+    Ok(CalibrationError { error, std, state })
 }

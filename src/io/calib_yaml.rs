@@ -4,7 +4,7 @@
 //! `T_cam_dvl` (4x4, rows), `T_dvl_cam` (its inverse),
 //! `quaternion_cam_dvl_xyzw`, `lever_arm_cam_m` (the translation of `T_cam_dvl`),
 //! `time_offset_s` (`t_cam = t_dvl + time_offset_s`), `velocity_scale`, then the optional
-//! `std`, `observability` and `info` sections.
+//! `std`, `observability`, `info` and `provenance` sections.
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -13,6 +13,7 @@ use std::path::Path;
 use nalgebra::{Matrix3, Matrix4, Vector3};
 use serde::{Deserialize, Serialize};
 
+use super::provenance::Provenance;
 use crate::error::{Error, Result};
 use crate::lie::Se3;
 use crate::types::CalibrationParams;
@@ -20,28 +21,54 @@ use crate::types::CalibrationParams;
 /// Tolerance of the rigidity and consistency checks of [`CalibrationFile::to_params`].
 pub const RIGID_TOL: f64 = 1e-6;
 
-/// Standard deviations of the estimated quantities.
+/// Standard deviations of the estimated quantities. A quantity held fixed has none: its entry
+/// is `null` (files of earlier versions wrote 0 for it; they read as they are).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct CalibrationStd {
     /// Rotation, degrees, about the DVL frame's x, y, z axes (a left perturbation of
-    /// `R_dvl_cam`, the estimator's coordinates).
-    pub rotation_deg: [f64; 3],
-    /// Lever arm, metres, camera frame.
-    pub lever_arm_m: [f64; 3],
-    /// Standard deviation of the clock offset `time_offset_s`, s.
-    pub time_offset_s: f64,
-    /// Standard deviation of the DVL velocity scale factor (dimensionless).
-    pub velocity_scale: f64,
+    /// `R_dvl_cam`, the estimator's coordinates); `None` when held fixed.
+    #[serde(default)]
+    pub rotation_deg: Option<[f64; 3]>,
+    /// Lever arm, metres, camera frame; `None` when held fixed.
+    #[serde(default)]
+    pub lever_arm_m: Option<[f64; 3]>,
+    /// Standard deviation of the clock offset `time_offset_s`, s; `None` when held fixed.
+    #[serde(default)]
+    pub time_offset_s: Option<f64>,
+    /// Standard deviation of the DVL velocity scale factor (dimensionless); `None` when held
+    /// fixed.
+    #[serde(default)]
+    pub velocity_scale: Option<f64>,
 }
 
-/// Whether the data constrained a quantity well.
+/// What determined a quantity, and how well.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Observability {
-    /// The quantity's standard deviation is within its limit (or the quantity was held fixed).
+    /// Estimated from the data, with a standard deviation within its limit. (Files of earlier
+    /// versions also wrote `ok` for quantities held fixed.)
     Ok,
-    /// The quantity's standard deviation exceeds its limit: the data constrained it poorly.
+    /// Estimated, with a standard deviation above its limit: the data constrained it poorly.
     Weak,
+    /// Not estimated: held at the value given (`--method fixed --init`); it has no standard
+    /// deviation.
+    Fixed,
+    /// Determined by a prior rather than the data: the broad default prior on an unobserved
+    /// lever arm, or a `--lever-arm-prior` / `--rotation-prior` the data barely sharpened. Its
+    /// standard deviation is about the prior's.
+    Prior,
+}
+
+impl Observability {
+    /// The state in words, as the summary and `compare-calib` print it.
+    pub fn words(self) -> &'static str {
+        match self {
+            Observability::Ok => "ok",
+            Observability::Weak => "WEAK",
+            Observability::Fixed => "fixed (from --init)",
+            Observability::Prior => "from prior",
+        }
+    }
 }
 
 /// Observability of each estimated quantity.
@@ -119,6 +146,10 @@ pub struct CalibrationFile {
     /// How the result was obtained (optional `info` section).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub info: Option<CalibrationInfo>,
+    /// Version, command line, time and input digests of the run (optional `provenance`
+    /// section).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub provenance: Option<Provenance>,
 }
 
 fn rows(m: &Matrix4<f64>) -> [[f64; 4]; 4] {
@@ -183,6 +214,7 @@ impl CalibrationFile {
             std: None,
             observability: None,
             info: None,
+            provenance: None,
         }
     }
 
@@ -299,12 +331,15 @@ fn to_yaml(path: &Path, c: &CalibrationFile) -> Result<String> {
         observability: &'a Option<ObservabilityFlags>,
         #[serde(skip_serializing_if = "Option::is_none")]
         info: &'a Option<CalibrationInfo>,
+        #[serde(skip_serializing_if = "Option::is_none")]
+        provenance: &'a Option<Provenance>,
     }
-    if c.std.is_some() || c.observability.is_some() || c.info.is_some() {
+    if c.std.is_some() || c.observability.is_some() || c.info.is_some() || c.provenance.is_some() {
         let tail = serde_yaml::to_string(&Optional {
             std: &c.std,
             observability: &c.observability,
             info: &c.info,
+            provenance: &c.provenance,
         })
         .map_err(|e| Error::Input(format!("{}: {e}", path.display())))?;
         s.push_str(&tail);

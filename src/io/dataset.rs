@@ -11,7 +11,8 @@
 //!
 //! Files are recognised by their content, not only their names: a YAML with a top-level `cam0`
 //! entry with intrinsics is a camchain, one with `target_type` (Kalibr) or `tags` / `rows` (dvlcal) is a board,
-//! one with `T_cam_dvl` is a calibration result and is ignored; a file whose first lines look
+//! one with `T_cam_dvl` (at the top, or in `cam0`: a result or a camchain-imucam dvlcal wrote) is
+//! ignored; a file whose first lines look
 //! like A50 output (or a ROS1 bag) is a DVL log; a text file whose lines hold eight numbers is a
 //! TUM pose file. When two files compete for one role the error names both.
 
@@ -166,11 +167,14 @@ fn yaml_role(path: &Path) -> Result<std::result::Result<Role, String>> {
         return Ok(Err("YAML but not a mapping".into()));
     };
     let has = |k: &str| map.contains_key(serde_yaml::Value::String(k.into()));
-    let cam0_intrinsics = map
+    let cam0 = map
         .get(serde_yaml::Value::String("cam0".into()))
-        .and_then(|c| c.as_mapping())
-        .is_some_and(|c| c.contains_key(serde_yaml::Value::String("intrinsics".into())));
-    Ok(if cam0_intrinsics {
+        .and_then(|c| c.as_mapping());
+    let cam0_has =
+        |k: &str| cam0.is_some_and(|c| c.contains_key(serde_yaml::Value::String(k.into())));
+    Ok(if cam0_has("T_cam_dvl") {
+        Err("a camchain-imucam with the DVL (dvlcal output)".into())
+    } else if cam0_has("intrinsics") {
         Ok(Role::Camchain)
     } else if has("dvl0") {
         Err("a DVL extrinsics block (dvlcal output)".into())

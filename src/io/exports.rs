@@ -1,20 +1,22 @@
-//! The calibration in the forms other tools read: a ROS static transform and a Kalibr-style
-//! camchain block.
+//! The calibration in the forms other tools read: ROS static transform commands, a URDF joint,
+//! and a Kalibr camchain-imucam file.
 //!
-//! ROS's `static_transform_publisher` takes the pose of the child frame in the parent frame,
-//! which for parent `cam0` and child `dvl` is `T_cam_dvl` (translation `p_cam_dvl`, quaternion
-//! `q_cam_dvl`). Kalibr's camchain-imucam file gives, per camera, `T_cam_imu` (IMU points into
-//! the camera frame) and `timeshift_cam_imu` with `t_imu = t_cam + timeshift`; the DVL block
-//! follows the same pattern, so `timeshift_cam_dvl = -time_offset_s`.
+//! ROS's `static_transform_publisher` and a URDF joint take the pose of the child frame in the
+//! parent frame, which for parent `cam0` and child `dvl` is `T_cam_dvl` (translation
+//! `p_cam_dvl`, rotation `R_cam_dvl`). Kalibr's camchain-imucam file gives, per camera, the
+//! camera's own calibration and `T_cam_imu` (IMU points into the camera frame) with
+//! `timeshift_cam_imu` (`t_imu = t_cam + timeshift`); with the DVL in the IMU's place,
+//! `T_cam_imu = T_camN_dvl` and `timeshift_cam_imu = -time_offset_s`.
 
 use std::fmt::Write as _;
 
-use nalgebra::Matrix4;
+use nalgebra::{Matrix3, Matrix4};
 
+use crate::error::{Error, Result};
 use crate::types::CalibrationParams;
 
-/// Frame names used in the exports.
-#[derive(Clone, Debug)]
+/// Frame names used in the exports: the parent (camera) and child (DVL) of the transform.
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub struct FrameNames {
     /// Name of the camera frame, the parent of the transform (default `cam0`).
     pub camera: String,
@@ -28,6 +30,54 @@ impl Default for FrameNames {
             camera: "cam0".into(),
             dvl: "dvl".into(),
         }
+    }
+}
+
+impl FrameNames {
+    /// The names `PARENT,CHILD` (as `--frames` takes them), checked with
+    /// [`FrameNames::validate`].
+    pub fn parse(text: &str) -> Result<FrameNames> {
+        let Some((parent, child)) = text.split_once(',') else {
+            return Err(Error::option(
+                "--frames",
+                format!("takes two frame names, PARENT,CHILD (as cam0,dvl); got '{text}'"),
+            ));
+        };
+        let names = FrameNames {
+            camera: parent.to_owned(),
+            dvl: child.to_owned(),
+        };
+        names.validate()?;
+        Ok(names)
+    }
+
+    /// Checks that both names are usable as ROS frame ids and in a URDF: not empty, no white
+    /// space, commas, quotes or `<`, `>`, `&`, and different from each other.
+    pub fn validate(&self) -> Result<()> {
+        for (what, n) in [("parent", &self.camera), ("child", &self.dvl)] {
+            if n.is_empty() {
+                return Err(Error::option(
+                    "--frames",
+                    format!("the {what} frame name is empty"),
+                ));
+            }
+            if let Some(c) = n
+                .chars()
+                .find(|c| c.is_whitespace() || c.is_control() || "<>&\"',".contains(*c))
+            {
+                return Err(Error::option(
+                    "--frames",
+                    format!("the {what} frame name '{n}' holds {c:?}, which a frame id may not"),
+                ));
+            }
+        }
+        if self.camera == self.dvl {
+            return Err(Error::option(
+                "--frames",
+                format!("parent and child are both '{}'", self.camera),
+            ));
+        }
+        Ok(())
     }
 }
 
@@ -86,28 +136,121 @@ fn matrix_rows(s: &mut String, indent: &str, m: &Matrix4<f64>) {
     }
 }
 
-/// A Kalibr-style camchain block for the DVL: for each camera `n`, `T_cam_dvl` (DVL points into
-/// camera n) and `timeshift_cam_dvl`; then a `dvl0` entry with the scale and the DVL-to-cam0
-/// transform. `t_cn_c0[n]` maps cam0 points into camera n (identity first); with poses from
-/// elsewhere pass just the identity.
-pub fn kalibr_dvl_block(c: &CalibrationParams, t_cn_c0: &[Matrix4<f64>]) -> String {
+/// One camera of the chain, as the camchain-imucam file gives it.
+#[derive(Clone, Debug)]
+pub struct KalibrCamera {
+    /// The camera's keys of Kalibr's camchain (intrinsics, distortion, resolution, `T_cn_cnm1`
+    /// for all but cam0, `rostopic` when known), one per line, indented by two spaces; empty
+    /// when the camera's calibration is unknown (poses from elsewhere).
+    pub entry: String,
+    /// `T_cn_c0`: maps cam0 points into this camera (identity for cam0).
+    pub t_cn_c0: Matrix4<f64>,
+    /// The other cameras that see the same scene (Kalibr's `cam_overlaps`).
+    pub overlaps: Vec<usize>,
+}
+
+/// A Kalibr camchain-imucam file with the DVL in the IMU's place: for each camera `n` its
+/// camchain keys, `cam_overlaps`, `T_cam_imu` (= `T_camn_dvl`, DVL points into camera n) and
+/// `timeshift_cam_imu` (`t_dvl = t_cam + timeshift`, so `-time_offset_s`), then the same under
+/// dvlcal's explicit names (`T_cam_dvl`, `timeshift_cam_dvl`), the DVL velocity scale and the
+/// frame names. Kalibr's readers count the cameras as the file's top-level keys, so everything
+/// lives under `camN`. A camera with an empty `entry` is written with the transforms alone and a
+/// comment saying its calibration is unknown.
+pub fn kalibr_camchain_imucam(
+    c: &CalibrationParams,
+    cams: &[KalibrCamera],
+    names: &FrameNames,
+) -> String {
     let t_c0_dvl = c.t_cam_dvl.to_matrix();
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "# DVL extrinsics in the style of Kalibr's camchain-imucam.yaml:\n\
-         # T_cam_dvl maps DVL-frame points into the camera frame; t_dvl = t_cam + timeshift_cam_dvl"
+        "# dvlcal {}: camera chain and DVL in the form of Kalibr's camchain-imucam.yaml, the DVL\n\
+         # in the IMU's place. T_cam_imu = T_cam_dvl maps DVL-frame points into camera n;\n\
+         # timeshift_cam_imu = timeshift_cam_dvl: t_dvl = t_cam + timeshift (= -time_offset_s).\n\
+         # dvl_velocity_scale: v_dvl = scale * R_dvl_cam * v_cam(DVL origin). Frames: {} (camera),\n\
+         # {} (DVL).",
+        env!("CARGO_PKG_VERSION"),
+        names.camera,
+        names.dvl
     );
-    for (n, t_cn) in t_cn_c0.iter().enumerate() {
-        let _ = writeln!(s, "cam{n}:");
-        let _ = writeln!(s, "  T_cam_dvl:");
-        matrix_rows(&mut s, "  ", &(t_cn * t_c0_dvl));
-        let _ = writeln!(s, "  timeshift_cam_dvl: {}", fmt_f(-c.time_offset_s));
+    if cams.iter().any(|k| k.entry.is_empty()) {
+        let _ = writeln!(
+            s,
+            "# The camera poses came from elsewhere: the camera's intrinsics and distortion are \
+             unknown\n# here, so this file gives only the DVL's transform and time shift; add \
+             the camera's\n# Kalibr keys (camera_model, intrinsics, ...) before a Kalibr-based \
+             tool reads it."
+        );
     }
-    let _ = writeln!(s, "dvl0:");
-    let _ = writeln!(s, "  T_dvl_cam0:");
-    matrix_rows(&mut s, "  ", &c.t_cam_dvl.inverse().to_matrix());
-    let _ = writeln!(s, "  velocity_scale: {}", fmt_f(c.velocity_scale));
+    for (n, cam) in cams.iter().enumerate() {
+        let _ = writeln!(s, "cam{n}:");
+        s.push_str(&cam.entry);
+        let overlaps: Vec<String> = cam.overlaps.iter().map(|o| o.to_string()).collect();
+        let _ = writeln!(s, "  cam_overlaps: [{}]", overlaps.join(", "));
+        let t = cam.t_cn_c0 * t_c0_dvl;
+        let shift = fmt_f(-c.time_offset_s);
+        let _ = writeln!(s, "  T_cam_imu:");
+        matrix_rows(&mut s, "  ", &t);
+        let _ = writeln!(s, "  timeshift_cam_imu: {shift}");
+        let _ = writeln!(s, "  T_cam_dvl:");
+        matrix_rows(&mut s, "  ", &t);
+        let _ = writeln!(s, "  timeshift_cam_dvl: {shift}");
+        let _ = writeln!(s, "  dvl_velocity_scale: {}", fmt_f(c.velocity_scale));
+        let _ = writeln!(s, "  dvl_frame_id: {}", names.dvl);
+    }
+    s
+}
+
+/// Roll, pitch and yaw (radians) of `r` in URDF's and ROS's convention: rotations about the
+/// fixed x, y and z axes in that order, `R = Rz(yaw) Ry(pitch) Rx(roll)`; pitch in
+/// [-pi/2, pi/2]. At gimbal lock (pitch +-pi/2) only roll -+ yaw is defined: roll is set to 0.
+pub fn rpy_from_rotation(r: &Matrix3<f64>) -> [f64; 3] {
+    // cos(pitch) from the first column's other entries: accurate also near the lock, where
+    // sqrt(1 - sin^2) would lose digits.
+    let cp = r[(0, 0)].hypot(r[(1, 0)]);
+    let pitch = (-r[(2, 0)]).atan2(cp);
+    if cp > 1e-12 {
+        [
+            r[(2, 1)].atan2(r[(2, 2)]),
+            pitch,
+            r[(1, 0)].atan2(r[(0, 0)]),
+        ]
+    } else {
+        // R = Rz(yaw) Ry(+-pi/2) Rx(roll) depends on roll -+ yaw only; with roll 0 its second
+        // column is (-sin yaw, cos yaw, 0).
+        [0.0, pitch, (-r[(0, 1)]).atan2(r[(1, 1)])]
+    }
+}
+
+/// A URDF fixed joint placing the DVL (child link) in the camera (parent link): `<origin xyz
+/// rpy>` is `T_cam_dvl`, rpy as [`rpy_from_rotation`]. The clock offset and scale, which a URDF
+/// cannot hold, are given in a comment.
+pub fn urdf_joint(c: &CalibrationParams, names: &FrameNames) -> String {
+    let t = c.t_cam_dvl.trans;
+    let [roll, pitch, yaw] = rpy_from_rotation(&c.t_cam_dvl.rot).map(fmt_f);
+    let (parent, child) = (&names.camera, &names.dvl);
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "<!-- dvlcal {}: the DVL frame in the camera frame (T_cam_dvl); rpy = fixed-axis roll \
+         about x, then pitch about y, then yaw about z (R = Rz(yaw) Ry(pitch) Rx(roll)), rad.\n     \
+         Clock: t_cam = t_dvl + {} s; DVL velocity scale {}. -->",
+        env!("CARGO_PKG_VERSION"),
+        fmt_f(c.time_offset_s),
+        fmt_f(c.velocity_scale)
+    );
+    let _ = writeln!(s, "<joint name=\"{parent}_to_{child}\" type=\"fixed\">");
+    let _ = writeln!(s, "  <parent link=\"{parent}\"/>");
+    let _ = writeln!(s, "  <child link=\"{child}\"/>");
+    let _ = writeln!(
+        s,
+        "  <origin xyz=\"{} {} {}\" rpy=\"{roll} {pitch} {yaw}\"/>",
+        fmt_f(t.x),
+        fmt_f(t.y),
+        fmt_f(t.z)
+    );
+    let _ = writeln!(s, "</joint>");
     s
 }
 
@@ -115,7 +258,7 @@ pub fn kalibr_dvl_block(c: &CalibrationParams, t_cn_c0: &[Matrix4<f64>]) -> Stri
 mod tests {
     use super::*;
     use crate::lie::Se3;
-    use nalgebra::{Vector3, Vector6};
+    use nalgebra::{Matrix3, Vector3, Vector6};
 
     fn params() -> CalibrationParams {
         CalibrationParams {
@@ -150,32 +293,156 @@ mod tests {
         assert!(text.contains("--frame-id cam0 --child-frame-id dvl"));
     }
 
+    fn matrix_of(v: &serde_yaml::Value) -> Matrix4<f64> {
+        let mut m = Matrix4::from_element(f64::NAN);
+        for (r, row) in v.as_sequence().into_iter().flatten().enumerate() {
+            for (k, x) in row.as_sequence().into_iter().flatten().enumerate() {
+                m[(r, k)] = x.as_f64().unwrap_or(f64::NAN);
+            }
+        }
+        m
+    }
+
     #[test]
-    fn kalibr_block_composes_the_stereo_extrinsics_and_negates_the_offset() {
+    fn camchain_imucam_composes_the_stereo_extrinsics_and_negates_the_offset() {
         let c = params();
         let t_c1_c0 = Se3::new(nalgebra::Matrix3::identity(), Vector3::new(-0.12, 0.0, 0.0));
-        let text = kalibr_dvl_block(&c, &[Matrix4::identity(), t_c1_c0.to_matrix()]);
+        let cams = [
+            KalibrCamera {
+                entry: "  camera_model: pinhole\n".into(),
+                t_cn_c0: Matrix4::identity(),
+                overlaps: vec![1],
+            },
+            KalibrCamera {
+                entry: String::new(),
+                t_cn_c0: t_c1_c0.to_matrix(),
+                overlaps: vec![0],
+            },
+        ];
+        let text = kalibr_camchain_imucam(&c, &cams, &FrameNames::default());
         let v: serde_yaml::Value = serde_yaml::from_str(&text).expect("valid YAML");
-        let m = |cam: &str| -> Matrix4<f64> {
-            let rows = v[cam]["T_cam_dvl"]
-                .as_sequence()
-                .cloned()
-                .unwrap_or_default();
-            let mut m = Matrix4::zeros();
-            for (r, row) in rows.iter().enumerate() {
-                for (k, x) in row.as_sequence().into_iter().flatten().enumerate() {
-                    m[(r, k)] = x.as_f64().unwrap_or(f64::NAN);
-                }
+        // Kalibr counts the cameras as the top-level keys: nothing else may be there.
+        let keys: Vec<&str> = v
+            .as_mapping()
+            .into_iter()
+            .flatten()
+            .filter_map(|(k, _)| k.as_str())
+            .collect();
+        assert_eq!(keys, ["cam0", "cam1"]);
+        for (cam, t) in [("cam0", Matrix4::identity()), ("cam1", t_c1_c0.to_matrix())] {
+            let want = t * c.t_cam_dvl.to_matrix();
+            for key in ["T_cam_imu", "T_cam_dvl"] {
+                let d = (matrix_of(&v[cam][key]) - want).abs().max();
+                assert!(d < 1e-11, "{cam} {key} off by {d}");
             }
-            m
+            assert_eq!(v[cam]["timeshift_cam_imu"].as_f64(), Some(-0.125));
+            assert_eq!(v[cam]["timeshift_cam_dvl"].as_f64(), Some(-0.125));
+            assert_eq!(v[cam]["dvl_velocity_scale"].as_f64(), Some(1.01));
+        }
+        assert_eq!(v["cam0"]["camera_model"].as_str(), Some("pinhole"));
+        assert_eq!(v["cam1"]["cam_overlaps"][0].as_u64(), Some(0));
+        // A camera without its calibration is said to lack it.
+        assert!(
+            text.contains("intrinsics and distortion are unknown"),
+            "{text}"
+        );
+    }
+
+    /// R = Rz(yaw) Ry(pitch) Rx(roll) written out entry by entry (URDF's definition), not
+    /// through the crate's own rotation code.
+    fn zyx(roll: f64, pitch: f64, yaw: f64) -> Matrix3<f64> {
+        let (sr, cr) = roll.sin_cos();
+        let (sp, cp) = pitch.sin_cos();
+        let (sy, cy) = yaw.sin_cos();
+        Matrix3::new(
+            cy * cp,
+            cy * sp * sr - sy * cr,
+            cy * sp * cr + sy * sr,
+            sy * cp,
+            sy * sp * sr + cy * cr,
+            sy * sp * cr - cy * sr,
+            -sp,
+            cp * sr,
+            cp * cr,
+        )
+    }
+
+    #[test]
+    fn urdf_rpy_matches_hand_derived_rotations() {
+        use std::f64::consts::FRAC_PI_2;
+        let close = |a: [f64; 3], b: [f64; 3], tol: f64| {
+            assert!(
+                a.iter().zip(&b).all(|(x, y)| (x - y).abs() < tol),
+                "{a:?} against {b:?}"
+            );
         };
-        let d0 = (m("cam0") - c.t_cam_dvl.to_matrix()).abs().max();
-        let d1 = (m("cam1") - t_c1_c0.to_matrix() * c.t_cam_dvl.to_matrix())
-            .abs()
-            .max();
-        assert!(d0 < 1e-11 && d1 < 1e-11, "{d0} {d1}");
-        assert_eq!(v["cam1"]["timeshift_cam_dvl"].as_f64(), Some(-0.125));
-        assert_eq!(v["dvl0"]["velocity_scale"].as_f64(), Some(1.01));
+        // REP 103's camera optical frame in a body frame: z forward = body x, x right = body -y,
+        // y down = body -z; its well-known rpy is (-pi/2, 0, -pi/2).
+        let optical = Matrix3::new(0.0, 0.0, 1.0, -1.0, 0.0, 0.0, 0.0, -1.0, 0.0);
+        close(
+            rpy_from_rotation(&optical),
+            [-FRAC_PI_2, 0.0, -FRAC_PI_2],
+            1e-15,
+        );
+        // A yaw of 30 degrees alone.
+        let (s, c) = (0.5, 3f64.sqrt() / 2.0);
+        let yaw = Matrix3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0);
+        close(
+            rpy_from_rotation(&yaw),
+            [0.0, 0.0, 30f64.to_radians()],
+            1e-15,
+        );
+        // Gimbal lock: pitch +90 degrees with a yaw of 0.3 rad; only roll - yaw is defined, and
+        // roll is reported as 0. R = Rz(0.3) Ry(pi/2) = [[0, -s, c], [0, c, s], [-1, 0, 0]].
+        let (s, c) = 0.3f64.sin_cos();
+        let lock = Matrix3::new(0.0, -s, c, 0.0, c, s, -1.0, 0.0, 0.0);
+        close(rpy_from_rotation(&lock), [0.0, FRAC_PI_2, 0.3], 1e-15);
+        // Pitch -90 degrees: R = Rz(0.3) Ry(-pi/2) = [[0, -s, -c], [0, c, -s], [1, 0, 0]].
+        let lock = Matrix3::new(0.0, -s, -c, 0.0, c, -s, 1.0, 0.0, 0.0);
+        close(rpy_from_rotation(&lock), [0.0, -FRAC_PI_2, 0.3], 1e-15);
+        // Near the lock every angle is still recovered.
+        for (r, p, y) in [
+            (0.2, FRAC_PI_2 - 1e-6, 0.3),
+            (-2.5, -FRAC_PI_2 + 1e-5, 3.0),
+            (1.0, 0.7, -2.0),
+            (3.1, -0.2, 0.1),
+        ] {
+            close(rpy_from_rotation(&zyx(r, p, y)), [r, p, y], 1e-9);
+        }
+        // The joint's origin carries those angles and the lever arm.
+        let c = CalibrationParams {
+            t_cam_dvl: Se3::new(optical, Vector3::new(0.1, -0.2, 0.3)),
+            time_offset_s: 0.0,
+            velocity_scale: 1.0,
+        };
+        let names = FrameNames::parse("camera_link,dvl_link").unwrap();
+        let x = urdf_joint(&c, &names);
+        assert!(x.contains("<parent link=\"camera_link\"/>"), "{x}");
+        assert!(x.contains("<child link=\"dvl_link\"/>"), "{x}");
+        assert!(
+            x.contains(
+                "<origin xyz=\"0.1 -0.2 0.3\" rpy=\"-1.570796326795 0.0 -1.570796326795\"/>"
+            ),
+            "{x}"
+        );
+    }
+
+    #[test]
+    fn frame_names_are_checked() {
+        let ok = FrameNames::parse("base_link,dvl").unwrap();
+        assert_eq!((ok.camera.as_str(), ok.dvl.as_str()), ("base_link", "dvl"));
+        for bad in [
+            "cam0",
+            ",dvl",
+            "cam0,",
+            "cam 0,dvl",
+            "cam0,dv\tl",
+            "cam0,a<b",
+            "dvl,dvl",
+        ] {
+            let e = FrameNames::parse(bad).unwrap_err().to_string();
+            assert!(e.contains("--frames"), "{bad}: {e}");
+        }
     }
 
     #[test]

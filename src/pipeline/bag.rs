@@ -103,6 +103,8 @@ pub struct BagFrames {
     pub sizes: Vec<(u32, u32)>,
     /// Image messages whose header could not be read (skipped), with the first few named.
     pub unreadable: Vec<String>,
+    /// Each camera's `header.frame_id` (of its first image message that names one).
+    pub frame_ids: Vec<Option<String>>,
     topics: Vec<ImageTopic>,
 }
 
@@ -141,6 +143,7 @@ pub fn plan_frames(ob: &OpenBag, tolerance_ns: i64) -> Result<BagFrames> {
     let mut lists: Vec<Vec<(i64, ImageRef)>> = vec![Vec::new(); cams];
     let mut sizes: Vec<Option<(u32, u32)>> = vec![None; cams];
     let mut size_errors: Vec<Option<String>> = vec![None; cams];
+    let mut frame_ids: Vec<Option<String>> = vec![None; cams];
     let mut unreadable = Vec::new();
     let mut n_unreadable = 0usize;
     let mut zero = 0usize;
@@ -153,7 +156,13 @@ pub fn plan_frames(ob: &OpenBag, tolerance_ns: i64) -> Result<BagFrames> {
             };
             let t = &topics[c];
             let stamp = match cdr::decode_header(m.data, t.serialization) {
-                Ok(h) => h.stamp.as_nanos(),
+                Ok(h) => {
+                    let id = h.frame_id.trim_start_matches('/');
+                    if frame_ids[c].is_none() && !id.is_empty() {
+                        frame_ids[c] = Some(id.to_owned());
+                    }
+                    h.stamp.as_nanos()
+                }
                 Err(e) => {
                     n_unreadable += 1;
                     if unreadable.len() < LISTED {
@@ -246,6 +255,7 @@ pub fn plan_frames(ob: &OpenBag, tolerance_ns: i64) -> Result<BagFrames> {
         scan,
         sizes: out_sizes,
         unreadable,
+        frame_ids,
         topics,
     })
 }

@@ -9,7 +9,9 @@ use std::time::Instant;
 use nalgebra::{Matrix4, Vector3};
 
 use crate::calib::offset::OffsetMethod;
-use crate::calib::{CalibOptions, CalibrationOutcome, Method, Status, Verdict, calibrate};
+use crate::calib::{
+    CalibOptions, CalibrationOutcome, DeterminedBy, Method, Status, Verdict, calibrate,
+};
 use crate::error::{Error, Result};
 use crate::io::calib_yaml::{
     CalibrationFile, CalibrationInfo, CalibrationStd, Observability, ObservabilityFlags,
@@ -17,7 +19,10 @@ use crate::io::calib_yaml::{
 };
 use crate::io::dataset::DatasetFiles;
 use crate::io::dvl::DvlLog;
-use crate::io::exports::{FrameNames, kalibr_dvl_block, ros_static_transform};
+use crate::io::exports::{
+    FrameNames, KalibrCamera, kalibr_camchain_imucam, ros_static_transform, urdf_joint,
+};
+use crate::io::provenance::Provenance;
 use crate::io::write_atomic;
 use crate::report::{
     FailureReportInput, ReportInput, frame_stats, render_failure_html, render_html,
@@ -92,11 +97,18 @@ fn note_cameras(file: &mut CalibrationFile, cams: &CameraCalRun) {
 }
 
 fn flag(v: &Verdict) -> Observability {
-    if v.ok {
-        Observability::Ok
-    } else {
-        Observability::Weak
+    match v.by {
+        DeterminedBy::Fixed => Observability::Fixed,
+        DeterminedBy::Prior => Observability::Prior,
+        DeterminedBy::Data if v.ok => Observability::Ok,
+        DeterminedBy::Data => Observability::Weak,
     }
+}
+
+/// `value` unless the verdict says the parameter was held fixed (it then has no standard
+/// deviation).
+fn unless_fixed<T>(v: &Verdict, value: T) -> Option<T> {
+    (v.by != DeterminedBy::Fixed).then_some(value)
 }
 
 /// The method in words, as the result file and the summary name it.
@@ -123,11 +135,12 @@ pub fn result_file(o: &CalibrationOutcome, log: &DvlLog) -> CalibrationFile {
         }
     }
     let v = |x: &Vector3<f64>| [x.x, x.y, x.z];
+    let vd = &o.verdicts;
     f.std = Some(CalibrationStd {
-        rotation_deg: v(&o.std.rotation_deg),
-        lever_arm_m: v(&o.std.lever_arm_m),
-        time_offset_s: o.std.time_offset_s,
-        velocity_scale: o.std.velocity_scale,
+        rotation_deg: unless_fixed(&vd.rotation, v(&o.std.rotation_deg)),
+        lever_arm_m: unless_fixed(&vd.lever_arm, v(&o.std.lever_arm_m)),
+        time_offset_s: unless_fixed(&vd.time_offset, o.std.time_offset_s),
+        velocity_scale: unless_fixed(&vd.velocity_scale, o.std.velocity_scale),
     });
     f.observability = Some(ObservabilityFlags {
         rotation: flag(&o.verdicts.rotation),
@@ -307,40 +320,127 @@ pub struct ResultPaths {
     /// `RESULT-tf.txt`: ROS 1 and ROS 2 static transform commands (not written for a failed
     /// calibration unless forced).
     pub tf: Option<PathBuf>,
-    /// `RESULT-camchain-dvl.yaml`: the Kalibr-style `T_cam_dvl` block per camera (as `tf`).
-    pub camchain_block: Option<PathBuf>,
+    /// `RESULT-camchain-imucam.yaml`: the camera chain with the DVL in the IMU's place, as
+    /// Kalibr's camchain-imucam.yaml (as `tf`).
+    pub camchain_imucam: Option<PathBuf>,
+    /// `RESULT-urdf.xml`: a URDF fixed joint from the camera to the DVL (as `tf`).
+    pub urdf: Option<PathBuf>,
 }
 
-/// Writes the result YAML to `out` (its folder created) and, when the calibration passed its
-/// sanity checks or `force` is set, the ROS and Kalibr exports beside it, each atomically. A
-/// failed calibration's result file says `status: failed` with the reasons, and exports left
-/// from an earlier run are removed so that none can be mistaken for this run's. With images the
-/// Kalibr block is given for every camera of the chain; with poses, for cam0.
+/// How [`write_results`] writes.
+#[derive(Clone, Debug, Default)]
+pub struct OutputOptions {
+    /// Write the exports even when the calibration failed its sanity checks.
+    pub force: bool,
+    /// The parent (camera) and child (DVL) frame names of the exports; `None`: the camera
+    /// frame the data name (a bag's image `header.frame_id`), else `cam0`, and `dvl`.
+    pub frames: Option<FrameNames>,
+    /// The command line, recorded in the result's `provenance`.
+    pub command_line: Option<String>,
+    /// Inputs beyond the dataset's own files (as `("init", guess.yaml)`), digested into the
+    /// provenance too.
+    pub extra_inputs: Vec<(String, PathBuf)>,
+}
+
+/// The frame names of the exports: the options' (checked), else the data's camera frame (when
+/// usable as a frame id) and `dvl`.
+pub fn frame_names(opts: &OutputOptions, data: &Dataset) -> Result<FrameNames> {
+    if let Some(f) = &opts.frames {
+        f.validate()?;
+        return Ok(f.clone());
+    }
+    let from_data = data.camera_frame.as_ref().map(|camera| FrameNames {
+        camera: camera.clone(),
+        ..FrameNames::default()
+    });
+    Ok(from_data
+        .filter(|f| f.validate().is_ok())
+        .unwrap_or_default())
+}
+
+/// The inputs of a dataset with the part each played: camchain, target, DVL log, pose file, bag,
+/// and each camera's image folder.
+pub fn dataset_inputs(data: &Dataset) -> Vec<(String, PathBuf)> {
+    let f = &data.files;
+    let mut v: Vec<(String, PathBuf)> = [
+        ("camchain", &f.camchain),
+        ("target", &f.target),
+        ("dvl_log", &f.dvl),
+        ("poses", &f.poses),
+        ("bag", &f.bag),
+    ]
+    .into_iter()
+    .filter_map(|(role, p)| p.clone().map(|p| (role.to_owned(), p)))
+    .collect();
+    if let Some(run) = &data.vision {
+        for (n, dir) in run.scan.folders.iter().enumerate() {
+            if let Some(d) = dir {
+                v.push((format!("images_cam{n}"), d.clone()));
+            }
+        }
+    }
+    v.dedup_by(|a, b| a.1 == b.1);
+    v
+}
+
+/// The cameras of the camchain-imucam export: every camera of the chain the poses were solved
+/// with (each overlapping all others: they were paired on the same board views), or, with poses
+/// from elsewhere, cam0 without a calibration.
+fn kalibr_cameras(data: &Dataset) -> Vec<KalibrCamera> {
+    match &data.vision {
+        Some(run) => {
+            let n = run.chain.cams.len();
+            (0..n)
+                .map(|i| KalibrCamera {
+                    entry: run.chain.kalibr_entry(i),
+                    t_cn_c0: run.chain.t_cn_c0[i].to_matrix(),
+                    overlaps: (0..n).filter(|&j| j != i).collect(),
+                })
+                .collect()
+        }
+        None => vec![KalibrCamera {
+            entry: String::new(),
+            t_cn_c0: Matrix4::identity(),
+            overlaps: Vec::new(),
+        }],
+    }
+}
+
+/// Writes the result YAML to `out` (its folder created, its `provenance` section filled in:
+/// version, command line, UTC time, each input's size and SHA-256) and, when the calibration
+/// passed its sanity checks or `opts.force` is set, the exports beside it, each atomically:
+/// `RESULT-tf.txt` (ROS static transforms), `RESULT-urdf.xml` (a URDF joint) and
+/// `RESULT-camchain-imucam.yaml` (Kalibr). A failed calibration's result file says `status:
+/// failed` with the reasons, and exports left from an earlier run are removed so that none can
+/// be mistaken for this run's. With images the Kalibr file holds every camera of the chain;
+/// with poses, cam0's transforms alone.
 pub fn write_results(
     out: &Path,
     run: &CalibrationRun,
     data: &Dataset,
-    force: bool,
+    opts: &OutputOptions,
 ) -> Result<ResultPaths> {
+    let names = frame_names(opts, data)?;
     let inputs = data.files.inputs();
-    for written in [
-        out.to_path_buf(),
-        sibling(out, "tf.txt"),
-        sibling(out, "camchain-dvl.yaml"),
-    ] {
-        crate::files::refuse_input("--out", &written, inputs.iter().map(|p| p.as_path()))?;
+    let tf = sibling(out, "tf.txt");
+    let imucam = sibling(out, "camchain-imucam.yaml");
+    let urdf = sibling(out, "urdf.xml");
+    for written in [out, tf.as_path(), imucam.as_path(), urdf.as_path()] {
+        crate::files::refuse_input("--out", written, inputs.iter().map(|p| p.as_path()))?;
     }
     if let Some(d) = out.parent()
         && !d.as_os_str().is_empty()
     {
         std::fs::create_dir_all(d).map_err(|e| Error::io(d, e))?;
     }
-    write_calib_yaml(out, &run.file)?;
+    let mut all_inputs = dataset_inputs(data);
+    all_inputs.extend(opts.extra_inputs.iter().cloned());
+    let mut file = run.file.clone();
+    file.provenance = Some(Provenance::of_run(opts.command_line.clone(), &all_inputs)?);
+    write_calib_yaml(out, &file)?;
     let calib = &run.outcome.params;
-    let tf = sibling(out, "tf.txt");
-    let block = sibling(out, "camchain-dvl.yaml");
-    if !(run.outcome.status.is_ok() || force) {
-        for p in [&tf, &block] {
+    if !(run.outcome.status.is_ok() || opts.force) {
+        for p in [&tf, &imucam, &urdf] {
             match std::fs::remove_file(p) {
                 Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
                     return Err(Error::io(p, e));
@@ -351,22 +451,19 @@ pub fn write_results(
         return Ok(ResultPaths {
             result: out.to_path_buf(),
             tf: None,
-            camchain_block: None,
+            camchain_imucam: None,
+            urdf: None,
         });
     }
-    write_atomic(
-        &tf,
-        ros_static_transform(calib, &FrameNames::default()).as_bytes(),
-    )?;
-    let t_cn_c0: Vec<Matrix4<f64>> = match &data.vision {
-        Some(run) => run.chain.t_cn_c0.iter().map(|t| t.to_matrix()).collect(),
-        None => vec![Matrix4::identity()],
-    };
-    write_atomic(&block, kalibr_dvl_block(calib, &t_cn_c0).as_bytes())?;
+    write_atomic(&tf, ros_static_transform(calib, &names).as_bytes())?;
+    write_atomic(&urdf, urdf_joint(calib, &names).as_bytes())?;
+    let text = kalibr_camchain_imucam(calib, &kalibr_cameras(data), &names);
+    write_atomic(&imucam, text.as_bytes())?;
     Ok(ResultPaths {
         result: out.to_path_buf(),
         tf: Some(tf),
-        camchain_block: Some(block),
+        camchain_imucam: Some(imucam),
+        urdf: Some(urdf),
     })
 }
 
@@ -560,7 +657,6 @@ impl CalibrationRun {
     /// and verdict, the residuals, and every warning.
     pub fn summary(&self, log: &DvlLog) -> String {
         let o = &self.outcome;
-        let ok = |v: &Verdict| if v.ok { "ok" } else { "WEAK" };
         let s = &o.std;
         let st = &log.stats;
         let mut out = String::new();
@@ -578,54 +674,69 @@ impl CalibrationRun {
             o.counts.dvl_outside_span,
             self.elapsed_s
         );
+        // A held parameter has no standard deviation: it says so instead.
+        let spread = |v: &Verdict, sd: String| match v.by {
+            DeterminedBy::Fixed => flag(v).words().to_owned(),
+            _ => format!("std {sd}  {}", flag(v).words()),
+        };
         let q = self.file.quaternion_cam_dvl_xyzw;
         let _ = writeln!(
             out,
-            "rotation  q_cam_dvl (xyzw) [{:.5}, {:.5}, {:.5}, {:.5}]  std [{:.3}, {:.3}, {:.3}] deg  {}",
+            "rotation  q_cam_dvl (xyzw) [{:.5}, {:.5}, {:.5}, {:.5}]  {}",
             q[0],
             q[1],
             q[2],
             q[3],
-            s.rotation_deg.x,
-            s.rotation_deg.y,
-            s.rotation_deg.z,
-            ok(&o.verdicts.rotation)
+            spread(
+                &o.verdicts.rotation,
+                format!(
+                    "[{:.3}, {:.3}, {:.3}] deg",
+                    s.rotation_deg.x, s.rotation_deg.y, s.rotation_deg.z
+                )
+            )
         );
         let p = o.params.lever_arm_cam_m();
         let _ = writeln!(
             out,
-            "lever arm p_cam_dvl [{:.4}, {:.4}, {:.4}] m  std [{:.4}, {:.4}, {:.4}] m  {}",
+            "lever arm p_cam_dvl [{:.4}, {:.4}, {:.4}] m  {}",
             p.x,
             p.y,
             p.z,
-            s.lever_arm_m.x,
-            s.lever_arm_m.y,
-            s.lever_arm_m.z,
-            ok(&o.verdicts.lever_arm)
+            spread(
+                &o.verdicts.lever_arm,
+                format!(
+                    "[{:.4}, {:.4}, {:.4}] m",
+                    s.lever_arm_m.x, s.lever_arm_m.y, s.lever_arm_m.z
+                )
+            )
         );
         let _ = writeln!(
             out,
-            "clock     time_offset_s {:.5} s  std {:.5} s  {}",
+            "clock     time_offset_s {:.5} s  {}",
             o.params.time_offset_s,
-            s.time_offset_s,
-            ok(&o.verdicts.time_offset)
+            spread(&o.verdicts.time_offset, format!("{:.5} s", s.time_offset_s))
         );
         let _ = writeln!(
             out,
-            "scale     velocity_scale {:.5}  std {:.5}  {}",
+            "scale     velocity_scale {:.5}  {}",
             o.params.velocity_scale,
-            s.velocity_scale,
-            ok(&o.verdicts.velocity_scale)
+            spread(
+                &o.verdicts.velocity_scale,
+                format!("{:.5}", s.velocity_scale)
+            )
         );
-        let _ = writeln!(
-            out,
-            "sound     {}",
+        let sound = if o.verdicts.velocity_scale.by == DeterminedBy::Fixed {
+            "the velocity scale was held at the given value: it says nothing of the water's \
+             sound speed"
+                .to_owned()
+        } else {
             crate::report::sound_speed_words(
                 o.params.velocity_scale,
                 s.velocity_scale,
-                st.sound_speed_mps
+                st.sound_speed_mps,
             )
-        );
+        };
+        let _ = writeln!(out, "sound     {sound}");
         let _ = writeln!(
             out,
             "residuals {:.4} {:.4} {:.4} m/s RMS; normalized cost {:.2}; {} iterations",

@@ -108,6 +108,9 @@ pub struct Dataset {
     /// Things the user should know about the camera data (a bag's zero stamps, the source of
     /// the camera model, ...).
     pub notes: Vec<String>,
+    /// The camera frame's name when the data give one (the `header.frame_id` of a bag's cam0
+    /// images): the parent frame of the exports unless `--frames` says otherwise.
+    pub camera_frame: Option<String>,
 }
 
 impl Dataset {
@@ -141,6 +144,7 @@ impl Dataset {
     ) -> Result<Dataset> {
         let mut cameras = None;
         let mut notes = Vec::new();
+        let mut camera_frame = None;
         let (epoch, poses, run, camera_source) = match (&files.poses, &files.images) {
             (Some(p), _) => {
                 let tum = read_tum(p, None)?;
@@ -221,6 +225,7 @@ impl Dataset {
                             }
                         },
                     };
+                    camera_frame = plan.frame_ids.first().cloned().flatten();
                     let run = poses_from_bag(&ob, &plan, chain, target, vision)?;
                     on_vision(&run);
                     run.require_poses()?;
@@ -253,6 +258,7 @@ impl Dataset {
             dvl_path,
             camera_source,
             notes,
+            camera_frame,
         })
     }
 

@@ -35,8 +35,9 @@ pub use bag::{
     camera_from_info, frame_source, plan_frames, poses_from_bag, read_bag_poses,
 };
 pub use calibration::{
-    CalibrationRun, CameraOutputs, ResultPaths, calibrate_dataset, calibration_context,
-    method_name, result_file, sibling, write_failure_report, write_report, write_results,
+    CalibrationRun, CameraOutputs, OutputOptions, ResultPaths, calibrate_dataset,
+    calibration_context, dataset_inputs, frame_names, method_name, result_file, sibling,
+    write_failure_report, write_report, write_results,
 };
 pub use cameras::{
     CameraCalOptions, CameraCalRun, SEPARATE_CAMERA_RECORDING, calibrate_cameras_from_images,

@@ -8,7 +8,7 @@ use super::data::{Derived, Sample};
 use super::input::{FrameStat, ReportInput};
 use super::svg::{Histogram, Plot, Series, escape};
 use crate::calib::offset::OffsetMethod;
-use crate::calib::{CalibrationOutcome, Method, Verdict};
+use crate::calib::{CalibrationOutcome, DeterminedBy, Method, Verdict};
 use crate::io::dvl::DvlLogStats;
 
 const MEASURED: &str = "#6b6b6b";
@@ -98,7 +98,9 @@ fn method_words(m: &Method) -> &'static str {
 /// The verdict cell of the results table.
 fn verdict_cell(v: &Verdict, free: bool) -> &'static str {
     if !free {
-        "<span class=\"fixed\">fixed</span>"
+        "<span class=\"fixed\">fixed (from --init)</span>"
+    } else if v.by == DeterminedBy::Prior {
+        "<span class=\"weak\">from the prior</span>"
     } else if v.ok {
         "<span class=\"ok\">well determined</span>"
     } else {
@@ -110,7 +112,15 @@ fn verdict_cell(v: &Verdict, free: bool) -> &'static str {
 /// already quote it in their reason).
 fn verdict_sentence(name: &str, v: &Verdict, free: bool, spread: &str) -> String {
     if !free {
-        format!("{name} was not estimated: it stays at the value given with --init.")
+        format!(
+            "{name} was not estimated: it stays at the value given with --init and has no \
+             standard deviation."
+        )
+    } else if v.by == DeterminedBy::Prior {
+        format!(
+            "{name} comes from its prior rather than the data: {}.",
+            v.reason.trim_end_matches('.')
+        )
     } else if v.ok {
         format!("{name} is well determined: its standard deviation is {spread}.")
     } else {
@@ -310,6 +320,12 @@ fn results(s: &mut String, o: &CalibrationOutcome, sound_speed: Option<f64>) {
         ),
     ];
     for (name, est, sd, start, verdict) in rows {
+        // A held parameter has no standard deviation.
+        let sd = if verdict.contains("fixed") {
+            "none (held)".to_owned()
+        } else {
+            sd
+        };
         put!(
             s,
             "<tr><td>{}</td><td class=\"num\">{}<br><span class=\"start\">({})</span></td>\

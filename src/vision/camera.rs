@@ -498,19 +498,31 @@ impl Camchain {
     /// The chain as a Kalibr camchain YAML (`load` reads it back; `T_cn_cnm1` from `t_cn_c0`).
     pub fn to_kalibr_yaml(&self) -> String {
         let mut s = String::new();
-        for (i, c) in self.cams.iter().enumerate() {
+        for i in 0..self.cams.len() {
             s.push_str(&format!("cam{i}:\n"));
+            s.push_str(&self.kalibr_entry(i));
+        }
+        s
+    }
+
+    /// The keys of camera `i` in Kalibr's camchain (`T_cn_cnm1` for all but cam0,
+    /// `camera_model`, `distortion_coeffs`, `distortion_model`, `intrinsics`, `resolution`,
+    /// `rostopic` when known), one per line, indented by two spaces; empty for a camera the
+    /// chain does not have.
+    pub fn kalibr_entry(&self, i: usize) -> String {
+        let mut s = String::new();
+        if let Some(c) = self.cams.get(i) {
             if i > 0 {
                 let t = self.t_cn_c0[i] * self.t_cn_c0[i - 1].inverse();
                 let m = t.to_matrix();
                 s.push_str("  T_cn_cnm1:\n");
                 for r in 0..4 {
                     s.push_str(&format!(
-                        "  - [{:?}, {:?}, {:?}, {:?}]\n",
-                        m[(r, 0)],
-                        m[(r, 1)],
-                        m[(r, 2)],
-                        m[(r, 3)]
+                        "  - [{}, {}, {}, {}]\n",
+                        yaml_float(m[(r, 0)]),
+                        yaml_float(m[(r, 1)]),
+                        yaml_float(m[(r, 2)]),
+                        yaml_float(m[(r, 3)])
                     ));
                 }
             }
@@ -520,7 +532,7 @@ impl Camchain {
                 c.distortion
                     .coeffs()
                     .iter()
-                    .map(|v| format!("{v:?}"))
+                    .map(|&v| yaml_float(v))
                     .collect::<Vec<_>>()
                     .join(", ")
             ));
@@ -529,8 +541,11 @@ impl Camchain {
                 c.distortion.kalibr_name()
             ));
             s.push_str(&format!(
-                "  intrinsics: [{:?}, {:?}, {:?}, {:?}]\n",
-                c.fu, c.fv, c.pu, c.pv
+                "  intrinsics: [{}, {}, {}, {}]\n",
+                yaml_float(c.fu),
+                yaml_float(c.fv),
+                yaml_float(c.pu),
+                yaml_float(c.pv)
             ));
             s.push_str(&format!("  resolution: [{}, {}]\n", c.width, c.height));
             if let Some(Some(t)) = self.topics.get(i) {
@@ -538,6 +553,29 @@ impl Camchain {
             }
         }
         s
+    }
+}
+
+/// A number as YAML 1.1 readers (PyYAML, hence Kalibr) read a float: the shortest digits that
+/// read back exactly, with a decimal point and a signed exponent (`1e-20` would be a string to
+/// them; `1.0e-20` is a float).
+pub fn yaml_float(x: f64) -> String {
+    let s = format!("{x:?}");
+    match s.split_once('e') {
+        Some((m, e)) => {
+            let m = if m.contains('.') {
+                m.to_owned()
+            } else {
+                format!("{m}.0")
+            };
+            let e = if e.starts_with('-') {
+                e.to_owned()
+            } else {
+                format!("+{e}")
+            };
+            format!("{m}e{e}")
+        }
+        None => s,
     }
 }
 

@@ -11,9 +11,11 @@ use dvlcal::calib::prior::{LeverArmPrior, Priors, RotationPrior};
 use dvlcal::calib::robust::Loss;
 use dvlcal::calib::{CalibOptions, Method, Status};
 use dvlcal::io::calib_yaml::{read_calibration_guess, rotation_from_rpy_deg};
+use dvlcal::io::exports::FrameNames;
+use dvlcal::io::provenance::command_line;
 use dvlcal::pipeline::{
-    CameraOutputs, SEPARATE_CAMERA_RECORDING, calibrate_dataset, calibration_context,
-    write_failure_report, write_report, write_results,
+    CameraOutputs, OutputOptions, SEPARATE_CAMERA_RECORDING, calibrate_dataset,
+    calibration_context, write_failure_report, write_report, write_results,
 };
 use dvlcal::types::CalibrationParams;
 
@@ -142,10 +144,18 @@ pub struct CalibrateArgs {
     /// Stop at the first malformed DVL line instead of skipping and counting it.
     #[arg(long)]
     pub strict: bool,
-    /// Result YAML (written atomically); beside it RESULT-tf.txt (ROS static transform) and
-    /// RESULT-camchain-dvl.yaml (Kalibr-style block).
+    /// Result YAML (written atomically; with a provenance section: version, command line, UTC
+    /// time, each input's size and SHA-256); beside it RESULT-tf.txt (ROS 1 and ROS 2 static
+    /// transform commands), RESULT-urdf.xml (a URDF fixed joint, camera to DVL) and
+    /// RESULT-camchain-imucam.yaml (Kalibr's camchain-imucam with the DVL in the IMU's place:
+    /// the camera chain, T_cam_imu = T_cam_dvl and timeshift_cam_imu per camera).
     #[arg(long, default_value = "calibration.yaml")]
     pub out: PathBuf,
+    /// Parent (camera) and child (DVL) frame names of the ROS and URDF exports, `PARENT,CHILD`
+    /// (names without spaces); default: the bag's cam0 image header.frame_id when it has one,
+    /// else cam0, and dvl.
+    #[arg(long, value_name = "PARENT,CHILD")]
+    pub frames: Option<String>,
     #[arg(long, value_enum, default_value = "uic")]
     pub method: MethodArg,
     /// Initial guess or fixed extrinsics (result YAML schema), for --method bcd and fixed.
@@ -215,6 +225,7 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
         None => None,
     };
     let opts = options(a.method, guess, a.estimate_offset, &a.estimator, a.biased)?;
+    let frames = a.frames.as_deref().map(FrameNames::parse).transpose()?;
     if let Some(c) = a.dvl_sound_speed
         && !(c.is_finite() && (1000.0..=2000.0).contains(&c))
     {
@@ -256,14 +267,21 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
             return Err(e).context(calibration_context(&data));
         }
     };
-    let paths = write_results(&a.out, &run, &data, a.force)?;
+    let output = OutputOptions {
+        force: a.force,
+        frames,
+        command_line: Some(command_line(std::env::args())),
+        extra_inputs: a.init.iter().map(|p| ("init".into(), p.clone())).collect(),
+    };
+    let paths = write_results(&a.out, &run, &data, &output)?;
     print!("{}", run.summary(&data.log));
-    match (&paths.tf, &paths.camchain_block) {
-        (Some(tf), Some(block)) => println!(
-            "wrote {}, {} and {}",
+    match (&paths.tf, &paths.urdf, &paths.camchain_imucam) {
+        (Some(tf), Some(urdf), Some(imucam)) => println!(
+            "wrote {}, {}, {} and {}",
             paths.result.display(),
             tf.display(),
-            block.display()
+            urdf.display(),
+            imucam.display()
         ),
         _ => println!(
             "wrote {} (status: failed; no ROS or Kalibr exports: --force writes them)",
