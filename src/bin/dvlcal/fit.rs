@@ -22,11 +22,13 @@ pub struct FitArgs {
     /// Times to evaluate at, one per line (default: the pose times).
     #[arg(long)]
     pub at: Option<PathBuf>,
-    /// Jerk power spectral density: one value for all six components, or `trans,rot`, or six
-    /// values; default: chosen by marginal likelihood.
+    /// Jerk power spectral density, m^2/s^5 (translation) and rad^2/s^5 (rotation): one value
+    /// for all six components, or `trans,rot`, or six values; default: chosen by marginal
+    /// likelihood.
     #[arg(long, value_delimiter = ',')]
     pub qc: Option<Vec<f64>>,
-    /// Pose noise `pos_m,rot_rad` (per axis); default: estimated from the data.
+    /// Pose noise `pos_m,rot_rad`, metres and radians (per axis); default: estimated from the
+    /// data.
     #[arg(long, value_delimiter = ',')]
     pub pose_sigma: Option<Vec<f64>>,
 }
@@ -50,6 +52,7 @@ pub fn run(a: FitArgs) -> Result<()> {
         &a.out,
         std::iter::once(a.poses.as_path()).chain(a.at.as_deref()),
     )?;
+    dvlcal::files::prepare_output("--out", &a.out)?;
     let (tum, table) = read_tum_with_covariances(&a.poses, None)?;
     let mut opts = FitOptions::default();
     if let Some(q) = &a.qc {
