@@ -301,6 +301,10 @@ fn detect_then_calibrate_equals_calibrate_on_the_images() {
     assert_eq!(a.std, b.std);
     assert!(a.std.is_some());
     assert_eq!(a.observability, b.observability);
+    // Each result records where its pose covariances came from.
+    let info = |p: &Path| std::fs::read_to_string(p).unwrap();
+    assert!(info(&one).contains("pose_covariances: the image pipeline"));
+    assert!(info(&two).contains("pose_covariances: ") && info(&two).contains("frames.csv\n"));
 
     // Without the table the poses carry no covariances, and the output says so.
     let bare = dir.path("bare/poses.txt");
@@ -319,6 +323,7 @@ fn detect_then_calibrate_equals_calibrate_on_the_images() {
     ]));
     assert!(text.contains("carries no covariances"), "{text}");
     assert_ne!(estimates(&three).time_offset_s, a.time_offset_s);
+    assert!(info(&three).contains("pose_covariances: 'none: the pose noise was estimated"));
 
     // A table that does not match the poses is an error naming the table and its line.
     let table = std::fs::read_to_string(&frames).unwrap();

@@ -13,7 +13,8 @@
 //! entry with intrinsics is a camchain, one with `target_type` (Kalibr) or `tags` / `rows` (dvlcal) is a board,
 //! one with `T_cam_dvl` is a calibration result and is ignored; a file whose first lines look
 //! like A50 output (or a ROS1 bag) is a DVL log; a text file whose lines hold eight numbers is a
-//! TUM pose file (with the covariances of `POSES.frames.csv` beside it, when there is one). When two files compete for one role the error names both.
+//! TUM pose file (with the covariances of `POSES.frames.csv` beside it, when there is one). When
+//! two files compete for one role the error names both.
 
 use std::path::{Path, PathBuf};
 
