@@ -1,5 +1,6 @@
-# Two commands on a fresh Debian machine: `make demo` and `make test`.
-# Both install the Debian packages the build needs first (root, or sudo).
+# Three commands on a fresh Debian machine: `make demo`, `make test` and `make install`.
+# Each installs the Debian packages the build needs first (root, or sudo); the Rust toolchain
+# (1.85 or newer) comes from rustup, not from Debian.
 
 SHELL := /bin/bash
 CARGO ?= cargo
@@ -9,7 +10,7 @@ TEST_PACKAGES := $(DEBIAN_PACKAGES) chromium
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 OUT ?= out
 
-.PHONY: deps test-deps build demo test bench clean
+.PHONY: deps test-deps build install demo test bench clean
 
 deps:
 	@if ! dpkg -s $(DEBIAN_PACKAGES) >/dev/null 2>&1; then \
@@ -23,6 +24,11 @@ test-deps:
 
 build: deps
 	$(CARGO) build --release
+
+# Puts `dvlcal` on the PATH (in ~/.cargo/bin, which rustup adds to it), so that the commands in
+# README.md run as written.
+install: deps
+	$(CARGO) install --path . --locked
 
 # Calibrates the rendered stereo dataset shipped in sample_data (images -> AprilTag detection ->
 # stereo PnP -> GP trajectory -> UIC), writes the YAML, the exports and the HTML report, then

@@ -1,5 +1,5 @@
 //! Reading input files: whole texts, with the byte-order mark some editors put first removed, and
-//! errors that name the file.
+//! errors that name the file; and the checks of output paths made before a run starts.
 
 use std::path::Path;
 
@@ -53,4 +53,30 @@ pub fn refuse_input<'a>(
         }
     }
     Ok(())
+}
+
+/// Makes `out` writable before the work that produces it starts: its folder is created when
+/// missing, and a probe file is created and removed in it. An error names the option and the
+/// path when `out` is a folder, or when its folder cannot be created or written.
+pub fn prepare_output(option: &'static str, out: &Path) -> Result<()> {
+    if out.is_dir() {
+        return Err(Error::option(
+            option,
+            format!("{} is a folder; give a file name", out.display()),
+        ));
+    }
+    let dir = match out.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let cannot =
+        |e: std::io::Error| Error::option(option, format!("cannot write {}: {e}", out.display()));
+    std::fs::create_dir_all(dir).map_err(cannot)?;
+    let probe = dir.join(format!(".dvlcal-probe.{}", std::process::id()));
+    std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(&probe)
+        .map_err(cannot)?;
+    std::fs::remove_file(&probe).map_err(cannot)
 }

@@ -349,10 +349,26 @@ fn the_program_is_thin_and_uses_the_public_interface() {
     let bin = Path::new(env!("CARGO_MANIFEST_DIR")).join("src/bin/dvlcal");
     let mut files = Vec::new();
     rust_files(&bin, &mut files);
+    // Files of test-only modules (`#[cfg(test)] mod rules;`) check the program; they are not
+    // part of it.
+    let mut test_modules = Vec::new();
+    for f in &files {
+        let text = std::fs::read_to_string(f).unwrap_or_else(|e| panic!("{}: {e}", f.display()));
+        let lines: Vec<&str> = text.lines().map(str::trim).collect();
+        for w in lines.windows(2) {
+            if let (["#[cfg(test)]", item], Some(name)) = (w, w[1].strip_prefix("mod ")) {
+                if item.ends_with(';') {
+                    test_modules.push(bin.join(format!("{}.rs", name.trim_end_matches(';'))));
+                }
+            }
+        }
+    }
     let mut lines = 0;
     for f in &files {
         let text = std::fs::read_to_string(f).unwrap_or_else(|e| panic!("{}: {e}", f.display()));
-        lines += text.lines().count();
+        if !test_modules.contains(f) {
+            lines += text.lines().count();
+        }
         // The program reaches the library only through `dvlcal::`; internal stages stay out.
         for internal in [
             "calib::state",

@@ -14,7 +14,8 @@
 //! one with `T_cam_dvl` (at the top, or in `cam0`: a result or a camchain-imucam dvlcal wrote) is
 //! ignored; a file whose first lines look
 //! like A50 output (or a ROS1 bag) is a DVL log; a text file whose lines hold eight numbers is a
-//! TUM pose file. When two files compete for one role the error names both.
+//! TUM pose file (with the covariances of `POSES.frames.csv` beside it, when there is one). When
+//! two files compete for one role the error names both.
 
 use std::path::{Path, PathBuf};
 
@@ -23,6 +24,7 @@ use crate::io::bag::is_bag;
 use crate::io::bag::roles::BagOptions;
 use crate::io::dvl::detect::detect_format;
 use crate::io::dvl::{DvlFormat, json, serial, text_lines};
+use crate::io::frames_csv::frames_csv_path;
 
 /// What was found in (or given for) a dataset.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -50,19 +52,30 @@ pub struct DatasetFiles {
 }
 
 impl DatasetFiles {
-    /// The input files (camchain, target, DVL log, pose file): what no output may overwrite.
+    /// The input files (camchain, target, DVL log, pose file and its covariance table): what no
+    /// output may overwrite.
     pub fn inputs(&self) -> Vec<PathBuf> {
         [
             &self.camchain,
             &self.target,
             &self.dvl,
             &self.poses,
+            &self.pose_covariances(),
             &self.bag,
         ]
         .into_iter()
         .flatten()
         .cloned()
         .collect()
+    }
+
+    /// The table of the pose file's covariances (`POSES.frames.csv`, as `dvlcal detect` writes
+    /// it beside the poses), when there is a pose file and the table sits beside it.
+    pub fn pose_covariances(&self) -> Option<PathBuf> {
+        self.poses
+            .as_deref()
+            .map(frames_csv_path)
+            .filter(|f| f.is_file())
     }
 
     /// Whether the camera trajectory comes from images that have no camchain: the cameras must
@@ -344,6 +357,10 @@ pub fn discover(dir: &Path, given: &DatasetOverrides) -> Result<DatasetFiles> {
                 }
             }
         }
+    }
+    // The pose file's covariance table is part of the poses, not a file left unused.
+    if let Some(table) = found.pose_covariances() {
+        found.ignored.retain(|(p, _)| *p != table);
     }
     if found.images.is_none() && found.poses.is_none() {
         found.bag = bag.clone();

@@ -9,6 +9,7 @@ pub mod calib_yaml;
 pub mod dataset;
 pub mod dvl;
 pub mod exports;
+pub mod frames_csv;
 pub mod provenance;
 pub mod times;
 pub mod tum;

@@ -86,10 +86,9 @@ pub fn parse_tum(text: &str, path: &Path, epoch: Option<Epoch>) -> Result<TumPos
         }
         prev = Some((t_raw, line));
         let ep = *epoch.get_or_insert_with(|| Epoch::at(t_raw));
-        let qn = [q[0] / norm, q[1] / norm, q[2] / norm, q[3] / norm];
         poses.push(PoseMeasurement {
             t: ep.rel(t_raw),
-            pose: Se3::from_quaternion_xyzw(&qn, Vector3::new(v[0], v[1], v[2])),
+            pose: pose_from_quaternion(&q, Vector3::new(v[0], v[1], v[2])),
             cov: None,
         });
         lines.push(line);
@@ -103,6 +102,19 @@ pub fn parse_tum(text: &str, path: &Path, epoch: Option<Epoch>) -> Result<TumPos
         }),
         _ => Err(Error::parse(path, last_line(text), "no poses in file")),
     }
+}
+
+/// The pose of a TUM line: the quaternion normalised, then turned into a rotation matrix.
+fn pose_from_quaternion(q: &[f64; 4], trans: Vector3<f64>) -> Se3 {
+    let norm = q.iter().map(|c| c * c).sum::<f64>().sqrt();
+    Se3::from_quaternion_xyzw(&[q[0] / norm, q[1] / norm, q[2] / norm, q[3] / norm], trans)
+}
+
+/// `pose` as [`write_tum`] writes it and [`read_tum`] reads it back, to the last bit: the rotation
+/// passed through its quaternion. Poses handed on in memory go through this too, so that a run
+/// from images and a run from the TUM file written of the same poses compute the same digits.
+pub fn as_read_back(pose: &Se3) -> Se3 {
+    pose_from_quaternion(&pose.quaternion_xyzw(), pose.trans)
 }
 
 /// Writes poses as a TUM file (time with 9 decimals, other values with full precision),

@@ -58,11 +58,26 @@ pub fn calibrate_dataset(
     if let Some(cams) = &data.cameras {
         note_cameras(&mut file, cams);
     }
+    note_pose_covariances(&mut file, data);
     Ok(CalibrationRun {
         outcome,
         file,
         elapsed_s,
     })
+}
+
+/// Records in the result file where the poses' covariances came from (`info.pose_covariances`).
+fn note_pose_covariances(file: &mut CalibrationFile, data: &Dataset) {
+    let source = match (&data.vision, data.files.pose_covariances()) {
+        _ if data.poses.iter().any(|p| p.cov.is_none()) => {
+            "none: the pose noise was estimated by the trajectory fit".to_string()
+        }
+        (Some(_), _) => "the image pipeline (stereo PnP)".to_string(),
+        (None, Some(table)) => table.display().to_string(),
+        (None, None) => "the pose source".to_string(),
+    };
+    let info = file.info.get_or_insert_with(CalibrationInfo::default);
+    info.extra.insert("pose_covariances".into(), source.into());
 }
 
 /// Records in the result file that the camchain was calibrated from the same images, and warns

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use crate::error::{Error, Result};
 use crate::io::dataset::{DatasetFiles, DatasetOverrides, discover};
 use crate::io::dvl::{DvlLog, DvlReadOptions, read_dvl_log};
-use crate::io::tum::read_tum;
+use crate::io::frames_csv::{frames_csv_path, read_tum_with_covariances};
 use crate::types::PoseMeasurement;
 
 use super::bag::{
@@ -71,11 +71,14 @@ pub fn describe_files(f: &DatasetFiles) -> String {
         p.as_ref()
             .map_or("-".to_string(), |p| p.display().to_string())
     };
+    let poses = match f.pose_covariances() {
+        Some(c) => format!("{} (covariances {})", show(&f.poses), c.display()),
+        None => show(&f.poses),
+    };
     let mut s = format!(
-        "dataset {}: images {}, poses {}, bag {}, camchain {}, target {}, DVL log {}\n",
+        "dataset {}: images {}, poses {poses}, bag {}, camchain {}, target {}, DVL log {}\n",
         f.root.display(),
         show(&f.images),
-        show(&f.poses),
         show(&f.bag),
         show(&f.camchain),
         show(&f.target),
@@ -147,7 +150,20 @@ impl Dataset {
         let mut camera_frame = None;
         let (epoch, poses, run, camera_source) = match (&files.poses, &files.images) {
             (Some(p), _) => {
-                let tum = read_tum(p, None)?;
+                let (tum, table) = read_tum_with_covariances(p, None)?;
+                notes.push(match table {
+                    Some(t) => format!(
+                        "pose covariances from {} ({} rows, one per pose)",
+                        t.display(),
+                        tum.poses.len()
+                    ),
+                    None => format!(
+                        "{} carries no covariances (no {} beside it): the pose noise is \
+                         estimated from the trajectory fit",
+                        p.display(),
+                        frames_csv_path(p).display()
+                    ),
+                });
                 (tum.epoch, tum.poses, None, p.clone())
             }
             (None, Some(dir)) => {
@@ -175,7 +191,7 @@ impl Dataset {
                 };
                 on_vision(&run);
                 run.require_poses()?;
-                (run.epoch, run.poses.clone(), Some(run), dir.clone())
+                (run.epoch, run.poses_as_read_back(), Some(run), dir.clone())
             }
             (None, None) => {
                 let Some(bag) = &files.bag else {
@@ -229,7 +245,7 @@ impl Dataset {
                     let run = poses_from_bag(&ob, &plan, chain, target, vision)?;
                     on_vision(&run);
                     run.require_poses()?;
-                    (run.epoch, run.poses.clone(), Some(run), bag.clone())
+                    (run.epoch, run.poses_as_read_back(), Some(run), bag.clone())
                 }
             }
         };

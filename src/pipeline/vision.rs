@@ -5,6 +5,9 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use crate::error::{Error, Result};
+pub use crate::io::frames_csv::frames_csv_path;
+use crate::io::frames_csv::{FrameRow, format_frames_csv};
+use crate::io::tum::as_read_back;
 use crate::time::Epoch;
 use crate::types::PoseMeasurement;
 use crate::vision::board::Board;
@@ -172,6 +175,20 @@ pub fn posed_frames(results: &[FrameResult], epoch: &Epoch) -> Vec<PoseMeasureme
 }
 
 impl VisionRun {
+    /// The poses as a TUM file of them reads back ([`as_read_back`]): what the calibration
+    /// takes, so that calibrating from images and from `dvlcal detect`'s TUM file and frames
+    /// table give the same digits. (`poses` keeps the solver's rotations, which the TUM file is
+    /// written from.)
+    pub fn poses_as_read_back(&self) -> Vec<PoseMeasurement> {
+        self.poses
+            .iter()
+            .map(|p| PoseMeasurement {
+                pose: as_read_back(&p.pose),
+                ..p.clone()
+            })
+            .collect()
+    }
+
     /// An error naming the folder when no frame got a pose.
     pub fn require_poses(&self) -> Result<()> {
         if self.poses.is_empty() {
@@ -248,48 +265,23 @@ impl VisionRun {
     }
 
     /// The per-frame table written beside a TUM file of the poses: one row per pose, same order
-    /// (see `docs/formats.md`).
+    /// (see [`crate::io::frames_csv`] and `docs/formats.md`).
     pub fn frames_csv(&self) -> String {
-        let mut s = String::from(
-            "# one row per pose of the TUM file: time (s), tag observations used (a tag in both \
-             cameras counts twice), corners used, reprojection RMS (px), observations rejected, \
-             pixel sigma used for the covariance, then the 21 upper-triangle values (row by row) of \
-             the 6x6 covariance of the right perturbation [rho; phi] of T_world_cam0 (m, rad)\n",
-        );
-        s.push_str("t,tags,corners,rms_px,rejected,sigma_px");
-        for i in 0..6 {
-            for j in i..6 {
-                let _ = write!(s, ",c{i}{j}");
-            }
-        }
-        s.push('\n');
-        for r in &self.results {
-            let Some(p) = &r.pose else { continue };
-            let t = self.epoch.rel(raw_time(r.frame.t_ns));
-            let _ = write!(
-                s,
-                "{},{},{},{},{},{}",
-                self.epoch.format_abs(t, 9),
-                p.tags_used,
-                p.corners_used,
-                p.rms_px,
-                p.tags_rejected,
-                p.sigma_px
-            );
-            for i in 0..6 {
-                for j in i..6 {
-                    let _ = write!(s, ",{:e}", p.cov[(i, j)]);
-                }
-            }
-            s.push('\n');
-        }
-        s
+        let rows: Vec<FrameRow> = self
+            .results
+            .iter()
+            .filter_map(|r| {
+                r.pose.as_ref().map(|p| FrameRow {
+                    t: self.epoch.rel(raw_time(r.frame.t_ns)),
+                    tags: p.tags_used,
+                    corners: p.corners_used,
+                    rms_px: p.rms_px,
+                    rejected: p.tags_rejected,
+                    sigma_px: p.sigma_px,
+                    cov: p.cov,
+                })
+            })
+            .collect();
+        format_frames_csv(&self.epoch, &rows)
     }
-}
-
-/// `OUT.frames.csv` beside the TUM file `OUT`.
-pub fn frames_csv_path(out: &Path) -> PathBuf {
-    let mut name = out.as_os_str().to_owned();
-    name.push(".frames.csv");
-    PathBuf::from(name)
 }

@@ -1,6 +1,6 @@
 //! `dvlcal board`: an SVG of a board definition, to print at exact scale.
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use std::path::PathBuf;
 
 use dvlcal::vision::board::Board;
@@ -17,9 +17,11 @@ pub struct BoardArgs {
 }
 
 pub fn run(a: BoardArgs) -> Result<()> {
+    dvlcal::files::refuse_input("--out", &a.out, [a.target.as_path()])?;
+    dvlcal::files::prepare_output("--out", &a.out)?;
     let board = Board::load(&a.target)?;
     let svg = board_svg(&board, &a.target.display().to_string())?;
-    std::fs::write(&a.out, svg).with_context(|| format!("writing {}", a.out.display()))?;
+    dvlcal::io::write_atomic(&a.out, svg.as_bytes())?;
     println!("wrote {}: {}", a.out.display(), board.description);
     Ok(())
 }

@@ -10,6 +10,7 @@ use crate::dvl_info::DvlInputArgs;
 use dvlcal::calib::prior::{LeverArmPrior, Priors, RotationPrior};
 use dvlcal::calib::robust::Loss;
 use dvlcal::calib::{CalibOptions, Method, Status};
+use dvlcal::files::prepare_output;
 use dvlcal::io::calib_yaml::{read_calibration_guess, rotation_from_rpy_deg};
 use dvlcal::io::exports::FrameNames;
 use dvlcal::io::provenance::command_line;
@@ -38,25 +39,17 @@ pub struct EstimatorArgs {
     pub dvl_sigma: Option<f64>,
     /// Limit of the clock offset, `min,max` seconds (t_cam = t_dvl + offset); default: any
     /// offset at which the camera and DVL logs overlap, found by a global alignment.
-    #[arg(
-        long,
-        value_delimiter = ',',
-        allow_negative_numbers = true,
-        value_name = "MIN,MAX"
-    )]
+    #[arg(long, value_delimiter = ',', value_name = "MIN,MAX")]
     pub offset_range: Option<Vec<f64>>,
     /// A measured lever arm, the DVL origin in the camera frame, `x,y,z` metres, with its
-    /// standard deviation after a colon (default 0.02 m): a prior of the calibration.
-    #[arg(long, allow_hyphen_values = true, value_name = "X,Y,Z[:SIGMA_M]")]
-    pub lever_arm_prior: Option<String>,
+    /// standard deviation in metres after a colon (default 0.02 m): a prior of the calibration.
+    #[arg(long, value_name = "X,Y,Z[:SIGMA_M]")]
+    pub lever_arm_prior: Option<VectorSigma>,
     /// A known rotation R_cam_dvl as `roll,pitch,yaw` degrees (Rz(yaw) Ry(pitch) Rx(roll)),
-    /// with its standard deviation after a colon (default 2 deg): a prior of the calibration.
-    #[arg(
-        long,
-        allow_hyphen_values = true,
-        value_name = "ROLL,PITCH,YAW[:SIGMA_DEG]"
-    )]
-    pub rotation_prior: Option<String>,
+    /// with its standard deviation in degrees after a colon (default 2 deg): a prior of the
+    /// calibration.
+    #[arg(long, value_name = "ROLL,PITCH,YAW[:SIGMA_DEG]")]
+    pub rotation_prior: Option<VectorSigma>,
     /// Loss on the DVL and pose residuals: `cauchy` (outliers lose their pull), `huber`
     /// (outliers keep a bounded pull) or `l2` (least squares, every sample at full weight). The
     /// loss applies only when some residual is an outlier.
@@ -64,58 +57,78 @@ pub struct EstimatorArgs {
     pub loss: String,
     /// Standard deviation, metres, of the broad prior that keeps an unobserved lever arm near
     /// zero when no --lever-arm-prior is given; `none` turns it off.
-    #[arg(
-        long,
-        default_value = "1",
-        allow_negative_numbers = true,
-        value_name = "SIGMA_M|none"
-    )]
-    pub default_lever_arm_sigma: String,
+    #[arg(long, default_value = "1", value_name = "SIGMA_M|none")]
+    pub default_lever_arm_sigma: SigmaOrNone,
     /// Keep the standard deviations as the noise model states them: no inflation for
     /// correlated DVL residuals or for halves of the recording that disagree.
     #[arg(long)]
     pub model_covariance: bool,
 }
 
-/// `a,b,c[:sigma]` as three finite numbers and a sigma (`default` when none is given).
-fn vector_and_sigma(option: &str, text: &str, default: f64) -> Result<([f64; 3], f64)> {
-    let (values, sigma) = match text.split_once(':') {
-        Some((v, s)) => (v, s.trim().parse::<f64>().ok()),
-        None => (text, Some(default)),
-    };
-    let v: Vec<f64> = values
-        .split(',')
-        .map(|x| x.trim().parse::<f64>())
-        .collect::<std::result::Result<_, _>>()
-        .unwrap_or_default();
-    match (v.as_slice(), sigma) {
-        ([x, y, z], Some(s)) if [*x, *y, *z, s].iter().all(|v| v.is_finite()) && s > 0.0 => {
-            Ok(([*x, *y, *z], s))
+/// `a,b,c[:sigma]`: three finite numbers and an optional positive standard deviation.
+#[derive(Clone, Debug)]
+pub struct VectorSigma {
+    pub v: [f64; 3],
+    pub sigma: Option<f64>,
+}
+
+impl std::str::FromStr for VectorSigma {
+    type Err = String;
+    fn from_str(text: &str) -> std::result::Result<Self, String> {
+        let bad = || "three numbers and an optional positive sigma, as 0.1,-0.02,0.3:0.01".into();
+        let number = |x: &str| x.trim().parse::<f64>().map_err(|_| bad());
+        let (values, sigma) = match text.split_once(':') {
+            Some((v, s)) => (v, Some(number(s)?)),
+            None => (text, None),
+        };
+        let v = values
+            .split(',')
+            .map(number)
+            .collect::<Result<Vec<f64>, String>>()?;
+        match v[..] {
+            [x, y, z]
+                if v.iter().chain(&sigma).all(|c| c.is_finite())
+                    && sigma.is_none_or(|s| s > 0.0) =>
+            {
+                Ok(Self {
+                    v: [x, y, z],
+                    sigma,
+                })
+            }
+            _ => Err(bad()),
         }
-        _ => bail!(
-            "{option} takes three numbers and an optional positive sigma, as 0.1,-0.02,0.3:0.01; got '{text}'"
-        ),
+    }
+}
+
+/// A positive standard deviation, or `none`.
+#[derive(Clone, Debug)]
+pub struct SigmaOrNone(pub Option<f64>);
+
+impl std::str::FromStr for SigmaOrNone {
+    type Err = String;
+    fn from_str(t: &str) -> std::result::Result<Self, String> {
+        match t.trim() {
+            "none" => Ok(SigmaOrNone(None)),
+            t => match t.parse::<f64>() {
+                Ok(v) if v.is_finite() && v > 0.0 => Ok(SigmaOrNone(Some(v))),
+                _ => Err("a positive number of metres, or `none`".into()),
+            },
+        }
     }
 }
 
 impl EstimatorArgs {
-    fn priors(&self) -> Result<Priors> {
-        let mut p = Priors::default();
-        if let Some(t) = &self.lever_arm_prior {
-            let (v, s) = vector_and_sigma("--lever-arm-prior", t, 0.02)?;
-            p.lever_arm = Some(LeverArmPrior {
-                lever_arm_cam_m: v.into(),
-                sigma_m: s,
-            });
+    fn priors(&self) -> Priors {
+        Priors {
+            lever_arm: self.lever_arm_prior.as_ref().map(|p| LeverArmPrior {
+                lever_arm_cam_m: p.v.into(),
+                sigma_m: p.sigma.unwrap_or(0.02),
+            }),
+            rotation: self.rotation_prior.as_ref().map(|p| RotationPrior {
+                r_cam_dvl: rotation_from_rpy_deg(&p.v),
+                sigma_deg: p.sigma.unwrap_or(2.0),
+            }),
         }
-        if let Some(t) = &self.rotation_prior {
-            let (rpy, s) = vector_and_sigma("--rotation-prior", t, 2.0)?;
-            p.rotation = Some(RotationPrior {
-                r_cam_dvl: rotation_from_rpy_deg(&rpy),
-                sigma_deg: s,
-            });
-        }
-        Ok(p)
     }
 }
 
@@ -202,15 +215,9 @@ pub fn options(
         method,
         dvl_sigma: est.dvl_sigma,
         bias_corrected: !biased,
-        priors: est.priors()?,
+        priors: est.priors(),
         loss: Loss::parse(&est.loss)?,
-        default_lever_arm_sigma_m: match est.default_lever_arm_sigma.trim() {
-            "none" => None,
-            t => match t.parse::<f64>() {
-                Ok(v) if v.is_finite() && v > 0.0 => Some(v),
-                _ => bail!("--default-lever-arm-sigma takes positive metres or `none`, got `{t}`"),
-            },
-        },
+        default_lever_arm_sigma_m: est.default_lever_arm_sigma.0,
         honest_covariance: !est.model_covariance,
         ..CalibOptions::default()
     };
@@ -230,6 +237,10 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
         && !(c.is_finite() && (1000.0..=2000.0).contains(&c))
     {
         bail!("--dvl-sound-speed must be between 1000 and 2000 m/s, got {c}");
+    }
+    prepare_output("--out", &a.out)?;
+    if let Some(r) = &a.report {
+        prepare_output("--report", r)?;
     }
     let read = a.dvl_input.read_options(a.strict);
     let files = find(a.dataset.as_deref(), &a.files, &read)?;

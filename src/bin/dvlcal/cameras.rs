@@ -51,8 +51,10 @@ pub fn run(a: CalibrateCamerasArgs) -> Result<()> {
         bail!("--model {}: use pinhole-radtan or pinhole-equi", a.model);
     };
     dvlcal::files::refuse_input("--out", &a.out, [a.target.as_path()])?;
+    dvlcal::files::prepare_output("--out", &a.out)?;
     if let Some(r) = &a.report {
         dvlcal::files::refuse_input("--report", r, [a.target.as_path(), a.out.as_path()])?;
+        dvlcal::files::prepare_output("--report", r)?;
     }
     let opts = CameraCalOptions {
         vision: a.tuning.options(),

@@ -12,7 +12,8 @@ use dvlcal::pipeline::{Dataset, VisionOptions, VisionRun, dataset_files, describ
 /// The parts of a dataset that can be named on the command line.
 #[derive(Args, Debug, Clone, Default)]
 pub struct DatasetArgs {
-    /// TUM file of T_world_cam (camera clock), instead of images.
+    /// TUM file of T_world_cam (camera clock), instead of images; covariances from
+    /// POSES.frames.csv beside it when there is one (as `dvlcal detect` writes it).
     #[arg(long, conflicts_with = "images")]
     pub poses: Option<PathBuf>,
     /// Image folder (DIR/cam0, DIR/cam1 or EuRoC's DIR/mav0/camN): poses and their covariances

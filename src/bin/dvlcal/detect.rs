@@ -19,7 +19,8 @@ pub struct DetectTuning {
     /// Worker threads (one image pair per thread at a time; default: all cores).
     #[arg(long, value_name = "N")]
     pub threads: Option<usize>,
-    /// Decimation of the image for quad detection (corners are refined at full resolution).
+    /// Decimation factor of the image for quad detection (no unit; corners are refined at full
+    /// resolution).
     #[arg(long, value_name = "X", default_value_t = 2.0)]
     pub decimate: f32,
     /// Largest time difference between paired cam0 / cam1 images, milliseconds.
@@ -100,6 +101,7 @@ pub fn run(a: DetectArgs) -> Result<()> {
     for out in [&a.out, &frames] {
         dvlcal::files::refuse_input("--out", out, [a.camchain.as_path(), a.target.as_path()])?;
     }
+    dvlcal::files::prepare_output("--out", &a.out)?;
     let opts = a.tuning.options();
     let run = match (&a.images, &a.bag) {
         (Some(dir), _) => poses_from_images(dir, &a.camchain, &a.target, &opts)?,

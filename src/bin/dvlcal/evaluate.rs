@@ -59,6 +59,9 @@ pub fn run(a: EvaluateArgs) -> Result<()> {
         max_gap_s: a.max_gap,
     };
     odo.validate()?;
+    if let Some(out) = &a.out {
+        dvlcal::files::prepare_output("--out", out)?;
+    }
     let cross = a.cross_validate || a.calib.is_none();
     if cross && a.datasets.len() < 2 {
         bail!("cross-validation needs two or more datasets; give --calib FILE to check one");

@@ -5,14 +5,15 @@ use nalgebra::Vector6;
 use std::path::PathBuf;
 use std::time::Instant;
 
+use dvlcal::io::frames_csv::read_tum_with_covariances;
 use dvlcal::io::times::read_times;
-use dvlcal::io::tum::read_tum;
 use dvlcal::io::twist_csv::{TwistRow, write_twist_csv};
 use dvlcal::trajectory::{FitOptions, Trajectory};
 
 #[derive(clap::Args)]
 pub struct FitArgs {
-    /// TUM file of T_world_cam: `timestamp tx ty tz qx qy qz qw` per line, camera clock.
+    /// TUM file of T_world_cam: `timestamp tx ty tz qx qy qz qw` per line, camera clock; the
+    /// poses' covariances are read from POSES.frames.csv when it sits beside it.
     #[arg(long)]
     pub poses: PathBuf,
     /// Output CSV of body twists.
@@ -21,11 +22,13 @@ pub struct FitArgs {
     /// Times to evaluate at, one per line (default: the pose times).
     #[arg(long)]
     pub at: Option<PathBuf>,
-    /// Jerk power spectral density: one value for all six components, or `trans,rot`, or six
-    /// values; default: chosen by marginal likelihood.
+    /// Jerk power spectral density, m^2/s^5 (translation) and rad^2/s^5 (rotation): one value
+    /// for all six components, or `trans,rot`, or six values; default: chosen by marginal
+    /// likelihood.
     #[arg(long, value_delimiter = ',')]
     pub qc: Option<Vec<f64>>,
-    /// Pose noise `pos_m,rot_rad` (per axis); default: estimated from the data.
+    /// Pose noise `pos_m,rot_rad`, metres and radians (per axis); default: estimated from the
+    /// data.
     #[arg(long, value_delimiter = ',')]
     pub pose_sigma: Option<Vec<f64>>,
 }
@@ -49,7 +52,8 @@ pub fn run(a: FitArgs) -> Result<()> {
         &a.out,
         std::iter::once(a.poses.as_path()).chain(a.at.as_deref()),
     )?;
-    let tum = read_tum(&a.poses, None)?;
+    dvlcal::files::prepare_output("--out", &a.out)?;
+    let (tum, table) = read_tum_with_covariances(&a.poses, None)?;
     let mut opts = FitOptions::default();
     if let Some(q) = &a.qc {
         opts.qc = Some(qc_from_arg(q)?);
@@ -104,6 +108,9 @@ pub fn run(a: FitArgs) -> Result<()> {
     write_twist_csv(&a.out, tum.epoch, &rows)?;
     let r = traj.report();
     println!("poses            {} over {:.3} s", tum.poses.len(), t1 - t0);
+    if let Some(t) = &table {
+        println!("pose covariances {}", t.display());
+    }
     println!(
         "jerk PSD Qc      trans {:.3e}, rot {:.3e} ({})",
         r.qc[0],

@@ -4,6 +4,8 @@ mod bag;
 mod board;
 mod calibrate;
 mod cameras;
+#[cfg(test)]
+mod cli_rules;
 mod compare;
 mod dataset;
 mod detect;
@@ -15,7 +17,7 @@ mod record_dvl;
 mod simulate;
 mod tags;
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 
 #[derive(Parser)]
 #[command(
@@ -63,6 +65,38 @@ enum Command {
     Tags(tags::TagsArgs),
 }
 
+/// Whether an option takes numbers (one, a list, or numbers with a sigma): its value parser makes
+/// one of these types.
+fn numeric(a: &clap::Arg) -> bool {
+    use std::any::TypeId;
+    let t = a.get_value_parser().type_id();
+    [
+        TypeId::of::<f64>(),
+        TypeId::of::<f32>(),
+        TypeId::of::<u8>(),
+        TypeId::of::<u32>(),
+        TypeId::of::<u64>(),
+        TypeId::of::<usize>(),
+        TypeId::of::<calibrate::VectorSigma>(),
+        TypeId::of::<calibrate::SigmaOrNone>(),
+    ]
+    .iter()
+    .any(|id| t == *id)
+}
+
+/// The command line of [`Cli`], with every numeric option taking a value that starts with '-': a
+/// negative number, or a list that starts with one (`--offset-range -0.5,0.5`).
+fn command() -> clap::Command {
+    let mut cmd = Cli::command();
+    for sub in cmd.get_subcommands_mut() {
+        *sub = std::mem::take(sub).mut_args(|a| match !a.is_positional() && numeric(&a) {
+            true => a.allow_hyphen_values(true),
+            false => a,
+        });
+    }
+    cmd
+}
+
 fn main() {
     // Rust ignores SIGPIPE, so printing to a closed pipe (`dvlcal calibrate ... | head -1`)
     // would panic; with the default action the program ends quietly, as Unix tools do.
@@ -71,7 +105,7 @@ fn main() {
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
-    let cli = Cli::parse();
+    let cli = Cli::from_arg_matches(&command().get_matches()).unwrap_or_else(|e| e.exit());
     let result = match cli.command {
         Command::Simulate(a) => simulate::run(a),
         Command::FitTrajectory(a) => fit::run(a),

@@ -30,6 +30,7 @@ fn seconds(s: f64, what: &str) -> anyhow::Result<Duration> {
 }
 
 pub fn run(args: RecordDvlArgs) -> anyhow::Result<()> {
+    dvlcal::files::prepare_output("--out", &args.out)?;
     let stop = Arc::new(AtomicBool::new(false));
     let flag = Arc::clone(&stop);
     ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst))

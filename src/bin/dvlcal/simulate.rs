@@ -44,8 +44,10 @@ pub struct SimulateArgs {
     /// Default: calm-then-rotate, or board-view with --images.
     #[arg(long, value_enum)]
     pub motion: Option<MotionArg>,
+    /// Camera poses (or stereo frames) per second, Hz.
     #[arg(long, default_value_t = 10.0)]
     pub camera_rate: f64,
+    /// DVL velocity reports per second, Hz.
     #[arg(long, default_value_t = 10.0)]
     pub dvl_rate: f64,
     /// Pose noise, translation, metres (per axis).
@@ -64,7 +66,7 @@ pub struct SimulateArgs {
     /// Override the clock offset of the truth (t_cam = t_dvl + offset), seconds.
     #[arg(long)]
     pub time_offset: Option<f64>,
-    /// Override the velocity scale of the truth.
+    /// Override the velocity scale of the truth (no unit; 1: the DVL's speeds are right).
     #[arg(long)]
     pub velocity_scale: Option<f64>,
     /// Also render the stereo images of a board at every camera pose time.

@@ -17,18 +17,14 @@ pub struct TagsArgs {
     /// Tag family, as libapriltag names it (tag36h11, tag25h9, tag16h5, tagCircle21h7, ...).
     #[arg(long, value_name = "F", default_value = "tag36h11")]
     pub family: String,
-    /// Decimation of the image for quad detection (corners are refined at full resolution).
+    /// Decimation factor of the image for quad detection (no unit; corners are refined at full
+    /// resolution).
     #[arg(long, value_name = "X", default_value_t = 2.0)]
     pub decimate: f32,
     /// Gaussian blur sigma (pixels) for quad detection; negative sharpens.
-    #[arg(
-        long,
-        value_name = "S",
-        default_value_t = 0.0,
-        allow_negative_numbers = true
-    )]
+    #[arg(long, value_name = "S", default_value_t = 0.0)]
     pub sigma: f32,
-    /// Sharpening of the decoded bits.
+    /// Sharpening of the decoded bits (no unit; libapriltag's decode_sharpening).
     #[arg(long, value_name = "S", default_value_t = 0.25)]
     pub sharpening: f64,
     /// Do not snap quad edges to the image gradients (libapriltag's own refinement).
