@@ -1816,9 +1816,11 @@ fn flag_inconsistent(v: &mut Verdicts, h: &HalvesCheck) {
 /// For each prior, whether it or the data determined its parameter: the prior did when its
 /// variance is below the data's alone on some axis.
 ///
-/// A prior that disagrees with the data is named too: for a linear Gaussian problem the data's
-/// own estimate lies at `prior + (estimate - prior) (s_d^2 + s_p^2) / s_d^2` on each axis, and
-/// its distance from the prior in units of `sqrt(s_d^2 + s_p^2)` is the disagreement.
+/// A prior that disagrees with the data is named too: for a linear Gaussian problem the
+/// estimate is the data's own estimate pulled toward the prior, `estimate - prior = (data -
+/// prior) s_p^2 / (s_d^2 + s_p^2)` on each axis, so the data's estimate lies at `prior +
+/// (estimate - prior) (s_d^2 + s_p^2) / s_p^2`, and its distance from the prior in units of
+/// `sqrt(s_d^2 + s_p^2)` is the disagreement.
 fn prior_notes(priors: &Priors, data_only: &ParamMat, params: &CalibrationParams) -> Vec<String> {
     let worst = |first: usize| {
         (first..first + 3)
@@ -1829,10 +1831,11 @@ fn prior_notes(priors: &Priors, data_only: &ParamMat, params: &CalibrationParams
     let disagreement = |first: usize, sigma: f64| {
         (first..first + 3)
             .map(|k| {
-                let sd2 = data_only[(k, k)].max(1e-300);
+                let sd2 = data_only[(k, k)].max(0.0);
+                let sp2 = sigma * sigma;
                 // The gradient is r / sigma^2, so r = gradient * sigma^2.
-                let r = residual.gradient[k] * sigma * sigma;
-                r.abs() * (sd2 + sigma * sigma).sqrt() / sd2
+                let r = residual.gradient[k] * sp2;
+                r.abs() * (sd2 + sp2).sqrt() / sp2
             })
             .fold(0.0, f64::max)
     };
@@ -2062,4 +2065,57 @@ pub fn cramer_rao(
     let idx = usable(&traj, &obs, truth.time_offset_s, 0.0);
     let jp = JointProblem::new(poses, &traj, &obs, &idx)?;
     Ok(joint_covariance(&jp, &traj, truth, &FreeParams::ALL.mask())?.0)
+}
+
+#[cfg(test)]
+mod prior_note_tests {
+    use super::*;
+    use crate::calib::prior::LeverArmPrior;
+    use crate::calib::refine::ParamMat;
+    use crate::lie::Se3;
+
+    /// A lever arm estimated at 0.1 m on x with the data alone knowing it to `sd` m, and a prior
+    /// at 0 with `sp` m: the notes of `prior_notes`.
+    fn notes(sd: f64, sp: f64, estimate_x: f64) -> Vec<String> {
+        let priors = Priors {
+            lever_arm: Some(LeverArmPrior {
+                lever_arm_cam_m: Vector3::zeros(),
+                sigma_m: sp,
+            }),
+            rotation: None,
+        };
+        let mut data_only = ParamMat::identity() * 1e-6;
+        for k in 3..6 {
+            data_only[(k, k)] = sd * sd;
+        }
+        let params = CalibrationParams {
+            t_cam_dvl: Se3::new(Matrix3::identity(), Vector3::new(estimate_x, 0.0, 0.0)),
+            time_offset_s: 0.0,
+            velocity_scale: 1.0,
+        };
+        prior_notes(&priors, &data_only, &params)
+    }
+
+    #[test]
+    fn a_broad_prior_the_data_overrule_is_no_conflict() {
+        // The data alone say 0.1 m to 1 mm; a 0.5 m prior at 0 is 0.2 of its sigma away.
+        let n = notes(1e-3, 0.5, 0.1);
+        assert!(!n.iter().any(|m| m.contains("disagree")), "{n:?}");
+    }
+
+    #[test]
+    fn a_tight_prior_far_from_the_data_is_named_with_its_distance() {
+        // sd = sp = 1 mm: the estimate sits half way, so the data said 0.1 m when the estimate
+        // is 0.05 m: 0.1 / sqrt(2) mm = 70.7 standard deviations.
+        let n = notes(1e-3, 1e-3, 0.05);
+        assert!(
+            n.iter().any(|m| m.contains("disagree by 70.7 standard deviations")),
+            "{n:?}"
+        );
+        // The same data and a prior ten times broader: the estimate moves to 0.1 * 100/101 and
+        // the data's 0.1 m is 0.1 / sqrt(1.01e-4) = 9.95 standard deviations from the prior
+        // (printed with one decimal).
+        let n = notes(1e-3, 1e-2, 0.1 * 100.0 / 101.0);
+        assert!(n.iter().any(|m| m.contains("disagree by 10.0")), "{n:?}");
+    }
 }
