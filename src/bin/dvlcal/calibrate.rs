@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use crate::dataset::{DatasetArgs, find, read_files};
 use crate::dvl_info::DvlInputArgs;
 
-use dvlcal::calib::prior::{LeverArmPrior, Priors, RotationPrior};
+use dvlcal::calib::prior::{LeverArmPrior, Priors, RotationPrior, SigmaOrNone, VectorSigma};
 use dvlcal::calib::robust::Loss;
 use dvlcal::calib::{CalibOptions, Method, Status};
 use dvlcal::files::prepare_output;
@@ -63,58 +63,6 @@ pub struct EstimatorArgs {
     /// correlated DVL residuals or for halves of the recording that disagree.
     #[arg(long)]
     pub model_covariance: bool,
-}
-
-/// `a,b,c[:sigma]`: three finite numbers and an optional positive standard deviation.
-#[derive(Clone, Debug)]
-pub struct VectorSigma {
-    pub v: [f64; 3],
-    pub sigma: Option<f64>,
-}
-
-impl std::str::FromStr for VectorSigma {
-    type Err = String;
-    fn from_str(text: &str) -> std::result::Result<Self, String> {
-        let bad = || "three numbers and an optional positive sigma, as 0.1,-0.02,0.3:0.01".into();
-        let number = |x: &str| x.trim().parse::<f64>().map_err(|_| bad());
-        let (values, sigma) = match text.split_once(':') {
-            Some((v, s)) => (v, Some(number(s)?)),
-            None => (text, None),
-        };
-        let v = values
-            .split(',')
-            .map(number)
-            .collect::<Result<Vec<f64>, String>>()?;
-        match v[..] {
-            [x, y, z]
-                if v.iter().chain(&sigma).all(|c| c.is_finite())
-                    && sigma.is_none_or(|s| s > 0.0) =>
-            {
-                Ok(Self {
-                    v: [x, y, z],
-                    sigma,
-                })
-            }
-            _ => Err(bad()),
-        }
-    }
-}
-
-/// A positive standard deviation, or `none`.
-#[derive(Clone, Debug)]
-pub struct SigmaOrNone(pub Option<f64>);
-
-impl std::str::FromStr for SigmaOrNone {
-    type Err = String;
-    fn from_str(t: &str) -> std::result::Result<Self, String> {
-        match t.trim() {
-            "none" => Ok(SigmaOrNone(None)),
-            t => match t.parse::<f64>() {
-                Ok(v) if v.is_finite() && v > 0.0 => Ok(SigmaOrNone(Some(v))),
-                _ => Err("a positive number of metres, or `none`".into()),
-            },
-        }
-    }
 }
 
 impl EstimatorArgs {

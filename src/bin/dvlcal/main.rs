@@ -77,8 +77,8 @@ fn numeric(a: &clap::Arg) -> bool {
         TypeId::of::<u32>(),
         TypeId::of::<u64>(),
         TypeId::of::<usize>(),
-        TypeId::of::<calibrate::VectorSigma>(),
-        TypeId::of::<calibrate::SigmaOrNone>(),
+        TypeId::of::<dvlcal::calib::prior::VectorSigma>(),
+        TypeId::of::<dvlcal::calib::prior::SigmaOrNone>(),
     ]
     .iter()
     .any(|id| t == *id)
