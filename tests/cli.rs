@@ -7,26 +7,9 @@ use std::process::{Command, Output};
 const HEADER: &str =
     "t,vx,vy,vz,wx,wy,wz,std_vx,std_vy,std_vz,std_wx,std_wy,std_wz,dvx,dvy,dvz,dwx,dwy,dwz";
 
-/// A fresh directory under the system temp dir, removed on drop.
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(name: &str) -> TempDir {
-        let p = std::env::temp_dir().join(format!("dvlcal-cli-{}-{name}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&p);
-        std::fs::create_dir_all(&p).expect("temp dir");
-        TempDir(p)
-    }
-    fn path(&self, name: &str) -> PathBuf {
-        self.0.join(name)
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
+#[path = "tmp_common/mod.rs"]
+mod tmp_common;
+use tmp_common::TmpDir as TempDir;
 
 fn dvlcal(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_dvlcal"))

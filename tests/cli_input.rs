@@ -2,31 +2,14 @@
 //! outputs in folders that do not exist yet (created, or refused before the work starts), and
 //! `detect` then `calibrate --poses` giving the digits of `calibrate` on the images.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 
 use dvlcal::io::calib_yaml::read_calib_yaml;
 
-/// A fresh folder under the system temp dir, removed on drop.
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(name: &str) -> TempDir {
-        let p = std::env::temp_dir().join(format!("dvlcal-input-{}-{name}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&p);
-        std::fs::create_dir_all(&p).expect("temp dir");
-        TempDir(p)
-    }
-    fn path(&self, name: &str) -> PathBuf {
-        self.0.join(name)
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
+#[path = "tmp_common/mod.rs"]
+mod tmp_common;
+use tmp_common::TmpDir as TempDir;
 
 fn dvlcal(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_dvlcal"))

@@ -11,25 +11,9 @@ use dvlcal::io::calib_yaml::{Observability, read_calib_yaml};
 use dvlcal::vision::camera::Camchain;
 use nalgebra::Matrix4;
 
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(name: &str) -> TempDir {
-        let p = std::env::temp_dir().join(format!("dvlcal-out-{}-{name}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&p);
-        std::fs::create_dir_all(&p).expect("temp dir");
-        TempDir(p)
-    }
-    fn path(&self, name: &str) -> PathBuf {
-        self.0.join(name)
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
+#[path = "tmp_common/mod.rs"]
+mod tmp_common;
+use tmp_common::TmpDir as TempDir;
 
 fn dvlcal(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_dvlcal"))

@@ -2109,7 +2109,8 @@ mod prior_note_tests {
         // is 0.05 m: 0.1 / sqrt(2) mm = 70.7 standard deviations.
         let n = notes(1e-3, 1e-3, 0.05);
         assert!(
-            n.iter().any(|m| m.contains("disagree by 70.7 standard deviations")),
+            n.iter()
+                .any(|m| m.contains("disagree by 70.7 standard deviations")),
             "{n:?}"
         );
         // The same data and a prior ten times broader: the estimate moves to 0.1 * 100/101 and

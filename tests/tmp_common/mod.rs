@@ -12,6 +12,12 @@ impl TmpDir {
         std::fs::create_dir_all(&d).expect("create a temporary folder");
         TmpDir(d)
     }
+
+    /// `name` inside the folder.
+    #[allow(dead_code)] // not every test binary that includes this module names files in it
+    pub fn path(&self, name: &str) -> PathBuf {
+        self.0.join(name)
+    }
 }
 
 impl Drop for TmpDir {
