@@ -2,25 +2,14 @@
 //! errors bad input files get.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
 const HEADER: &str =
     "t,vx,vy,vz,wx,wy,wz,std_vx,std_vy,std_vz,std_wx,std_wy,std_wz,dvx,dvy,dvz,dwx,dwy,dwz";
 
 #[path = "tmp_common/mod.rs"]
 mod tmp_common;
-use tmp_common::TmpDir as TempDir;
-
-fn dvlcal(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_dvlcal"))
-        .args(args)
-        .output()
-        .expect("run dvlcal")
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf-8 path")
-}
+use tmp_common::{TmpDir as TempDir, dvlcal, s};
 
 fn assert_ok(out: &Output) {
     assert!(

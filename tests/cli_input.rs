@@ -3,24 +3,13 @@
 //! `detect` then `calibrate --poses` giving the digits of `calibrate` on the images.
 
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
 
 use dvlcal::io::calib_yaml::read_calib_yaml;
 
 #[path = "tmp_common/mod.rs"]
 mod tmp_common;
-use tmp_common::TmpDir as TempDir;
-
-fn dvlcal(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_dvlcal"))
-        .args(args)
-        .output()
-        .expect("run dvlcal")
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf-8 path")
-}
+use tmp_common::{TmpDir as TempDir, dvlcal, s};
 
 /// stdout and stderr of a run that must succeed.
 fn ok(out: Output) -> String {

@@ -5,22 +5,10 @@
 mod tmp_common;
 
 use std::path::Path;
-use std::process::{Command, Output};
 
 use dvlcal::io::calib_yaml::{ResultStatus, read_calib_yaml, read_calibration_guess};
 use dvlcal::io::dvl::{DvlReadOptions, read_dvl_log};
-use tmp_common::TmpDir;
-
-fn dvlcal(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_dvlcal"))
-        .args(args)
-        .output()
-        .expect("run dvlcal")
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf-8 path")
-}
+use tmp_common::{TmpDir, dvlcal, s};
 
 fn simulate(dir: &Path, seed: &str, offset: &str) {
     let out = dvlcal(&[

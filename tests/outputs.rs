@@ -5,7 +5,6 @@
 
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
 use dvlcal::io::calib_yaml::{Observability, read_calib_yaml};
 use dvlcal::vision::camera::Camchain;
@@ -13,18 +12,7 @@ use nalgebra::Matrix4;
 
 #[path = "tmp_common/mod.rs"]
 mod tmp_common;
-use tmp_common::TmpDir as TempDir;
-
-fn dvlcal(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_dvlcal"))
-        .args(args)
-        .output()
-        .expect("run dvlcal")
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf-8 path")
-}
+use tmp_common::{TmpDir as TempDir, dvlcal, s};
 
 fn sample(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))

@@ -1,6 +1,23 @@
-//! A temporary folder for a test, removed when the test ends (pass or fail).
+//! A temporary folder for a test, removed when the test ends (pass or fail), and the built
+//! program run with arguments.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// The built `dvlcal` run with `args`, its output captured.
+#[allow(dead_code)] // not every test binary that includes this module runs the program
+pub fn dvlcal(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_dvlcal"))
+        .args(args)
+        .output()
+        .expect("run dvlcal")
+}
+
+/// A path as an argument (test paths are UTF-8).
+#[allow(dead_code)]
+pub fn s(p: &Path) -> &str {
+    p.to_str().expect("utf-8 path")
+}
 
 pub struct TmpDir(pub PathBuf);
 
