@@ -688,17 +688,7 @@ fn robustness(s: &mut String, o: &CalibrationOutcome) {
 
 /// Symmetric range holding all but the 0.1% most extreme values of `v`, at least `floor` wide.
 pub(super) fn robust_half_range(v: &[f64], floor: f64) -> f64 {
-    let mut a: Vec<f64> = v
-        .iter()
-        .filter(|x| x.is_finite())
-        .map(|x| x.abs())
-        .collect();
-    if a.is_empty() {
-        return floor.max(1e-6);
-    }
-    a.sort_by(f64::total_cmp);
-    let k = ((a.len() as f64 * 0.999).ceil() as usize).clamp(1, a.len()) - 1;
-    a[k].max(floor).max(1e-6)
+    super::svg::abs_quantile(v, 0.999).max(floor).max(1e-6)
 }
 
 fn residuals(s: &mut String, o: &CalibrationOutcome, d: &Derived) {

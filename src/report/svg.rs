@@ -755,6 +755,21 @@ impl Scale {
     }
 }
 
+/// The `q` quantile of `|v|` over the finite values (0 without any).
+pub(super) fn abs_quantile(v: &[f64], q: f64) -> f64 {
+    let mut a: Vec<f64> = v
+        .iter()
+        .filter(|x| x.is_finite())
+        .map(|x| x.abs())
+        .collect();
+    if a.is_empty() {
+        return 0.0;
+    }
+    a.sort_by(f64::total_cmp);
+    let k = ((a.len() as f64 * q).ceil() as usize).clamp(1, a.len()) - 1;
+    a[k]
+}
+
 #[cfg(test)]
 impl Plot {
     /// The pixel mapping this plot would use (for the tests).

@@ -9,7 +9,7 @@
 use std::fmt::Write as _;
 
 use super::data::Sample;
-use super::svg::{Plot, Series, escape};
+use super::svg::{Plot, Series, abs_quantile, escape};
 
 /// Time columns of the decimated drawing (about the plotting width of a full-width plot).
 pub(super) const COLUMNS: usize = 860;
@@ -131,21 +131,6 @@ pub(super) fn axis_timeline(samples: &[Sample], k: usize, columns: usize) -> Axi
         half_range,
         clamped,
     }
-}
-
-/// The `q` quantile of `|v|` over the finite values (0 without any).
-fn abs_quantile(v: &[f64], q: f64) -> f64 {
-    let mut a: Vec<f64> = v
-        .iter()
-        .filter(|x| x.is_finite())
-        .map(|x| x.abs())
-        .collect();
-    if a.is_empty() {
-        return 0.0;
-    }
-    a.sort_by(f64::total_cmp);
-    let k = ((a.len() as f64 * q).ceil() as usize).clamp(1, a.len()) - 1;
-    a[k]
 }
 
 const AXES: [&str; 3] = ["x", "y", "z"];
