@@ -40,7 +40,7 @@ use offset::{DvlObs, OffsetMethod, OffsetOptions, OffsetResult, estimate_offset}
 use prior::Priors;
 use refine::{FreeParams, calibration_update};
 use robust::{Loss, RobustSummary};
-use state::{JointProblem, joint_covariance, joint_step, state_update};
+use state::{JointProblem, joint_covariance, joint_linear_estimate, joint_step, state_update};
 use whiteness::Whiteness;
 
 /// How the calibration starts.
@@ -413,6 +413,31 @@ pub struct CalibrationOutcome {
     pub priors: Priors,
     /// Whether the lever arm came from the broad default prior rather than the data.
     pub lever_arm_from_default_prior: bool,
+    /// Wall time of each stage of the run, in order (a profile of the run; not part of the
+    /// result, and different on every run).
+    pub stage_seconds: Vec<(&'static str, f64)>,
+}
+
+/// Wall times of the stages of a run.
+struct StageClock {
+    last: std::time::Instant,
+    stages: Vec<(&'static str, f64)>,
+}
+
+impl StageClock {
+    fn start() -> Self {
+        StageClock {
+            last: std::time::Instant::now(),
+            stages: Vec::new(),
+        }
+    }
+
+    /// Ends the stage `name` (begun where the previous one ended).
+    fn done(&mut self, name: &'static str) {
+        let now = std::time::Instant::now();
+        self.stages.push((name, (now - self.last).as_secs_f64()));
+        self.last = now;
+    }
 }
 
 impl CalibrationOutcome {
@@ -563,6 +588,7 @@ pub fn calibrate(
     opts: &CalibOptions,
 ) -> Result<CalibrationOutcome> {
     opts.validate()?;
+    let mut clock = StageClock::start();
     let (obs, replaced) = observations(dvl, opts);
     let mut counts = Counts {
         poses: poses.len(),
@@ -581,6 +607,7 @@ pub fn calibrate(
     // 1. The camera trajectory from the poses alone, bad poses down-weighted.
     let (weighted_poses, traj, pose_robust, pose_weights) = robust_fit(poses, opts)?;
     let poses = &weighted_poses[..];
+    clock.done("trajectory fit");
     counts.poses_downweighted = pose_robust.outliers;
     let mut warnings = Vec::new();
     if pose_robust.outliers > 0 {
@@ -604,6 +631,7 @@ pub fn calibrate(
     }
     // 2-3. Where the refinement starts.
     let (start, init, spikes_screened) = initialise(&traj, &obs, opts, &mut warnings)?;
+    clock.done("initialisation");
     counts.dvl_spikes_screened = spikes_screened;
     if let Some(i) = &init {
         counts.calm = i.offset.calm.len();
@@ -701,6 +729,7 @@ pub fn calibrate(
     if refined.params.velocity_scale < 0.0 && free.rotation {
         refined = mirror_if_better(poses, &jp, refined, &obs, &idx, free, opts, &mut warnings)?;
     }
+    clock.done("refinement");
     // 4b. Iteratively reweighted: the DVL factors under the robust loss, refined again from
     // where least squares ended until the weights settle.
     let mut dvl_weights = vec![1.0; obs.len()];
@@ -745,6 +774,7 @@ pub fn calibrate(
             jp.keep_storage(st);
         }
     }
+    clock.done("reweighting");
     counts.dvl_downweighted = dvl_robust.outliers;
     if dvl_robust.outliers > 0 {
         warnings.push(format!(
@@ -798,6 +828,7 @@ pub fn calibrate(
         normalized_cost,
         &mut warnings,
     )?;
+    clock.done("covariance");
     // The drift check compares the thirds of the recording at the model's offset variance: the
     // halves check below would inflate it for the very drift the check is looking for.
     let model_offset_std = covariance[(7, 7)].max(0.0).sqrt();
@@ -821,6 +852,7 @@ pub fn calibrate(
     } else {
         None
     };
+    clock.done("halves check");
     if let Some(h) = &halves {
         warnings.extend(halves_notes(h));
     }
@@ -954,6 +986,7 @@ pub fn calibrate(
         ));
     }
     let trajectory = traj.report().clone();
+    clock.done("checks and verdicts");
     Ok(CalibrationOutcome {
         params,
         covariance,
@@ -985,6 +1018,7 @@ pub fn calibrate(
         halves,
         priors,
         lever_arm_from_default_prior,
+        stage_seconds: clock.stages,
     })
 }
 
@@ -1646,14 +1680,19 @@ const LEVER_HOLD_SNR: f64 = 4.0;
 
 /// Fewest samples in each half for the halves check.
 const HALF_MIN: usize = 50;
+/// Each half's problem spans its samples' knots and this much more on either side, seconds...
+const HALF_MARGIN_S: f64 = 5.0;
+/// ... and at least this many knots more.
+const HALF_MARGIN_KNOTS: usize = 50;
 
 /// Each half of the samples `idx` (by DVL time) calibrated on its own and compared with the
 /// other; where they differ by more than three standard deviations the rows and columns of
 /// `covariance` are scaled so that the difference is one (the variance the difference itself
 /// estimates).
 ///
-/// Each half's estimate is one Gauss-Newton step on its joint problem (all poses, the half's
-/// DVL reports) from the result, and its covariance that problem's marginal one (times
+/// Each half's estimate is the calibration part of one Gauss-Newton step on its joint problem
+/// (the half's DVL reports and the poses of its span, with a margin) from the result, and its
+/// covariance that problem's marginal one at the result (both from one factorisation; times
 /// `noise_factor`, the inflation of the whole's for residuals above the stated noise): a half
 /// that does not excite a parameter (a calm first half) gives it a large variance and no false
 /// alarm.
@@ -1681,20 +1720,27 @@ fn halves_check(
     }
     let (first_idx, second_idx) = by_time.split_at(n);
     let mut storage = jp.take_storage();
+    let times = traj.times();
     let mut half = |part: &[usize]| -> Result<(CalibrationParams, ParamMat)> {
-        let mut jh = JointProblem::new(poses, traj, obs, part)?;
+        // The knots the half's samples fall between, and a margin on either side: further knots
+        // carry only poses and the prior, whose pull on the half's parameters has died out.
+        let (t0, t1) = part
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &i| {
+                let t = obs[i].t + params.time_offset_s;
+                (a.min(t), b.max(t))
+            });
+        let lo = times.partition_point(|&t| t < t0 - HALF_MARGIN_S);
+        let hi = times.partition_point(|&t| t <= t1 + HALF_MARGIN_S);
+        let lo = lo.saturating_sub(HALF_MARGIN_KNOTS);
+        let hi = (hi + HALF_MARGIN_KNOTS).min(times.len());
+        let sub = traj.slice(lo..hi);
+        let mut jh = JointProblem::new(&poses[lo..hi], &sub, obs, part)?;
         jh.priors = jp.priors;
         if let Some(st) = storage.take() {
             jh.keep_storage(st);
         }
-        let (mut t, mut p) = (traj.clone(), *params);
-        for _ in 0..1 {
-            match joint_step(&jh, &t, &p, &mask)? {
-                Some(js) => (t, p) = (js.trajectory, js.params),
-                None => break,
-            }
-        }
-        let (cov, _) = joint_covariance(&jh, &t, &p, &mask)?;
+        let (p, cov) = joint_linear_estimate(&jh, &sub, params, &mask)?;
         storage = jh.take_storage();
         Ok((p, cov * noise_factor))
     };

@@ -452,7 +452,7 @@ fn joint_system(
     let n = traj.knots().len();
     let mut sys = jp
         .take_storage()
-        .filter(|s| s.len() == n)
+        .map(|s| s.resized(n))
         .unwrap_or_else(|| BlockTridiagonal::zeros(n));
     let mut a = DvlFactors::new(jp, p)?.assemble(traj.knots(), &mut sys, true);
     for (c, _) in free.iter().enumerate().filter(|(_, f)| !**f) {
@@ -503,6 +503,41 @@ pub fn joint_covariance(
         }
     }
     Ok((cov, js.cost))
+}
+
+/// The linearised estimate of the calibration at `p` and its marginal covariance, from one
+/// factorisation of the joint system: `p` moved by the calibration part of a Gauss-Newton step
+/// (`dtheta = S^-1 b` with `S` the Schur complement and `b` the reduced gradient), and `S^-1`.
+/// The trajectory's part of the step is not formed. For a problem whose solution lies near `p`
+/// (a part of the data, starting from the whole's estimate) this is its estimate to first order.
+pub fn joint_linear_estimate(
+    jp: &JointProblem,
+    traj: &Trajectory,
+    p: &CalibrationParams,
+    free: &[bool; NPARAM],
+) -> Result<(CalibrationParams, ParamMat)> {
+    let js = joint_system(jp, traj, p, free)?;
+    let (reduction, cross_g) = js.factor.quadratic_forms(&js.cross);
+    jp.keep_storage(js.factor.into_system());
+    let schur = js.theta - reduction;
+    let mut schur = (schur + schur.transpose()) * 0.5;
+    pin_fixed(&mut schur, free);
+    let mut b = js.gradient - cross_g;
+    for c in 0..NPARAM {
+        if !free[c] {
+            b[c] = 0.0;
+        }
+    }
+    let Some(chol) = schur.cholesky() else {
+        return Ok((*p, ParamMat::from_diagonal_element(f64::INFINITY)));
+    };
+    let mut cov = chol.inverse();
+    for k in 0..NPARAM {
+        if !free[k] {
+            cov[(k, k)] = 0.0;
+        }
+    }
+    Ok((p.updated(&chol.solve(&b)), cov))
 }
 
 /// Outcome of a joint step.

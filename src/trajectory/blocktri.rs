@@ -321,6 +321,15 @@ impl BlockTridiagonal {
         self.diag.len()
     }
 
+    /// The same storage for a system of `n` blocks (contents meaningless, as for assembly):
+    /// shortening keeps the memory, lengthening adds zero blocks.
+    pub fn resized(mut self, n: usize) -> Self {
+        self.diag.resize(n, M18::zeros());
+        self.upper.resize(n.saturating_sub(1), M18::zeros());
+        self.rhs.resize(n, V18::zeros());
+        self
+    }
+
     /// Block elimination from both ends (see [`Factored`]); fails when a Schur complement is not
     /// positive definite.
     ///
