@@ -144,6 +144,13 @@ pub fn calibration_update(
                 g[k] = 0.0;
             }
         }
+        // Converged when the undamped step would move no parameter by more than a thousandth
+        // of its standard deviation (trials that small only compare rounding noise).
+        if let Some(c) = h.cholesky()
+            && g.dot(&c.solve(&g)) < crate::trajectory::solver::STEP_DECREMENT
+        {
+            break;
+        }
         let mut improved = false;
         for _ in 0..10 {
             let mut hd = h;

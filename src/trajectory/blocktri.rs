@@ -544,6 +544,14 @@ impl Factored {
         }
     }
 
+    /// `rhs^T A^-1 rhs`, the squared length of the solution `x` in the metric of `A`
+    /// (`x^T A x`): for normal equations, the cost decrease a Gauss-Newton step predicts, and
+    /// how far the step moves in units of the posterior spread (no linear function of the
+    /// variables moves by more than `sqrt` of this many of its standard deviations).
+    pub fn decrement(&self) -> f64 {
+        self.w.iter().map(|w| w.norm_squared()).sum()
+    }
+
     /// `log det A`.
     pub fn log_det(&self) -> f64 {
         self.log_det
@@ -670,6 +678,7 @@ mod tests {
             // b^T A^-1 b and b^T A^-1 (2 b) from the forward half alone.
             let (rr, rw) = f.quadratic_forms(&both[..]);
             let q: f64 = x.iter().zip(&sys.rhs).map(|(x, r)| x.dot(r)).sum();
+            assert!((f.decrement() - q).abs() < 1e-9 * q.abs().max(1.0));
             assert!((rr[(0, 0)] - q).abs() < 1e-9 * q.abs().max(1.0));
             assert!((rr[(1, 1)] - 4.0 * q).abs() < 1e-9 * q.abs().max(1.0));
             assert!((rr[(0, 1)] - 2.0 * q).abs() < 1e-9 * q.abs().max(1.0));

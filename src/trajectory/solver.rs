@@ -305,6 +305,11 @@ pub(crate) struct GaussNewtonOptions {
     pub storage: Option<BlockTridiagonal>,
 }
 
+/// A Gauss-Newton run stops when the step's squared length in the metric of the information
+/// matrix ([`crate::trajectory::blocktri::Factored::decrement`]) is below this: the step moves
+/// no quantity by more than 0.001 of its standard deviation.
+pub(crate) const STEP_DECREMENT: f64 = 1e-6;
+
 /// Gauss-Newton with step halving; returns the factorisation at the solution when asked for.
 pub(crate) fn gauss_newton(
     problem: &dyn NormalEquations,
@@ -331,14 +336,23 @@ pub(crate) fn gauss_newton(
             });
         }
         let factor = sys.factor()?;
+        // A step that would move every quantity by less than a thousandth of its posterior
+        // standard deviation is not worth taking, nor the system at its end worth forming: the
+        // current point is the solution, and this factorisation the one at it.
+        converged = converged || factor.decrement() < STEP_DECREMENT;
         if converged || iterations >= opts.max_iterations {
+            let (factor, spare) = if opts.factor {
+                (Some(factor), None)
+            } else {
+                (None, Some(factor.into_system()))
+            };
             return Ok(Solved {
                 knots,
                 iterations,
                 converged,
                 cost,
-                factor: Some(factor),
-                spare: None,
+                factor,
+                spare,
             });
         }
         let dx = factor.solve();
