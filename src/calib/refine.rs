@@ -144,7 +144,7 @@ pub fn calibration_update(
                 g[k] = 0.0;
             }
         }
-        // Converged when the undamped step would move no parameter by more than a thousandth
+        // Converged when the undamped step would move no parameter by more than a hundredth
         // of its standard deviation (trials that small only compare rounding noise).
         if let Some(c) = h.cholesky()
             && g.dot(&c.solve(&g)) < crate::trajectory::solver::STEP_DECREMENT
