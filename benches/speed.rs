@@ -2,7 +2,8 @@
 //! the calibration of 3 hours of data against 18 minutes (linear cost gives 10), with the wall
 //! time of each stage; and `dvlcal detect` against Debian's `apriltag` CLI on the same frames.
 //!
-//! `cargo bench --bench speed` (`-- --calibration-only` or `-- --detection-only` for one part;
+//! `cargo bench --bench speed` (`-- --calibration-only` or `-- --detection-only` for one part,
+//! `-- --calibration-only --short-only` for the 18 minutes alone, e.g. under callgrind;
 //! `-- --frames N` for the number of stereo frames of the detection part, default 30). Data: the
 //! simulated sinusoid motion, camera poses at 10 Hz and A50 reports at 8 Hz, 1080 s and 10800 s
 //! (10.8k and 108k poses, 8.6k and 86k reports), default truth.
@@ -34,6 +35,9 @@ fn calibration_part() {
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
     println!("## Calibration ({threads} threads available)\n");
     let short = calibration(1080.0);
+    if std::env::args().any(|a| a == "--short-only") {
+        return;
+    }
     let long = calibration(10800.0);
     println!("| stage | 18 min | 3 h | ratio |");
     println!("|---|---|---|---|");
