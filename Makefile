@@ -4,7 +4,7 @@
 
 SHELL := /bin/bash
 CARGO ?= cargo
-DEBIAN_PACKAGES := pkg-config libopencv-dev clang libclang-dev libapriltag-dev apriltag
+DEBIAN_PACKAGES := pkg-config libopencv-dev clang libclang-dev libapriltag-dev apriltag libsqlite3-dev libzstd-dev
 # The tests also render the HTML report in headless chromium (scripts/check_report.sh).
 TEST_PACKAGES := $(DEBIAN_PACKAGES) chromium
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
