@@ -115,6 +115,9 @@ pub struct OffsetResult {
     pub searched: (f64, f64),
 }
 
+/// Samples per piece of work of [`objective`].
+const OBJECTIVE_PIECE: usize = 512;
+
 /// Value of the profiled objective and the scale that minimises it. `tr_sv[i]` is the trace of
 /// the GP's velocity covariance at sample `i` (it changes little over the offsets searched, so
 /// it is evaluated once).
@@ -125,19 +128,29 @@ fn objective(
     tr_sv: &[f64],
     delta: f64,
 ) -> Option<(f64, f64)> {
+    // Pieces of samples on all cores, their sums added in order (the same on any core count).
+    let pieces = crate::parallel::map_pieces(idx.len(), OBJECTIVE_PIECE, |r| {
+        let (mut saa, mut sab, mut sbb) = (0.0, 0.0, 0.0);
+        for &i in &idx[r] {
+            let o = &obs[i];
+            let q = traj.state(o.t + delta).ok()?;
+            let v = q.twist.fixed_rows::<3>(0);
+            let a = o.v.norm_squared() - o.cov.trace();
+            let b = v.norm_squared() - tr_sv[i];
+            saa += a * a;
+            sab += a * b;
+            sbb += b * b;
+        }
+        Some((saa, sab, sbb))
+    });
     let (mut saa, mut sab, mut sbb) = (0.0, 0.0, 0.0);
-    let mut n = 0usize;
-    for &i in idx {
-        let o = &obs[i];
-        let q = traj.state(o.t + delta).ok()?;
-        let v = q.twist.fixed_rows::<3>(0);
-        let a = o.v.norm_squared() - o.cov.trace();
-        let b = v.norm_squared() - tr_sv[i];
-        saa += a * a;
-        sab += a * b;
-        sbb += b * b;
-        n += 1;
+    for piece in pieces {
+        let (a, b, c) = piece?;
+        saa += a;
+        sab += b;
+        sbb += c;
     }
+    let n = idx.len();
     if n == 0 || saa <= 0.0 {
         return None;
     }
