@@ -879,3 +879,35 @@ fn a_printed_board_shows_its_scale_ids_and_origin_without_hiding_a_tag() {
         }
     }
 }
+
+/// The second pass's brightened half-resolution image made in one pass equals the 3x3
+/// brightest filter followed by the 2x2 brightest decimation, at even and odd sizes, on noise
+/// and on a rendered board.
+#[test]
+fn one_pass_brightest_decimation_equals_the_two_steps() {
+    use dvlcal::vision::kalibr::{max_decimate, max3, max3_decimate};
+    let mut rng = Rng::new(5);
+    for (w, h) in [
+        (1, 1),
+        (2, 2),
+        (3, 5),
+        (8, 8),
+        (17, 10),
+        (64, 33),
+        (752, 480),
+    ] {
+        let img =
+            image::GrayImage::from_fn(w, h, |_, _| image::Luma([(rng.uniform() * 256.0) as u8]));
+        assert_eq!(max3_decimate(&img), max_decimate(&max3(&img)), "{w}x{h}");
+    }
+    let board = kalibr_board();
+    let cam = camera();
+    let img = render(
+        &board,
+        &cam,
+        &facing(&board, 0.6, Vector3::new(0.2, -0.1, 0.1)),
+        &RenderSettings::default(),
+        &mut Rng::new(2),
+    );
+    assert_eq!(max3_decimate(&img), max_decimate(&max3(&img)));
+}

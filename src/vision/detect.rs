@@ -38,7 +38,7 @@ use crate::vision::camera::Camera;
 use crate::vision::family::{Destroy, FamilyCodes, TagFamily, family_codes};
 use crate::vision::kalibr::{
     KALIBR_BORDER_BITS, KALIBR_CELLS_ACROSS, coarse_fit, decode_quad, grow, has_light_code_cell,
-    max_decimate, max3, quads, saddle_point, widen_border,
+    max_decimate, max3_decimate, quads, saddle_point, widen_border,
 };
 use crate::vision::refine::refine_corners;
 use crate::{Error, Result};
@@ -326,7 +326,7 @@ impl Detector {
             let half = if level == 0 {
                 max_decimate(gray)
             } else {
-                max_decimate(&max3(gray))
+                max3_decimate(gray)
             };
             // SAFETY: the detector is ours and used by this thread only.
             let found = unsafe { quads(self.td, &half) };
