@@ -121,9 +121,11 @@ impl Frames {
             .num_threads(threads)
             .build()
             .expect("thread pool");
+        // As `dvlcal detect` sets them (`pipeline::vision::detector_settings`).
         let settings = DetectorSettings {
             decimate: DECIMATE,
             threads: 1,
+            board_ids: Some(self.board.tags.iter().map(|t| t.id).collect()),
             ..DetectorSettings::default()
         };
         let opts = PnpOptions::default();
