@@ -118,6 +118,28 @@ fn interpolate(img: &GrayImage, x: f64, y: f64, x0: usize, y0: usize) -> f64 {
         + a * b * bottom[1] as f64
 }
 
+/// [`interpolate`] at `(x, y)` without the checks: one truncating conversion per coordinate
+/// and no bounds checks (a third of a profile's instructions). The same arithmetic in the same
+/// order, so the same value to the last bit.
+///
+/// # Safety
+/// `buf` holds the pixels of an image `width` pixels wide, and `(x, y)` is a point [`cell_of`]
+/// accepts for that image: `0 <= x < width - 1` and `0 <= y < height - 1`.
+#[inline(always)]
+unsafe fn interpolate_unchecked(buf: &[u8], width: usize, x: f64, y: f64) -> f64 {
+    // SAFETY: x and y are finite and in [0, 2^32) (the caller's contract), so the conversions
+    // are defined and truncate, which is the floor of these non-negative values.
+    let (x0, y0) = unsafe { (x.to_int_unchecked::<i64>(), y.to_int_unchecked::<i64>()) };
+    let (a, b) = (x - x0 as f64, y - y0 as f64);
+    let k = y0 as usize * width + x0 as usize;
+    // SAFETY: x0 + 1 < width and y0 + 1 < height, so the 2x2 block at k is in the buffer.
+    let px = |i: usize| unsafe { *buf.get_unchecked(i) } as f64;
+    (1.0 - a) * (1.0 - b) * px(k)
+        + a * (1.0 - b) * px(k + 1)
+        + (1.0 - a) * b * px(k + width)
+        + a * b * px(k + width + 1)
+}
+
 /// A line through `p` with unit normal `n`.
 #[derive(Clone, Copy, Debug)]
 struct Line {
@@ -250,9 +272,12 @@ pub fn refine_corners(
                     continue;
                 }
                 let start = profiles.len();
+                let (buf, width) = (img.as_raw().as_slice(), img.width() as usize);
                 profiles.extend((0..=steps).map(|i| {
                     let (x, y) = point(i);
-                    interpolate(img, x, y, x as usize, y as usize)
+                    // SAFETY: (x, y) lies between the profile's two ends, which `cell_of` put
+                    // in [0, width - 1) x [0, height - 1) (see above).
+                    unsafe { interpolate_unchecked(buf, width, x, y) }
                 }));
                 polarity += profiles[start + steps] - profiles[start];
                 found.push((ql, nrm, jinv));
