@@ -16,6 +16,7 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 use detect_compare::{DECIMATE, Frames, Print, Row, best_of, have_cli};
+use dvlcal::vision::board::Board;
 use dvlcal::vision::detect::{Detector, DetectorSettings, load_gray};
 
 fn main() {
@@ -62,7 +63,7 @@ fn main() {
             row(
                 "dvlcal detection alone (decoded images)",
                 t,
-                detection_alone(&gray, t),
+                detection_alone(&gray, &frames.board, t),
             );
             if !cli {
                 continue;
@@ -118,7 +119,7 @@ fn main() {
 
 /// Best of three wall times of detection alone (no decoding, no PnP) on decoded images, one
 /// detector per worker.
-fn detection_alone(images: &[image::GrayImage], threads: usize) -> f64 {
+fn detection_alone(images: &[image::GrayImage], board: &Board, threads: usize) -> f64 {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
@@ -126,6 +127,7 @@ fn detection_alone(images: &[image::GrayImage], threads: usize) -> f64 {
     let settings = DetectorSettings {
         decimate: DECIMATE,
         threads: 1,
+        board_ids: Some(board.tags.iter().map(|t| t.id).collect()),
         ..DetectorSettings::default()
     };
     best_of(3, || {
