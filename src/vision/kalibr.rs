@@ -26,7 +26,8 @@
 //!    homography against a threshold halfway between a plane fitted to the black border and a
 //!    plane fitted to the white just outside it. A quad is a tag when the border is black, the
 //!    outside white, the contrast clear and the code within the allowed number of corrected bits
-//!    of a tag36h11 code (in one of its four rotations).
+//!    of a tag36h11 code (in one of its four rotations). When the board is known
+//!    (`DetectorSettings::board_ids`), the pass stops as soon as every one of its ids is found.
 //!
 //! The corners of every Kalibr tag end on the saddle points of the X-junctions between the tag
 //! and its corner squares, which the ink spread of a printer does not move. Tags found twice (by
