@@ -363,6 +363,50 @@ fn corners_fit_a_flat_board_no_worse_than_the_reference() {
 }
 
 #[test]
+fn a_known_board_gives_the_same_tags_as_an_unknown_one() {
+    // With the board's ids the second pass stops once every one is found: the tags and their
+    // corners are the same to the last bit, on the photos (each with its grid's ids) and on
+    // renders, where pass 1 finds most tags and the second pass the rest.
+    let known = |ids: Vec<u32>| {
+        Detector::new(&DetectorSettings {
+            board_ids: Some(ids),
+            ..DetectorSettings::default()
+        })
+        .unwrap()
+    };
+    let mut unknown = Detector::new(&DetectorSettings::default()).unwrap();
+    for name in PHOTOS {
+        let img = load_gray(&fixtures().join(name)).unwrap();
+        let all = unknown.detect(&img);
+        let got = known((0..layout(name).1).collect()).detect(&img);
+        assert_eq!(got, all, "{name}");
+        // A board of which the photo shows only part: the pass runs to the end.
+        let got = known((0..layout(name).1 + 5).collect()).detect(&img);
+        assert_eq!(got, all, "{name}, board larger than the photo's");
+    }
+    let cam = camera();
+    let board = kalibr_board();
+    let ids: Vec<u32> = board.tags.iter().map(|t| t.id).collect();
+    let mut det = known(ids);
+    for (i, tilt) in [Vector3::zeros(), Vector3::new(0.5, -0.3, 0.4)]
+        .iter()
+        .enumerate()
+    {
+        let t = facing(&board, 1.1, *tilt);
+        let img = render(
+            &board,
+            &cam,
+            &t,
+            &RenderSettings::default(),
+            &mut Rng::new(40 + i as u64),
+        );
+        let all = unknown.detect_with_camera(&img, Some(&cam));
+        assert_eq!(all.len(), 36, "view {i}");
+        assert_eq!(det.detect_with_camera(&img, Some(&cam)), all, "view {i}");
+    }
+}
+
+#[test]
 fn no_tags_invented_without_a_board() {
     // The photos mirrored (about 300 Kalibr tags read backwards, corner squares and all), and the
     // left of right.png (a checkerboard, posters, a whiteboard, no aprilgrid).
@@ -878,4 +922,36 @@ fn a_printed_board_shows_its_scale_ids_and_origin_without_hiding_a_tag() {
             assert!((label_y - row_y).abs() < 0.25 * edge_px, "{name}: {line}");
         }
     }
+}
+
+/// The second pass's brightened half-resolution image made in one pass equals the 3x3
+/// brightest filter followed by the 2x2 brightest decimation, at even and odd sizes, on noise
+/// and on a rendered board.
+#[test]
+fn one_pass_brightest_decimation_equals_the_two_steps() {
+    use dvlcal::vision::kalibr::{max_decimate, max3, max3_decimate};
+    let mut rng = Rng::new(5);
+    for (w, h) in [
+        (1, 1),
+        (2, 2),
+        (3, 5),
+        (8, 8),
+        (17, 10),
+        (64, 33),
+        (752, 480),
+    ] {
+        let img =
+            image::GrayImage::from_fn(w, h, |_, _| image::Luma([(rng.uniform() * 256.0) as u8]));
+        assert_eq!(max3_decimate(&img), max_decimate(&max3(&img)), "{w}x{h}");
+    }
+    let board = kalibr_board();
+    let cam = camera();
+    let img = render(
+        &board,
+        &cam,
+        &facing(&board, 0.6, Vector3::new(0.2, -0.1, 0.1)),
+        &RenderSettings::default(),
+        &mut Rng::new(2),
+    );
+    assert_eq!(max3_decimate(&img), max_decimate(&max3(&img)));
 }

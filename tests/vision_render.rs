@@ -215,21 +215,19 @@ fn other_families_and_listed_tags() {
     assert!(mean < 0.08, "{mean}");
 }
 
+/// The same seed gives the same image, another seed another noise; a board behind the camera
+/// leaves the background alone. (The renderer's speed is a benchmark's business:
+/// docs/performance.md, "Renderer".)
 #[test]
-fn deterministic_and_fast() {
+fn same_seed_same_image_and_nothing_drawn_behind_the_camera() {
     let board = Board::grid(TagFamily::Tag36h11, 6, 6, 0.035, 0.3, 0);
     let cam = camera(radtan());
     let t = facing(&board, 0.5, Vector3::new(0.1, 0.1, 0.0));
     let s = RenderSettings::default();
-    let t0 = std::time::Instant::now();
     let a = render(&board, &cam, &t, &s, &mut Rng::new(9));
-    let dt = t0.elapsed().as_secs_f64();
-    eprintln!("752x480 render, supersample {}: {dt:.3} s", s.supersample);
     let b = render(&board, &cam, &t, &s, &mut Rng::new(9));
     assert_eq!(a, b);
     assert_ne!(a, render(&board, &cam, &t, &s, &mut Rng::new(10)));
-    // Edge pixels only are supersampled: measured 0.03 s against 0.45 s for every pixel.
-    assert!(dt < 0.5, "{dt} s");
     // Background, paper and print levels.
     let far = Se3::new(Matrix3::identity(), Vector3::new(0.0, 0.0, -1.0)); // behind the camera
     let img = render(

@@ -150,12 +150,14 @@ pub fn poses_from_images_with_chain(
 }
 
 /// The detector settings of the image pipeline for `board`: one thread per detector (the frames
-/// run in parallel), the decimation of `opts`.
+/// run in parallel), the decimation of `opts`, the board's ids (the Kalibr second pass stops
+/// once they are all found).
 pub(crate) fn detector_settings(board: &Board, opts: &VisionOptions) -> DetectorSettings {
     DetectorSettings {
         family: board.family,
         decimate: opts.decimate,
         threads: 1,
+        board_ids: Some(board.tags.iter().map(|t| t.id).collect()),
         ..DetectorSettings::default()
     }
 }

@@ -38,7 +38,7 @@ use crate::vision::camera::Camera;
 use crate::vision::family::{Destroy, FamilyCodes, TagFamily, family_codes};
 use crate::vision::kalibr::{
     KALIBR_BORDER_BITS, KALIBR_CELLS_ACROSS, coarse_fit, decode_quad, grow, has_light_code_cell,
-    max_decimate, max3, quads, saddle_point, widen_border,
+    max_decimate, max3_decimate, quads, saddle_point, widen_border,
 };
 use crate::vision::refine::refine_corners;
 use crate::{Error, Result};
@@ -75,6 +75,11 @@ pub struct DetectorSettings {
     /// black squares at the tag corners; see `vision::kalibr`). On by default; ignored for the
     /// other families.
     pub kalibr_layout: bool,
+    /// The ids of the board in view, when it is known (`None`: any tags). The Kalibr second
+    /// pass then stops as soon as every one of them has been found: what it could still add is
+    /// a tag that is not on the board or a second tag with a board id, neither of which a
+    /// board pose uses.
+    pub board_ids: Option<Vec<u32>>,
 }
 
 impl Default for DetectorSettings {
@@ -89,6 +94,7 @@ impl Default for DetectorSettings {
             threads: 1,
             max_hamming: 1,
             kalibr_layout: true,
+            board_ids: None,
         }
     }
 }
@@ -160,6 +166,9 @@ pub struct Detector {
     cells_across: f64,
     /// The Kalibr-layout part (tag36h11 with a two-bit border), when enabled.
     kalibr: Option<KalibrPart>,
+    /// The board's ids, sorted and without repeats (`DetectorSettings::board_ids`); `None` when
+    /// the board is not known or has no tags.
+    board_ids: Option<Vec<u32>>,
 }
 
 /// What the detector needs to read Kalibr-printed tags: the widened copy of tag36h11 given to
@@ -206,6 +215,12 @@ impl Detector {
             settings: s.clone(),
             cells_across,
             kalibr: None,
+            board_ids: s.board_ids.as_ref().filter(|v| !v.is_empty()).map(|v| {
+                let mut v = v.clone();
+                v.sort_unstable();
+                v.dedup();
+                v
+            }),
         };
         // SAFETY: td and tf are valid; the family outlives the detector (Drop destroys the detector
         // first). The settings fields are plain values.
@@ -323,10 +338,17 @@ impl Detector {
         };
         let mut out: Vec<TagDetection> = Vec::new();
         for (level, growth) in SECOND_PASS_LEVELS.iter().enumerate() {
+            if self
+                .board_ids
+                .as_deref()
+                .is_some_and(|ids| every_id_found(ids, known.iter().chain(&out)))
+            {
+                break;
+            }
             let half = if level == 0 {
                 max_decimate(gray)
             } else {
-                max_decimate(&max3(gray))
+                max3_decimate(gray)
             };
             // SAFETY: the detector is ours and used by this thread only.
             let found = unsafe { quads(self.td, &half) };
@@ -473,6 +495,13 @@ fn kalibr_saddles(gray: &image::GrayImage, c: &mut [Vector2<f64>; 4]) {
             }
         }
     }
+}
+
+/// Whether every id of `ids` (sorted) is among the detections.
+fn every_id_found<'a>(ids: &[u32], found: impl Iterator<Item = &'a TagDetection>) -> bool {
+    let mut seen: Vec<u32> = found.map(|d| d.id).collect();
+    seen.sort_unstable();
+    ids.iter().all(|id| seen.binary_search(id).is_ok())
 }
 
 /// By id, then by the first corner, so that results do not depend on thread counts.

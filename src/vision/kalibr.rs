@@ -26,7 +26,8 @@
 //!    homography against a threshold halfway between a plane fitted to the black border and a
 //!    plane fitted to the white just outside it. A quad is a tag when the border is black, the
 //!    outside white, the contrast clear and the code within the allowed number of corrected bits
-//!    of a tag36h11 code (in one of its four rotations).
+//!    of a tag36h11 code (in one of its four rotations). When the board is known
+//!    (`DetectorSettings::board_ids`), the pass stops as soon as every one of its ids is found.
 //!
 //! The corners of every Kalibr tag end on the saddle points of the X-junctions between the tag
 //! and its corner squares, which the ink spread of a printer does not move. Tags found twice (by
@@ -108,11 +109,12 @@ pub fn max_decimate(img: &GrayImage) -> GrayImage {
     let src = img.as_raw();
     let stride = w as usize;
     let mut out = vec![0u8; hw as usize * hh as usize];
-    for (y, row) in out.chunks_mut(hw.max(1) as usize).enumerate() {
-        let a = &src[2 * y * stride..2 * y * stride + stride];
-        let b = &src[(2 * y + 1) * stride..(2 * y + 1) * stride + stride];
-        for (x, o) in row.iter_mut().enumerate() {
-            *o = a[2 * x].max(a[2 * x + 1]).max(b[2 * x]).max(b[2 * x + 1]);
+    for (y, row) in out.chunks_exact_mut(hw.max(1) as usize).enumerate() {
+        let a = &src[2 * y * stride..2 * y * stride + 2 * row.len()];
+        let b = &src[(2 * y + 1) * stride..(2 * y + 1) * stride + 2 * row.len()];
+        // Pairs of rows, then pairs of columns: loops the compiler turns into vector code.
+        for ((o, a), b) in row.iter_mut().zip(a.chunks_exact(2)).zip(b.chunks_exact(2)) {
+            *o = a[0].max(a[1]).max(b[0].max(b[1]));
         }
     }
     GrayImage::from_raw(hw, hh, out).unwrap_or_default()
@@ -142,6 +144,42 @@ pub fn max3(img: &GrayImage) -> GrayImage {
         }
     }
     GrayImage::from_raw(w as u32, h as u32, out).unwrap_or_default()
+}
+
+/// `max_decimate(&max3(img))` in one pass, without the full-resolution intermediate image:
+/// pixel (x, y) of the half-resolution result is the brightest of the full-resolution pixels in
+/// columns 2x-1..=2x+2 and rows 2y-1..=2y+2 (within the image), which is the union of the 3x3
+/// neighbourhoods of the 2x2 block that `max_decimate` reads.
+pub fn max3_decimate(img: &GrayImage) -> GrayImage {
+    let (w, h) = (img.width() as usize, img.height() as usize);
+    let (hw, hh) = (w / 2, h / 2);
+    if hw == 0 || hh == 0 {
+        return GrayImage::new(hw as u32, hh as u32);
+    }
+    let src = img.as_raw();
+    let row = |r: usize| &src[r * w..(r + 1) * w];
+    let mut out = vec![0u8; hw * hh];
+    // Brightest of the four (or, at the top and bottom, three) rows, column by column.
+    let mut vmax = vec![0u8; w];
+    for (y, o) in out.chunks_exact_mut(hw).enumerate() {
+        let (r1, r2) = (2 * y, 2 * y + 1);
+        let r0 = r1.saturating_sub(1);
+        let r3 = (r2 + 1).min(h - 1);
+        for (((v, a), b), (c, d)) in vmax
+            .iter_mut()
+            .zip(row(r0))
+            .zip(row(r1))
+            .zip(row(r2).iter().zip(row(r3)))
+        {
+            *v = (*a).max(*b).max((*c).max(*d));
+        }
+        for (x, px) in o.iter_mut().enumerate() {
+            let left = vmax[(2 * x).saturating_sub(1)];
+            let right = vmax[(2 * x + 2).min(w - 1)];
+            *px = vmax[2 * x].max(vmax[2 * x + 1]).max(left.max(right));
+        }
+    }
+    GrayImage::from_raw(hw as u32, hh as u32, out).unwrap_or_default()
 }
 
 /// libapriltag 3.3's `struct quad` (corners in its pixel convention; the homographies are

@@ -63,6 +63,7 @@ pub fn run(a: TagsArgs) -> Result<()> {
         threads: a.threads,
         max_hamming: a.max_hamming,
         kalibr_layout: true,
+        board_ids: None,
     };
     let mut det = Detector::new(&settings)?;
     let stdout = std::io::stdout();
