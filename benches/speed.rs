@@ -8,6 +8,9 @@
 //! simulated sinusoid motion, camera poses at 10 Hz and A50 reports at 8 Hz, 1080 s and 10800 s
 //! (10.8k and 108k poses, 8.6k and 86k reports), default truth.
 
+#[path = "common/detect_compare.rs"]
+mod detect_compare;
+
 use std::time::Instant;
 
 use dvlcal::calib::{CalibOptions, CalibrationOutcome, calibrate};
@@ -56,10 +59,46 @@ fn calibration_part() {
     );
 }
 
+/// `dvlcal detect` (PNG decode, detection, corner refinement, stereo PnP) against the CLI run as
+/// one single-threaded process per core (its fastest use of the cores), on one core and on all.
+fn detection_part(frames: usize) {
+    use detect_compare::{Print, compare, have_cli};
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    println!("## Detection ({frames} rendered 752x480 stereo frames per board print)\n");
+    if !have_cli() {
+        println!("(the apriltag CLI is not installed: no ratio)\n");
+    }
+    println!("| board print | threads | dvlcal detect, images/s | CLI, images/s | dvlcal / CLI |");
+    println!("|---|---|---|---|---|");
+    let threads: Vec<usize> = if cores > 1 { vec![1, cores] } else { vec![1] };
+    for print in [Print::Apriltag, Print::Kalibr] {
+        for row in compare(print, frames, &threads, 3) {
+            println!(
+                "| {} | {} | {:.1} | {} | {} |",
+                print.label(),
+                row.threads,
+                row.dvlcal,
+                row.cli.map_or("-".into(), |c| format!("{c:.1}")),
+                row.ratio().map_or("-".into(), |r| format!("**{r:.2}**"))
+            );
+        }
+    }
+    println!();
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let only = |flag: &str| args.iter().any(|a| a == flag);
+    let frames = args
+        .iter()
+        .position(|a| a == "--frames")
+        .and_then(|i| args.get(i + 1))
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(30);
     if !only("--detection-only") {
         calibration_part();
+    }
+    if !only("--calibration-only") {
+        detection_part(frames);
     }
 }
