@@ -479,6 +479,23 @@ fn joint_system(
     })
 }
 
+/// The calibration's reduced normal equations of a factorised joint system: the Schur complement
+/// `S = H_tt - H_tx H_xx^-1 H_xt` (symmetrised, fixed parameters pinned) and the reduced
+/// gradient `b = g_t - H_tx H_xx^-1 g_x` (zero for fixed parameters).
+fn reduced(js: &JointSystem, free: &[bool; NPARAM]) -> (ParamMat, ParamVec) {
+    let (reduction, cross_g) = js.factor.quadratic_forms(&js.cross);
+    let schur = js.theta - reduction;
+    let mut schur = (schur + schur.transpose()) * 0.5;
+    pin_fixed(&mut schur, free);
+    let mut b = js.gradient - cross_g;
+    for c in 0..NPARAM {
+        if !free[c] {
+            b[c] = 0.0;
+        }
+    }
+    (schur, b)
+}
+
 /// Marginal covariance of the calibration parameters in the joint problem (trajectory and
 /// calibration), at the current estimate: the inverse of the Schur complement
 /// `H_tt - H_tx H_xx^-1 H_xt`. Also returns the total cost.
@@ -489,11 +506,8 @@ pub fn joint_covariance(
     free: &[bool; NPARAM],
 ) -> Result<(ParamMat, f64)> {
     let js = joint_system(jp, traj, p, free)?;
-    let (reduction, _) = js.factor.quadratic_forms(&js.cross);
-    let schur = js.theta - reduction;
+    let (schur, _) = reduced(&js, free);
     jp.keep_storage(js.factor.into_system());
-    let mut schur = (schur + schur.transpose()) * 0.5;
-    pin_fixed(&mut schur, free);
     let mut cov = schur
         .try_inverse()
         .unwrap_or_else(|| ParamMat::from_diagonal_element(f64::INFINITY));
@@ -517,17 +531,8 @@ pub fn joint_linear_estimate(
     free: &[bool; NPARAM],
 ) -> Result<(CalibrationParams, ParamMat)> {
     let js = joint_system(jp, traj, p, free)?;
-    let (reduction, cross_g) = js.factor.quadratic_forms(&js.cross);
+    let (schur, b) = reduced(&js, free);
     jp.keep_storage(js.factor.into_system());
-    let schur = js.theta - reduction;
-    let mut schur = (schur + schur.transpose()) * 0.5;
-    pin_fixed(&mut schur, free);
-    let mut b = js.gradient - cross_g;
-    for c in 0..NPARAM {
-        if !free[c] {
-            b[c] = 0.0;
-        }
-    }
     let Some(chol) = schur.cholesky() else {
         return Ok((*p, ParamMat::from_diagonal_element(f64::INFINITY)));
     };
@@ -562,16 +567,7 @@ pub fn joint_step(
     let js = joint_system(jp, traj, p, free)?;
     // Calibration step from the Schur complement, then the trajectory's step for it:
     // `H_xx dx = g_x - H_x theta dtheta`.
-    let (reduction, cross_g) = js.factor.quadratic_forms(&js.cross);
-    let schur = js.theta - reduction;
-    let mut schur = (schur + schur.transpose()) * 0.5;
-    pin_fixed(&mut schur, free);
-    let mut b = js.gradient - cross_g;
-    for c in 0..NPARAM {
-        if !free[c] {
-            b[c] = 0.0;
-        }
-    }
+    let (schur, b) = reduced(&js, free);
     let Some(dtheta) = schur.cholesky().map(|c| c.solve(&b)) else {
         jp.keep_storage(js.factor.into_system());
         return Ok(None);
@@ -626,10 +622,7 @@ pub fn joint_log_evidence(
     jp.qc_inv /= qc_factor;
     let (fitted, _) = state_update(&jp, traj, p, 20)?;
     let js = joint_system(&jp, &fitted, p, free)?;
-    let (reduction, _) = js.factor.quadratic_forms(&js.cross);
-    let schur = js.theta - reduction;
-    let mut schur = (schur + schur.transpose()) * 0.5;
-    pin_fixed(&mut schur, free);
+    let (schur, _) = reduced(&js, free);
     let log_det_theta = schur.cholesky().map_or(f64::INFINITY, |c| {
         2.0 * c.l().diagonal().iter().map(|d| d.ln()).sum::<f64>()
     });
