@@ -381,9 +381,10 @@ fn fit_is_the_map_and_knot_covariance_is_the_marginal() {
     let worst_step = (0..step.len())
         .map(|i| (step[i] / cov[(i, i)].sqrt()).abs())
         .fold(0.0, f64::max);
-    // Gauss-Newton stops once a step changes the cost by less than a part in 1e9; what is
-    // left is far below the posterior spread.
-    assert!(worst_step < 1e-3, "MAP step / posterior std {worst_step}");
+    // Gauss-Newton stops once the next step would move no linear function of the knots by
+    // more than 0.01 of its standard deviation (its decrement below 1e-4): what is left is
+    // below that spread.
+    assert!(worst_step < 1e-2, "MAP step / posterior std {worst_step}");
     for (k, &t) in traj.times().iter().enumerate() {
         let c = traj.query(t).expect("query").twist_cov.expect("covariance");
         let r = cov.view((18 * k + 6, 18 * k + 6), (6, 6));
