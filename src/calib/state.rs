@@ -496,6 +496,16 @@ fn reduced(js: &JointSystem, free: &[bool; NPARAM]) -> (ParamMat, ParamVec) {
     (schur, b)
 }
 
+/// `cov` with the variances of the fixed parameters set to zero (they were pinned, not estimated).
+fn held_at_zero(mut cov: ParamMat, free: &[bool; NPARAM]) -> ParamMat {
+    for k in 0..NPARAM {
+        if !free[k] {
+            cov[(k, k)] = 0.0;
+        }
+    }
+    cov
+}
+
 /// Marginal covariance of the calibration parameters in the joint problem (trajectory and
 /// calibration), at the current estimate: the inverse of the Schur complement
 /// `H_tt - H_tx H_xx^-1 H_xt`. Also returns the total cost.
@@ -508,15 +518,10 @@ pub fn joint_covariance(
     let js = joint_system(jp, traj, p, free)?;
     let (schur, _) = reduced(&js, free);
     jp.keep_storage(js.factor.into_system());
-    let mut cov = schur
+    let cov = schur
         .try_inverse()
         .unwrap_or_else(|| ParamMat::from_diagonal_element(f64::INFINITY));
-    for k in 0..NPARAM {
-        if !free[k] {
-            cov[(k, k)] = 0.0;
-        }
-    }
-    Ok((cov, js.cost))
+    Ok((held_at_zero(cov, free), js.cost))
 }
 
 /// The linearised estimate of the calibration at `p` and its marginal covariance, from one
@@ -536,13 +541,10 @@ pub fn joint_linear_estimate(
     let Some(chol) = schur.cholesky() else {
         return Ok((*p, ParamMat::from_diagonal_element(f64::INFINITY)));
     };
-    let mut cov = chol.inverse();
-    for k in 0..NPARAM {
-        if !free[k] {
-            cov[(k, k)] = 0.0;
-        }
-    }
-    Ok((p.updated(&chol.solve(&b)), cov))
+    Ok((
+        p.updated(&chol.solve(&b)),
+        held_at_zero(chol.inverse(), free),
+    ))
 }
 
 /// Outcome of a joint step.
