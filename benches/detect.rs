@@ -15,9 +15,9 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 
-use detect_compare::{DECIMATE, Frames, Print, Row, best_of, have_cli};
+use detect_compare::{DECIMATE, Frames, Print, Row, best_of, have_cli, pipeline_settings};
 use dvlcal::vision::board::Board;
-use dvlcal::vision::detect::{Detector, DetectorSettings, load_gray};
+use dvlcal::vision::detect::{Detector, load_gray};
 
 fn main() {
     let n: usize = std::env::args()
@@ -124,12 +124,7 @@ fn detection_alone(images: &[image::GrayImage], board: &Board, threads: usize) -
         .num_threads(threads)
         .build()
         .expect("thread pool");
-    let settings = DetectorSettings {
-        decimate: DECIMATE,
-        threads: 1,
-        board_ids: Some(board.tags.iter().map(|t| t.id).collect()),
-        ..DetectorSettings::default()
-    };
+    let settings = pipeline_settings(board);
     best_of(3, || {
         let s = Instant::now();
         let total: usize = pool.install(|| {

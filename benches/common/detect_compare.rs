@@ -30,6 +30,17 @@ use dvlcal::vision::pnp::PnpOptions;
 /// Quad decimation of both detectors (the default of both).
 pub const DECIMATE: f32 = 2.0;
 
+/// The detector settings `dvlcal detect` uses for `board` at [`DECIMATE`].
+pub fn pipeline_settings(board: &Board) -> DetectorSettings {
+    dvlcal::pipeline::detector_settings(
+        board,
+        &dvlcal::pipeline::VisionOptions {
+            decimate: DECIMATE,
+            ..Default::default()
+        },
+    )
+}
+
 /// How the board's tags are printed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Print {
@@ -121,13 +132,7 @@ impl Frames {
             .num_threads(threads)
             .build()
             .expect("thread pool");
-        // As `dvlcal detect` sets them (`pipeline::vision::detector_settings`).
-        let settings = DetectorSettings {
-            decimate: DECIMATE,
-            threads: 1,
-            board_ids: Some(self.board.tags.iter().map(|t| t.id).collect()),
-            ..DetectorSettings::default()
-        };
+        let settings = pipeline_settings(&self.board);
         let opts = PnpOptions::default();
         best_of(reps, || {
             let s = Instant::now();

@@ -48,8 +48,8 @@ pub use evaluate::{
 };
 pub use simulate::{ImageRequest, SimulateRequest, SimulatedRecording, write_simulated_dataset};
 pub use vision::{
-    MAX_REPROJECTION_RMS_PX, VisionOptions, VisionRun, frames_csv_path, posed_frames,
-    poses_from_images, poses_from_images_with_chain,
+    MAX_REPROJECTION_RMS_PX, VisionOptions, VisionRun, detector_settings, frames_csv_path,
+    posed_frames, poses_from_images, poses_from_images_with_chain,
 };
 
 pub use crate::parallel::worker_pool;

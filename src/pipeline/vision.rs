@@ -152,7 +152,7 @@ pub fn poses_from_images_with_chain(
 /// The detector settings of the image pipeline for `board`: one thread per detector (the frames
 /// run in parallel), the decimation of `opts`, the board's ids (the Kalibr second pass stops
 /// once they are all found).
-pub(crate) fn detector_settings(board: &Board, opts: &VisionOptions) -> DetectorSettings {
+pub fn detector_settings(board: &Board, opts: &VisionOptions) -> DetectorSettings {
     DetectorSettings {
         family: board.family,
         decimate: opts.decimate,
