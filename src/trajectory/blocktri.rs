@@ -178,9 +178,10 @@ pub struct BlockTridiagonal {
 /// threads.
 ///
 /// Storage: `chol[k]` holds the Cholesky factor `L_k` of the complement eliminated at `k`;
-/// `gain[k]` (the slot of `A[k, k+1]`) holds `G_k = S_k^-1 A[k, k+1]` for `k < m` and
-/// `G'_{k+1} = R_{k+1}^-1 A[k+1, k]` for `k >= m`; `w[k] = L_k^-1 z_k` is the eliminated
-/// right-hand side.
+/// `gain[k]` (the slot of `A[k, k+1]`) holds `Y_k^T` with `Y_k = L_k^-1 A[k, k+1]` for `k < m`,
+/// and `Y_{k+1}^T` with `Y_{k+1} = L_{k+1}^-1 A[k+1, k]` for `k >= m`; `w[k] = L_k^-1 z_k` is the
+/// eliminated right-hand side. The gains `G = L^-T Y` of the textbook recursion are applied as
+/// `L^-T (Y x)` and `Y^T (L^-1 z)`, which cost the same as `G x` and `G^T z`.
 pub struct Factored {
     chol: Vec<M18>,
     gain: Vec<M18>,
@@ -228,7 +229,9 @@ fn middle(n: usize) -> usize {
 /// One elimination step. `l` is the Cholesky factor of the block being eliminated and `y` holds
 /// the rows of its coupling block `C` to the next block in the sweep. With `Y = L^-1 C`:
 /// subtracts `Y^T Y` from `next` and `Y^T w` from `next_w` (`w = L^-1 z` of the block), and
-/// returns the column-major storage of the gain `G = L^-T Y`.
+/// returns the rows of `Y`, which are the columns of `Y^T`: the column-major storage of `Y^T`.
+/// (Solves and the banded inverse need `G = L^-T Y` only applied to vectors or once per
+/// knot, so it is not formed here: that would be a third of the step's work.)
 fn eliminate(l: &Cols, mut y: Cols, w: &[f64; N], next: &mut M18, next_w: &mut V18) -> Cols {
     // Rows of Y = L^-1 C by forward substitution on the rows of C, so that every inner loop
     // runs over a full row of 18.
@@ -268,20 +271,7 @@ fn eliminate(l: &Cols, mut y: Cols, w: &[f64; N], next: &mut M18, next_w: &mut V
         }
     }
     *next_w -= V18::from(ytw);
-    // Rows of G = L^-T Y by backward substitution (column j of L below the diagonal holds the
-    // multipliers of row j).
-    for j in (0..N).rev() {
-        let (head, done) = y.split_at_mut(j + 1);
-        let gj = &mut head[j];
-        for (gk, l_kj) in done.iter().zip(&l[j][j + 1..]) {
-            for (a, b) in gj.iter_mut().zip(gk) {
-                *a -= l_kj * b;
-            }
-        }
-        let d = l[j][j];
-        gj.iter_mut().for_each(|a| *a /= d);
-    }
-    transpose(&y)
+    y
 }
 
 /// Factorises a block in place and forward-substitutes its right-hand side; returns the
@@ -404,6 +394,13 @@ impl BlockTridiagonal {
     }
 }
 
+/// The gain `G = L^-T Y` of an eliminated block from its factor `L` and the stored `Y^T`.
+fn gain_from(l: &M18, yt: &M18) -> M18 {
+    let mut g = yt.transpose();
+    backward_columns(cols(l), &mut g);
+    g
+}
+
 /// `x <- L^-1 x` on every column of an 18 x C block.
 fn forward_columns<const C: usize>(l: &Cols, x: &mut SMatrix<f64, N, C>) {
     for c in 0..C {
@@ -439,29 +436,29 @@ impl Factored {
         let (mid_top, mid_bottom) = both(
             n >= PARALLEL_MIN,
             || {
-                // z_{k+1} = r_{k+1} - G_k^T z_k (since Y_k^T L_k^-1 = G_k^T), w_k = L_k^-1 z_k.
+                // w_k = L_k^-1 z_k, z_{k+1} = r_{k+1} - Y_k^T w_k.
                 let mut to_mid = SMatrix::<f64, N, C>::zeros();
                 for k in 0..m {
-                    let contribution = self.gain[k].tr_mul(&top[k]);
+                    forward_columns(cols(&self.chol[k]), &mut top[k]);
+                    let contribution = self.gain[k] * top[k];
                     if k + 1 < m {
                         top[k + 1] -= contribution;
                     } else {
                         to_mid = contribution;
                     }
-                    forward_columns(cols(&self.chol[k]), &mut top[k]);
                 }
                 to_mid
             },
             || {
                 let mut to_mid = SMatrix::<f64, N, C>::zeros();
                 for j in (0..bottom.len()).rev() {
-                    let contribution = self.gain[m + j].tr_mul(&bottom[j]);
+                    forward_columns(cols(&self.chol[m + 1 + j]), &mut bottom[j]);
+                    let contribution = self.gain[m + j] * bottom[j];
                     if j > 0 {
                         bottom[j - 1] -= contribution;
                     } else {
                         to_mid = contribution;
                     }
-                    forward_columns(cols(&self.chol[m + 1 + j]), &mut bottom[j]);
                 }
                 to_mid
             },
@@ -472,7 +469,8 @@ impl Factored {
         w
     }
 
-    /// `L^-T W` in place: the backward half of a solve, from the middle block outwards.
+    /// `L^-T W` in place: the backward half of a solve, from the middle block outwards
+    /// (`x_k = L_k^-T (w_k - Y_k x_{k+1})`).
     fn backward_many<const C: usize>(&self, x: &mut [SMatrix<f64, N, C>]) {
         let n = self.chol.len();
         let m = self.middle();
@@ -485,16 +483,16 @@ impl Factored {
             || {
                 let mut next = xm;
                 for k in (0..top.len()).rev() {
+                    top[k] -= self.gain[k].tr_mul(&next);
                     backward_columns(cols(&self.chol[k]), &mut top[k]);
-                    top[k] -= self.gain[k] * next;
                     next = top[k];
                 }
             },
             || {
                 let mut prev = xm;
                 for (j, xk) in bottom.iter_mut().enumerate() {
+                    *xk -= self.gain[m + j].tr_mul(&prev);
                     backward_columns(cols(&self.chol[m + 1 + j]), xk);
-                    *xk -= self.gain[m + j] * prev;
                     prev = *xk;
                 }
             },
@@ -578,9 +576,10 @@ impl Factored {
             || {
                 let mut next = sigma_m;
                 for k in (0..top.len()).rev() {
+                    let gain = gain_from(&top[k], &top_gain[k]);
                     let mut d = inverse_from_cholesky(&top[k]);
-                    let off = -mul(&top_gain[k], &next);
-                    add_symmetric_abt(&mut d, cols(&off), cols(&top_gain[k]), -1.0);
+                    let off = -mul(&gain, &next);
+                    add_symmetric_abt(&mut d, cols(&off), cols(&gain), -1.0);
                     top_gain[k] = off;
                     top[k] = d;
                     next = d;
@@ -589,10 +588,11 @@ impl Factored {
             || {
                 let mut prev = sigma_m;
                 for (j, dk) in bottom.iter_mut().enumerate() {
+                    let gain = gain_from(dk, &bottom_gain[j]);
                     let mut d = inverse_from_cholesky(dk);
                     // Sigma_{k,k-1} = -G'_k Sigma_{k-1}; the slot holds Sigma_{k-1,k}.
-                    let off = -mul(&bottom_gain[j], &prev);
-                    add_symmetric_abt(&mut d, cols(&off), cols(&bottom_gain[j]), -1.0);
+                    let off = -mul(&gain, &prev);
+                    add_symmetric_abt(&mut d, cols(&off), cols(&gain), -1.0);
                     bottom_gain[j] = off.transpose();
                     *dk = d;
                     prev = d;
