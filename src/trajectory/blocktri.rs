@@ -403,20 +403,16 @@ fn gain_from(l: &M18, yt: &M18) -> M18 {
 
 /// `x <- L^-1 x` on every column of an 18 x C block.
 fn forward_columns<const C: usize>(l: &Cols, x: &mut SMatrix<f64, N, C>) {
-    for c in 0..C {
-        let mut col: [f64; N] = x.column(c).into_owned().into();
-        forward_substitute(l, &mut col);
-        x.set_column(c, &V18::from(col));
+    for col in x.data.0.iter_mut() {
+        forward_substitute(l, col);
     }
 }
 
 /// `x <- L^-T x` on every column of an 18 x C block.
 fn backward_columns<const C: usize>(l: &Cols, x: &mut SMatrix<f64, N, C>) {
     let lt = transpose(l);
-    for c in 0..C {
-        let mut col: [f64; N] = x.column(c).into_owned().into();
-        backward_substitute(&lt, &mut col);
-        x.set_column(c, &V18::from(col));
+    for col in x.data.0.iter_mut() {
+        backward_substitute(&lt, col);
     }
 }
 
@@ -517,20 +513,64 @@ impl Factored {
     }
 
     /// `R^T A^-1 R` and `R^T A^-1 rhs` (with `rhs` the system's own right-hand side) for
-    /// `C` columns `R` (one 18 x C block per knot): Schur complements need only the forward half
-    /// of a solve, `R^T A^-1 R = (L^-1 R)^T (L^-1 R)`. Summed over the knots in order.
+    /// `C` columns `R` (one 18 x C block per knot, missing blocks are zero): Schur complements
+    /// need only the forward half of a solve, `R^T A^-1 R = (L^-1 R)^T (L^-1 R)`. Each sweep
+    /// carries one block from knot to knot and adds its knots' terms as it goes, so nothing of
+    /// the system's length is stored; the sums are the top sweep's, then the bottom sweep's,
+    /// then the middle block's, an order fixed by the system's length.
     pub fn quadratic_forms<const C: usize>(
         &self,
         r: &[SMatrix<f64, N, C>],
     ) -> (SMatrix<f64, C, C>, SMatrix<f64, C, 1>) {
-        let lr = self.forward_many(r);
-        let mut rr = SMatrix::<f64, C, C>::zeros();
-        let mut rw = SMatrix::<f64, C, 1>::zeros();
-        for (a, w) in lr.iter().zip(&self.w) {
-            rr += a.tr_mul(a);
-            rw += a.tr_mul(w);
-        }
-        (rr, rw)
+        type Sums<const C: usize> = (SMatrix<f64, C, C>, SMatrix<f64, C, 1>);
+        let n = self.chol.len();
+        let m = self.middle();
+        let block = |k: usize| r.get(k).copied().unwrap_or_else(SMatrix::zeros);
+        // Forward-substitutes the carried block `z` of knot `k` and adds its terms.
+        let add = |k: usize, mut z: SMatrix<f64, N, C>, sums: &mut Sums<C>| {
+            forward_columns(cols(&self.chol[k]), &mut z);
+            sums.0 += z.tr_mul(&z);
+            sums.1 += z.tr_mul(&self.w[k]);
+            z
+        };
+        let zero = || (SMatrix::<f64, C, C>::zeros(), SMatrix::<f64, C, 1>::zeros());
+        let (top, bottom) = both(
+            n >= PARALLEL_MIN,
+            || {
+                let mut sums = zero();
+                let mut to_mid = SMatrix::<f64, N, C>::zeros();
+                let mut z = block(0);
+                for k in 0..m {
+                    let w = add(k, z, &mut sums);
+                    let contribution = self.gain[k] * w;
+                    if k + 1 < m {
+                        z = block(k + 1) - contribution;
+                    } else {
+                        to_mid = contribution;
+                    }
+                }
+                (sums, to_mid)
+            },
+            || {
+                let mut sums = zero();
+                let mut to_mid = SMatrix::<f64, N, C>::zeros();
+                let mut z = block(n - 1);
+                for knot in (m + 1..n).rev() {
+                    let w = add(knot, z, &mut sums);
+                    let contribution = self.gain[knot - 1] * w;
+                    if knot - 1 > m {
+                        z = block(knot - 1) - contribution;
+                    } else {
+                        to_mid = contribution;
+                    }
+                }
+                (sums, to_mid)
+            },
+        );
+        let ((top_sums, top_mid), (bottom_sums, bottom_mid)) = (top, bottom);
+        let mut sums = (top_sums.0 + bottom_sums.0, top_sums.1 + bottom_sums.1);
+        add(m, block(m) - top_mid - bottom_mid, &mut sums);
+        sums
     }
 
     /// The storage of the factor, as a system to assemble into (its contents are meaningless).
