@@ -40,7 +40,10 @@ use offset::{DvlObs, OffsetMethod, OffsetOptions, OffsetResult, estimate_offset}
 use prior::Priors;
 use refine::{FreeParams, calibration_update};
 use robust::{Loss, RobustSummary};
-use state::{JointProblem, joint_covariance, joint_linear_estimate, joint_step, state_update};
+use state::{
+    AssembledJoint, JointProblem, assemble_joint, joint_covariance, joint_covariance_of,
+    joint_step, part_linear_estimate, state_update,
+};
 use whiteness::Whiteness;
 
 /// How the calibration starts.
@@ -820,39 +823,41 @@ pub fn calibrate(
         }
         jw
     };
-    let mut covariance = uncertainty(
-        &jp,
-        &traj,
-        &params,
-        (&mask, free),
-        normalized_cost,
-        &mut warnings,
-    )?;
-    clock.done("covariance");
-    // The drift check compares the thirds of the recording at the model's offset variance: the
-    // halves check below would inflate it for the very drift the check is looking for.
-    let model_offset_std = covariance[(7, 7)].max(0.0).sqrt();
+    // One assembly of the joint system at the result serves the covariance and both halves.
+    let assembled = assemble_joint(&jp, traj.knots(), &params)?;
+    clock.done("joint system");
     let halves = if opts.honest_covariance {
         let noise_factor = if normalized_cost > 1.5 {
             normalized_cost
         } else {
             1.0
         };
-        halves_check(
+        halves_estimates(
             &jp,
+            &assembled,
             poses,
             &traj,
             obs_used,
             &idx,
-            &params,
             free,
             noise_factor,
-            &mut covariance,
         )?
     } else {
         None
     };
     clock.done("halves check");
+    let mut covariance = uncertainty(
+        &jp,
+        assembled,
+        (&mask, free),
+        normalized_cost,
+        &mut warnings,
+    )?;
+    // The drift check compares the thirds of the recording at the model's offset variance: the
+    // halves check below would inflate it for the very drift the check is looking for.
+    let model_offset_std = covariance[(7, 7)].max(0.0).sqrt();
+    let halves = halves.map(|h| compare_halves(h, free, &mut covariance));
+    clock.done("covariance");
     if let Some(h) = &halves {
         warnings.extend(halves_notes(h));
     }
@@ -1479,13 +1484,12 @@ fn fixed_guess_advice(free: FreeParams) -> &'static str {
 /// likely cause).
 fn uncertainty(
     jp: &JointProblem,
-    traj: &Trajectory,
-    params: &CalibrationParams,
+    assembled: AssembledJoint,
     (mask, free): (&[bool; NPARAM], FreeParams),
     normalized_cost: f64,
     warnings: &mut Vec<String>,
 ) -> Result<ParamMat> {
-    let (mut covariance, _) = joint_covariance(jp, traj, params, mask)?;
+    let (mut covariance, _) = joint_covariance_of(jp, assembled, mask)?;
     if normalized_cost > 1.5 {
         warnings.push(if free.rotation {
             format!(
@@ -1685,33 +1689,39 @@ const HALF_MARGIN_S: f64 = 5.0;
 /// ... and at least this many knots more.
 const HALF_MARGIN_KNOTS: usize = 50;
 
-/// Each half of the samples `idx` (by DVL time) calibrated on its own and compared with the
-/// other; where they differ by more than three standard deviations the rows and columns of
-/// `covariance` are scaled so that the difference is one (the variance the difference itself
-/// estimates).
+/// The two halves' estimates of the halves check, before the comparison.
+struct HalfEstimates {
+    split_t: f64,
+    first: (CalibrationParams, ParamMat),
+    second: (CalibrationParams, ParamMat),
+}
+
+/// Each half of the samples `idx` (by DVL time) calibrated on its own, for [`compare_halves`].
 ///
 /// Each half's estimate is the calibration part of one Gauss-Newton step on its joint problem
 /// (the half's DVL reports and the poses of its span, with a margin) from the result, and its
 /// covariance that problem's marginal one at the result (both from one factorisation; times
 /// `noise_factor`, the inflation of the whole's for residuals above the stated noise): a half
 /// that does not excite a parameter (a calm first half) gives it a large variance and no false
-/// alarm.
+/// alarm. The halves' normal equations are taken from the whole's, `whole`, assembled at the
+/// result ([`part_linear_estimate`]): only the knots near the cut and at the ends of each
+/// half's span are assembled again.
 #[allow(clippy::too_many_arguments)]
-fn halves_check(
+fn halves_estimates(
     jp: &JointProblem,
+    whole: &AssembledJoint,
     poses: &[PoseMeasurement],
     traj: &Trajectory,
     obs: &[DvlObs],
     idx: &[usize],
-    params: &CalibrationParams,
     free: FreeParams,
     noise_factor: f64,
-    covariance: &mut ParamMat,
-) -> Result<Option<HalvesCheck>> {
+) -> Result<Option<HalfEstimates>> {
     let mask = free.mask();
     if !mask.iter().any(|&m| m) {
         return Ok(None);
     }
+    let params = whole.params();
     let mut by_time: Vec<usize> = idx.to_vec();
     by_time.sort_by(|&a, &b| obs[a].t.total_cmp(&obs[b].t));
     let n = by_time.len() / 2;
@@ -1719,7 +1729,7 @@ fn halves_check(
         return Ok(None);
     }
     let (first_idx, second_idx) = by_time.split_at(n);
-    let mut storage = jp.take_storage();
+    let mut storage = None;
     let times = traj.times();
     let mut half = |part: &[usize]| -> Result<(CalibrationParams, ParamMat)> {
         // The knots the half's samples fall between, and a margin on either side: further knots
@@ -1740,15 +1750,25 @@ fn halves_check(
         if let Some(st) = storage.take() {
             jh.keep_storage(st);
         }
-        let (p, cov) = joint_linear_estimate(&jh, &sub, params, &mask)?;
+        let (p, cov) = part_linear_estimate(jp, whole, &jh, sub.knots(), lo..hi, &mask)?;
         storage = jh.take_storage();
         Ok((p, cov * noise_factor))
     };
-    let (first, c1) = half(first_idx)?;
-    let (second, c2) = half(second_idx)?;
-    if let Some(st) = storage {
-        jp.keep_storage(st);
-    }
+    let first = half(first_idx)?;
+    let second = half(second_idx)?;
+    Ok(Some(HalfEstimates {
+        split_t: 0.5 * (obs[first_idx[n - 1]].t + obs[second_idx[0]].t),
+        first,
+        second,
+    }))
+}
+
+/// Compares the halves' estimates; where they differ by more than three standard deviations
+/// the rows and columns of `covariance` are scaled so that the difference is one (the variance
+/// the difference itself estimates).
+fn compare_halves(h: HalfEstimates, free: FreeParams, covariance: &mut ParamMat) -> HalvesCheck {
+    let mask = free.mask();
+    let ((first, c1), (second, c2)) = (h.first, h.second);
     let d = model::difference(&second, &first);
     let mut difference = [0.0; NPARAM];
     let mut difference_std = [f64::INFINITY; NPARAM];
@@ -1777,16 +1797,15 @@ fn halves_check(
             covariance[(k, j)] *= inflation[k] * inflation[j];
         }
     }
-    let split_t = 0.5 * (obs[first_idx[n - 1]].t + obs[second_idx[0]].t);
-    Ok(Some(HalvesCheck {
-        split_t,
+    HalvesCheck {
+        split_t: h.split_t,
         first,
         second,
         difference,
         difference_std,
         compared,
         inflation,
-    }))
+    }
 }
 
 /// A half whose variance of a parameter exceeds this many times what half the data would give

@@ -262,6 +262,68 @@ impl<'a> DvlFactors<'a> {
         cost
     }
 
+    /// The calibration's own blocks `H_theta theta` and right-hand side of the DVL factors at
+    /// `knots`, without the trajectory's: the same sums, in the same order, as
+    /// [`DvlFactors::assemble`] forms with parameters.
+    fn theta_terms(&self, knots: &[Knot]) -> (ParamMat, ParamVec) {
+        let p = &self.params;
+        let view = self.jp.view(knots);
+        let n = knots.len();
+        let pieces = crate::parallel::map_pieces(n, ASSEMBLY_CHUNK, |r| {
+            let (mut theta, mut gradient) = (ParamMat::zeros(), ParamVec::zeros());
+            for k in r.filter(|&k| k + 1 < n && !self.samples(k).is_empty()) {
+                let gamma2 = crate::trajectory::gp::local_gamma(&knots[k], &knots[k + 1]);
+                let (mut t, mut g) = (ParamMat::zeros(), ParamVec::zeros());
+                for &pos in self.samples(k) {
+                    let i = self.jp.idx[pos];
+                    let (o, w) = (&self.jp.obs[i], &self.jp.dvl_info[i]);
+                    let state = view.state_in(k, o.t + p.time_offset_s, &gamma2);
+                    let r = o.v - predict(p, &state.twist);
+                    let jt = d_predict_d_params(p, &state.twist, &state.rate);
+                    let wjt = w * jt;
+                    t += jt.transpose() * wjt;
+                    g += wjt.transpose() * r;
+                }
+                theta += t;
+                gradient += g;
+            }
+            (theta, gradient)
+        });
+        let (mut theta, mut gradient) = (ParamMat::zeros(), ParamVec::zeros());
+        for (t, g) in pieces {
+            theta += t;
+            gradient += g;
+        }
+        (theta, gradient)
+    }
+
+    /// Assembles the knots `range` of `sys` and `cross` alone (as [`DvlFactors::assemble`]
+    /// would form them), leaving every other block as it is.
+    fn assemble_range(
+        &self,
+        knots: &[Knot],
+        sys: &mut BlockTridiagonal,
+        cross: &mut [CrossBlock],
+        range: std::ops::Range<usize>,
+    ) {
+        let n = knots.len();
+        cross[range.clone()].fill(CrossBlock::zeros());
+        let upper_end = range.end.min(n - 1).max(range.start.min(n - 1));
+        let mut chunk = JointChunk {
+            sys: AssemblyChunk {
+                first: range.start,
+                diag: &mut sys.diag[range.clone()],
+                upper: &mut sys.upper[range.start.min(n - 1)..upper_end],
+                rhs: &mut sys.rhs[range.clone()],
+                cost: 0.0,
+            },
+            cross: &mut cross[range],
+            theta: ParamMat::zeros(),
+            gradient: ParamVec::zeros(),
+        };
+        self.assemble_chunk(self.jp.view(knots), &mut chunk, true);
+    }
+
     /// The joint normal equations at `knots`: the trajectory's system (poses, prior and DVL
     /// factors) into `sys` and, `with_params`, the calibration's blocks. Chunks of knots are
     /// assembled on all cores; for every knot the terms are added in a fixed order and the
@@ -443,18 +505,56 @@ struct JointSystem {
     cost: f64,
 }
 
+/// The joint system at `(traj, p)` as assembled, before the fixed parameters are decoupled
+/// and before the factorisation: what the covariance and the halves check share.
+pub struct AssembledJoint {
+    sys: BlockTridiagonal,
+    a: Assembled,
+    /// The calibration the system was linearised at.
+    params: CalibrationParams,
+}
+
+impl AssembledJoint {
+    /// The calibration the system was linearised at.
+    pub fn params(&self) -> CalibrationParams {
+        self.params
+    }
+}
+
+/// Assembles the joint system of `jp` at the knot states `knots` (one per knot time of `jp`)
+/// and the calibration `p`, in `jp`'s kept storage.
+pub fn assemble_joint(
+    jp: &JointProblem,
+    knots: &[Knot],
+    p: &CalibrationParams,
+) -> Result<AssembledJoint> {
+    let n = knots.len();
+    let mut sys = jp
+        .take_storage()
+        .map(|s| s.resized(n))
+        .unwrap_or_else(|| BlockTridiagonal::zeros(n));
+    let a = DvlFactors::new(jp, p)?.assemble(knots, &mut sys, true);
+    Ok(AssembledJoint { sys, a, params: *p })
+}
+
 fn joint_system(
     jp: &JointProblem,
     traj: &Trajectory,
     p: &CalibrationParams,
     free: &[bool; NPARAM],
 ) -> Result<JointSystem> {
-    let n = traj.knots().len();
-    let mut sys = jp
-        .take_storage()
-        .map(|s| s.resized(n))
-        .unwrap_or_else(|| BlockTridiagonal::zeros(n));
-    let mut a = DvlFactors::new(jp, p)?.assemble(traj.knots(), &mut sys, true);
+    finish(jp, assemble_joint(jp, traj.knots(), p)?, free)
+}
+
+/// An assembled joint system with the fixed parameters decoupled and the priors added,
+/// factorised.
+fn finish(jp: &JointProblem, aj: AssembledJoint, free: &[bool; NPARAM]) -> Result<JointSystem> {
+    let AssembledJoint {
+        sys,
+        mut a,
+        params: p,
+    } = aj;
+    let p = &p;
     for (c, _) in free.iter().enumerate().filter(|(_, f)| !**f) {
         a.cross.iter_mut().for_each(|m| m.column_mut(c).fill(0.0));
         a.gradient[c] = 0.0;
@@ -515,7 +615,16 @@ pub fn joint_covariance(
     p: &CalibrationParams,
     free: &[bool; NPARAM],
 ) -> Result<(ParamMat, f64)> {
-    let js = joint_system(jp, traj, p, free)?;
+    joint_covariance_of(jp, assemble_joint(jp, traj.knots(), p)?, free)
+}
+
+/// [`joint_covariance`] of a system already assembled by [`assemble_joint`].
+pub fn joint_covariance_of(
+    jp: &JointProblem,
+    aj: AssembledJoint,
+    free: &[bool; NPARAM],
+) -> Result<(ParamMat, f64)> {
+    let js = finish(jp, aj, free)?;
     let (schur, _) = reduced(&js, free);
     jp.keep_storage(js.factor.into_system());
     let cov = schur
@@ -525,17 +634,17 @@ pub fn joint_covariance(
 }
 
 /// The linearised estimate of the calibration at `p` and its marginal covariance, from one
-/// factorisation of the joint system: `p` moved by the calibration part of a Gauss-Newton step
-/// (`dtheta = S^-1 b` with `S` the Schur complement and `b` the reduced gradient), and `S^-1`.
-/// The trajectory's part of the step is not formed. For a problem whose solution lies near `p`
-/// (a part of the data, starting from the whole's estimate) this is its estimate to first order.
-pub fn joint_linear_estimate(
+/// factorisation of the joint system `js` (linearised at `p`): `p` moved by the calibration part
+/// of a Gauss-Newton step (`dtheta = S^-1 b` with `S` the Schur complement and `b` the reduced
+/// gradient), and `S^-1`. The trajectory's part of the step is not formed. For a problem whose
+/// solution lies near `p` (a part of the data, starting from the whole's estimate) this is its
+/// estimate to first order.
+fn linear_estimate_of(
     jp: &JointProblem,
-    traj: &Trajectory,
+    js: JointSystem,
     p: &CalibrationParams,
     free: &[bool; NPARAM],
 ) -> Result<(CalibrationParams, ParamMat)> {
-    let js = joint_system(jp, traj, p, free)?;
     let (schur, b) = reduced(&js, free);
     jp.keep_storage(js.factor.into_system());
     let Some(chol) = schur.cholesky() else {
@@ -545,6 +654,90 @@ pub fn joint_linear_estimate(
         p.updated(&chol.solve(&b)),
         held_at_zero(chol.inverse(), free),
     ))
+}
+
+/// The linearised estimate and covariance (see `linear_estimate_of`) of the problem `part` at
+/// the calibration the whole was assembled at (`part` holds a subset of the whole's samples, on the
+/// knots `range` of the whole's trajectory; `knots` are their states), taken from the whole's
+/// assembled system `whole` rather than assembled afresh. Knot by knot the part's normal
+/// equations are the whole's wherever no sample of the whole outside the part lies in the
+/// intervals next to the knot, and the knot is not at either end of the slice (where the whole
+/// has prior terms across the cut); those knots are copied, the others assembled anew, and the
+/// calibration's own blocks formed from the part's samples alone. The result is the one the
+/// part's own assembly gives.
+pub fn part_linear_estimate(
+    whole_jp: &JointProblem,
+    whole: &AssembledJoint,
+    part: &JointProblem,
+    knots: &[Knot],
+    range: std::ops::Range<usize>,
+    free: &[bool; NPARAM],
+) -> Result<(CalibrationParams, ParamMat)> {
+    let p = whole.params;
+    let n = range.len();
+    if n < 2 || range.end > whole.sys.len() || knots.len() != n || part.times.len() != n {
+        return Err(Error::Numerical(format!(
+            "part of {n} knots at {}..{} does not fit a system of {} knots",
+            range.start,
+            range.end,
+            whole.sys.len()
+        )));
+    }
+    let mut sys = part
+        .take_storage()
+        .map(|s| s.resized(n))
+        .unwrap_or_else(|| BlockTridiagonal::zeros(n));
+    sys.diag.copy_from_slice(&whole.sys.diag[range.clone()]);
+    sys.rhs.copy_from_slice(&whole.sys.rhs[range.clone()]);
+    sys.upper[..n - 1].copy_from_slice(&whole.sys.upper[range.start..range.end - 1]);
+    let mut cross = whole.a.cross[range.clone()].to_vec();
+    // Knots whose blocks differ: both ends, and the knots of every interval holding a sample of
+    // the whole that the part leaves out.
+    let mut redo = vec![false; n];
+    redo[0] = true;
+    redo[n - 1] = true;
+    let mut in_part = vec![false; whole_jp.obs.len()];
+    for &i in part.idx {
+        if let Some(f) = in_part.get_mut(i) {
+            *f = true;
+        }
+    }
+    let view = KnotView {
+        times: &part.times,
+        knots: &[],
+    };
+    for &i in whole_jp.idx.iter().filter(|&&i| !in_part[i]) {
+        // The interval the sample would take in the part (none outside its span).
+        if let Some(k) = view.interval(whole_jp.obs[i].t + p.time_offset_s) {
+            redo[k] = true;
+            redo[k + 1] = true;
+        }
+    }
+    let factors = DvlFactors::new(part, &p)?;
+    let mut k = 0;
+    while k < n {
+        if !redo[k] {
+            k += 1;
+            continue;
+        }
+        let start = k;
+        while k < n && redo[k] {
+            k += 1;
+        }
+        factors.assemble_range(knots, &mut sys, &mut cross, start..k);
+    }
+    let (theta, gradient) = factors.theta_terms(knots);
+    let aj = AssembledJoint {
+        sys,
+        a: Assembled {
+            cost: 0.0,
+            cross,
+            theta,
+            gradient,
+        },
+        params: p,
+    };
+    linear_estimate_of(part, finish(part, aj, free)?, &p, free)
 }
 
 /// Outcome of a joint step.

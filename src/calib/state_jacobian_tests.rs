@@ -568,3 +568,80 @@ fn assembled_normal_equations_match_numeric_jacobian() {
     // The cost alone is the same sum.
     assert_eq!(factors.cost(&knots), a.cost);
 }
+
+#[test]
+fn halves_from_the_whole_system_equal_their_own_assembly() {
+    // The halves check takes each half's normal equations from the whole's assembled system
+    // and assembles anew only the knots near the cut and at the ends of the half's span. Over
+    // three assembly chunks, with samples of both halves in the interval of the cut, some
+    // intervals empty, and spans that end inside the whole's trajectory, each half's linearised
+    // estimate and covariance must be those of its own assembly, for the full parameter set and
+    // for the offset held fixed.
+    let mut rng = Rng::new(0x9B05_688C_2B3E_6C1F);
+    let n = 3 * ASSEMBLY_CHUNK + 17;
+    let (times, knots) = test_knots(&mut rng, n);
+    let p = test_params(&mut rng);
+    let obs = test_samples(&mut rng, &times, &p, &[0.13, 0.64]);
+    // No samples in the first and last 60 intervals: the halves' spans end in knots that carry
+    // only poses and the prior, where the whole has prior terms across the ends.
+    let idx: Vec<usize> = (0..obs.len())
+        .filter(|i| i % 5 != 2 && (120..obs.len() - 120).contains(i))
+        .collect();
+    let meas: Vec<Se3> = knots
+        .iter()
+        .map(|k| k.pose * Se3::exp(&rng.vec6(0.05)))
+        .collect();
+    let pose_info: Vec<Matrix6<f64>> = (0..n).map(|_| rng.spd::<6>(2.5e5)).collect();
+    let qc_inv = Vector6::from_fn(|_, _| 2e-3 * (1.5 + rng.next()));
+    let whole_jp = joint_problem(&times, meas.clone(), pose_info.clone(), qc_inv, &obs, &idx);
+    let whole = assemble_joint(&whole_jp, &knots, &p).unwrap();
+    // The cut falls inside an interval: its first sample goes to the first half.
+    let cut = idx
+        .iter()
+        .position(|&i| obs[i].t + p.time_offset_s > times[n / 2])
+        .unwrap()
+        + 1;
+    let halves = [
+        (&idx[..cut], 55..n / 2 + 90),
+        (&idx[cut..], n / 2 - 75..n - 55),
+    ];
+    let mut checked = 0;
+    for (part, range) in halves {
+        let jh = joint_problem(
+            &times[range.clone()],
+            meas[range.clone()].to_vec(),
+            pose_info[range.clone()].to_vec(),
+            qc_inv,
+            &obs,
+            part,
+        );
+        let sub = &knots[range.clone()];
+        for free in [
+            [true; NPARAM],
+            [true, true, true, true, true, true, true, false],
+        ] {
+            let (pe, ce) =
+                part_linear_estimate(&whole_jp, &whole, &jh, sub, range.clone(), &free).unwrap();
+            let own = assemble_joint(&jh, sub, &p).unwrap();
+            let (po, co) =
+                linear_estimate_of(&jh, finish(&jh, own, &free).unwrap(), &p, &free).unwrap();
+            let d = crate::calib::model::difference(&pe, &po);
+            let scale = co.diagonal().map(|v| v.max(1e-300).sqrt());
+            for k in 0..NPARAM {
+                assert!(
+                    d[k].abs() <= 1e-9 * scale[k],
+                    "{range:?} parameter {k}: {:e} against a std of {:e}",
+                    d[k],
+                    scale[k]
+                );
+            }
+            assert!(
+                rel(&ce, &co) < 1e-9,
+                "{range:?}: covariance {:e}",
+                rel(&ce, &co)
+            );
+            checked += 1;
+        }
+    }
+    assert_eq!(checked, 4);
+}
