@@ -291,9 +291,15 @@ pub fn choose(
             return f64::INFINITY;
         }
         let (qc, sigma) = unpack(p, sigma_known);
+        // The windows on all cores, their terms summed in order (the same on any core count).
+        let mut slots: Vec<(&mut Window, Option<Result<f64>>)> =
+            wins.iter_mut().map(|w| (w, None)).collect();
+        crate::parallel::for_each(&mut slots, |(w, ll)| {
+            *ll = Some(window_log_likelihood(w, &qc, sigma));
+        });
         let mut total = 0.0;
-        for w in wins.iter_mut() {
-            match window_log_likelihood(w, &qc, sigma) {
+        for (_, ll) in slots {
+            match ll.unwrap_or_else(|| Ok(f64::NAN)) {
                 Ok(ll) if ll.is_finite() => total -= ll,
                 Ok(_) => return f64::INFINITY,
                 Err(e) => {
