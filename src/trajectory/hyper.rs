@@ -299,7 +299,7 @@ pub fn choose(
         });
         let mut total = 0.0;
         for (_, ll) in slots {
-            match ll.unwrap_or_else(|| Ok(f64::NAN)) {
+            match ll.unwrap_or(Ok(f64::NAN)) {
                 Ok(ll) if ll.is_finite() => total -= ll,
                 Ok(_) => return f64::INFINITY,
                 Err(e) => {
