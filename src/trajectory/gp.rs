@@ -546,40 +546,6 @@ pub fn prior_normal(f: &PriorFactor, qi: &Matrix3<f64>, d: &Vector6<f64>) -> Pri
         put(&mut upper, a, 2, &scale_rows(d, &(jri * c[(2, a)])), false);
     }
 
-    let (r1, r2, cost) = prior_rhs(f, qi, d, &p1, &p2);
-    PriorNormal {
-        d1,
-        d2,
-        upper,
-        r1,
-        r2,
-        cost,
-    }
-}
-
-/// The right-hand sides `-J1^T W e`, `-J2^T W e` and the cost `e^T W e` of a prior factor, as
-/// [`prior_normal`] forms them, without the matrix blocks.
-pub fn prior_gradient(f: &PriorFactor, qi: &Matrix3<f64>, d: &Vector6<f64>) -> (V18, V18, f64) {
-    let ls = &f.local;
-    prior_rhs(
-        f,
-        qi,
-        d,
-        &ls.pose_blocks(&-ls.jli),
-        &ls.pose_blocks(&ls.jri),
-    )
-}
-
-/// [`prior_gradient`] given the first block columns of `J1` and `J2` (`p1`, `p2`).
-fn prior_rhs(
-    f: &PriorFactor,
-    qi: &Matrix3<f64>,
-    d: &Vector6<f64>,
-    p1: &[Matrix6<f64>; 3],
-    p2: &[Matrix6<f64>; 3],
-) -> (V18, V18, f64) {
-    let (jri, dw) = (&f.local.jri, &f.local.da_dw2);
-    let s = |i: usize, b: usize| -f.phi[(i, b)];
     let we = kron_diag_mul(qi, d, &f.e);
     let wb = |i: usize| we.fixed_rows::<6>(6 * i).into_owned();
     let (mut r1, mut r2) = (V18::zeros(), V18::zeros());
@@ -594,7 +560,14 @@ fn prior_rhs(
     r2.fixed_rows_mut::<6>(6)
         .copy_from(&-(jri.tr_mul(&wb(1)) + dw.tr_mul(&wb(2))));
     r2.fixed_rows_mut::<6>(12).copy_from(&-jri.tr_mul(&wb(2)));
-    (r1, r2, f.e.dot(&we))
+    PriorNormal {
+        d1,
+        d2,
+        upper,
+        r1,
+        r2,
+        cost: f.e.dot(&we),
+    }
 }
 
 /// Interpolation weights at `s = tau - t1` inside an interval of length `dt`:

@@ -20,7 +20,7 @@ use nalgebra::{Matrix6, Vector6};
 use super::blocktri::{BlockTridiagonal, Factored, M18, V18};
 use super::gp::{
     Knot, LocalState, PriorNormal, apply_scalar, first_local_state, kron_diag_mul, local_gamma,
-    phi_scalar, prior_factor, prior_gradient, prior_normal, q_scalar_inv,
+    phi_scalar, prior_factor, prior_normal, q_scalar_inv,
 };
 use crate::error::{Error, Result};
 use crate::lie::{Se3, se3_right_jacobian_inv};
@@ -159,66 +159,6 @@ impl Problem<'_> {
         .sum()
     }
 
-    /// The right-hand side of the normal equations at `knots` alone (the same sums, in the same
-    /// order, as [`Problem::assemble_into`] forms), and the cost.
-    pub fn gradient_into(&self, knots: &[Knot], rhs: &mut [V18]) -> f64 {
-        let n = knots.len();
-        assert_eq!(
-            rhs.len(),
-            n,
-            "right-hand side size does not match the knots"
-        );
-        let mut chunks: Vec<(usize, &mut [V18], f64)> = rhs
-            .chunks_mut(ASSEMBLY_CHUNK)
-            .enumerate()
-            .map(|(c, r)| (c * ASSEMBLY_CHUNK, r, 0.0))
-            .collect();
-        crate::parallel::for_each(&mut chunks, |(first, rhs, cost)| {
-            let first = *first;
-            let len = rhs.len();
-            let prior = |k: usize| {
-                let dt = self.times[k + 1] - self.times[k];
-                prior_gradient(
-                    &prior_factor(&knots[k], &knots[k + 1], dt),
-                    &q_scalar_inv(dt),
-                    &self.qc_inv,
-                )
-            };
-            let mut pose_cost = self.pose_rhs(knots, first, &mut rhs[0]);
-            if first > 0 {
-                rhs[0] += prior(first - 1).1;
-            }
-            *cost = 0.0;
-            for i in 0..len {
-                let k = first + i;
-                *cost += pose_cost;
-                if i + 1 < len {
-                    pose_cost = self.pose_rhs(knots, k + 1, &mut rhs[i + 1]);
-                }
-                if k + 1 < n {
-                    let (r1, r2, c) = prior(k);
-                    rhs[i] += r1;
-                    *cost += c;
-                    if i + 1 < len {
-                        rhs[i + 1] += r2;
-                    }
-                }
-            }
-        });
-        chunks.iter().map(|c| c.2).sum()
-    }
-
-    /// Overwrites `rhs` with the pose term's right-hand side of knot `k` (as
-    /// [`Problem::pose_terms`] forms it); returns its cost.
-    fn pose_rhs(&self, knots: &[Knot], k: usize, rhs: &mut V18) -> f64 {
-        *rhs = V18::zeros();
-        let e = (self.meas[k].inverse() * knots[k].pose).log();
-        let j = se3_right_jacobian_inv(&e);
-        let wj = self.info[k] * j;
-        rhs.fixed_rows_mut::<6>(0).copy_from(&-(wj.transpose() * e));
-        (e.transpose() * self.info[k] * e)[0]
-    }
-
     /// Fills one chunk: for each knot the pose term, then the prior terms of the intervals
     /// before and after it (the interval before the chunk is recomputed here). Each prior term
     /// is added to both of its knots as soon as it is formed (the next knot's pose term is
@@ -343,13 +283,6 @@ pub(crate) trait NormalEquations {
 
     /// The cost at `knots` alone, equal to what [`NormalEquations::normal_equations`] returns.
     fn cost(&self, knots: &[Knot]) -> Result<f64>;
-
-    /// The right-hand side alone into `rhs` (sized for `knots`) and the cost, equal to what
-    /// [`NormalEquations::normal_equations`] forms; `None` when the problem does not provide it
-    /// (the solver then forms the whole system).
-    fn gradient(&self, _knots: &[Knot], _rhs: &mut [V18]) -> Result<Option<f64>> {
-        Ok(None)
-    }
 }
 
 impl NormalEquations for Problem<'_> {
@@ -359,10 +292,6 @@ impl NormalEquations for Problem<'_> {
 
     fn cost(&self, knots: &[Knot]) -> Result<f64> {
         Ok(Problem::cost(self, knots))
-    }
-
-    fn gradient(&self, knots: &[Knot], rhs: &mut [V18]) -> Result<Option<f64>> {
-        Ok(Some(self.gradient_into(knots, rhs)))
     }
 }
 
@@ -382,50 +311,6 @@ pub(crate) struct GaussNewtonOptions {
 /// at 10 Hz reaches 4e-5 after two steps, where its cost changes by 1e-10 relative; the
 /// sum grows with the number of knots while each knot's share of the step shrinks.)
 pub(crate) const STEP_DECREMENT: f64 = 1e-4;
-
-/// Below this decrement a Gauss-Newton run that delivers a factorisation checks the end of its
-/// next step with the right-hand side alone ([`check_by_gradient`]). The pose-only fit converges
-/// about quadratically (3 h of poses at 10 Hz: decrements 3e7, 2e2, 2e-5), so from a few hundred
-/// the next point is usually the solution; when it is not, one right-hand side (about half an
-/// assembly) was formed in vain.
-const CHECK_BY_GRADIENT_BELOW: f64 = 1e3;
-
-/// The outcome of [`check_by_gradient`].
-enum Checked {
-    /// The step's end (its knots and cost) is the solution; the factor is the one it came from.
-    Converged(Vec<Knot>, f64, Factored),
-    /// Not shown to be: the factor, for the ordinary step.
-    NotYet(Factored),
-}
-
-/// Takes the full step `dx` from `knots` (at `cost`, factorised in `factor`) and forms only the
-/// right-hand side at its end; converged when the cost did not rise and the decrement there,
-/// `g^T A^-1 g` with `A` this factorisation, is below [`STEP_DECREMENT`]. The information matrix
-/// of a point one short step away differs from the end's by the step's size relative to the
-/// variables' spread, so the decrement is measured to that accuracy and the factor serves as the
-/// end's covariance.
-fn check_by_gradient(
-    problem: &dyn NormalEquations,
-    knots: &[Knot],
-    dx: &[V18],
-    cost: f64,
-    factor: Factored,
-) -> Result<Checked> {
-    let trial = step(knots, dx, 1.0);
-    let mut rhs = vec![V18::zeros(); trial.len()];
-    let Some(tcost) = problem.gradient(&trial, &mut rhs)? else {
-        return Ok(Checked::NotYet(factor));
-    };
-    if !(tcost.is_finite() && tcost <= cost * (1.0 + 1e-12) + 1e-300) {
-        return Ok(Checked::NotYet(factor));
-    }
-    let (decrement, _) = factor.quadratic_forms(&rhs);
-    Ok(if decrement[(0, 0)] < STEP_DECREMENT {
-        Checked::Converged(trial, tcost, factor)
-    } else {
-        Checked::NotYet(factor)
-    })
-}
 
 /// Gauss-Newton with step halving; returns the factorisation at the solution when asked for.
 pub(crate) fn gauss_newton(
@@ -473,27 +358,6 @@ pub(crate) fn gauss_newton(
             });
         }
         let dx = factor.solve();
-        // Close to the solution, the full step's end is checked with its right-hand side alone,
-        // in the metric of this factorisation: when that decrement is below the threshold, the
-        // end point is the solution and this factor (one short step away) serves as its
-        // information matrix, which saves forming and factorising the system once more.
-        let factor = if opts.factor && factor.decrement() < CHECK_BY_GRADIENT_BELOW {
-            match check_by_gradient(problem, &knots, &dx, cost, factor)? {
-                Checked::Converged(trial, tcost, factor) => {
-                    return Ok(Solved {
-                        knots: trial,
-                        iterations: iterations + 1,
-                        converged: true,
-                        cost: tcost,
-                        factor: Some(factor),
-                        spare: None,
-                    });
-                }
-                Checked::NotYet(factor) => factor,
-            }
-        } else {
-            factor
-        };
         // The factor is not needed once the step is known: trial systems are assembled into its
         // storage, so a run holds one system however many steps it takes.
         sys = factor.into_system();
@@ -534,125 +398,5 @@ pub(crate) fn gauss_newton(
                 converged = true;
             }
         }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// Noisy poses along a smooth motion, 0.1 s apart, with their information matrices.
-    fn poses(n: usize) -> (Vec<f64>, Vec<Se3>, Vec<Matrix6<f64>>) {
-        let mut pose = Se3::exp(&Vector6::new(0.1, -0.2, 0.3, 0.2, 0.1, -0.3));
-        let (mut times, mut meas) = (Vec::new(), Vec::new());
-        for k in 0..n {
-            let t = 0.1 * k as f64;
-            let twist = Vector6::new(
-                0.3 * t.sin(),
-                0.2,
-                -0.1 * t.cos(),
-                0.4 * (0.7 * t).cos(),
-                0.1,
-                0.2,
-            );
-            // A deterministic wobble of a few millimetres and milliradians as the noise.
-            let noise = Vector6::from_fn(|i, _| 3e-3 * ((k * 7 + i * 13) as f64).sin());
-            times.push(t);
-            meas.push(pose * Se3::exp(&noise));
-            pose = pose * Se3::exp(&(twist * 0.1));
-        }
-        let info = vec![Matrix6::from_diagonal(&Vector6::new(1e5, 1e5, 1e5, 3e5, 3e5, 3e5)); n];
-        (times, meas, info)
-    }
-
-    #[test]
-    fn right_hand_side_alone_is_the_assemblys_to_the_bit() {
-        let n = 2 * ASSEMBLY_CHUNK + 37;
-        let (times, meas, info) = poses(n);
-        let problem = Problem {
-            times: &times,
-            meas: &meas,
-            info: &info,
-            qc_inv: Vector6::repeat(50.0),
-        };
-        let mut knots = initial_knots(
-            &times
-                .iter()
-                .zip(&meas)
-                .map(|(&t, &pose)| PoseMeasurement { t, pose, cov: None })
-                .collect::<Vec<_>>(),
-        );
-        knots[5].rate = Vector6::new(0.1, -0.2, 0.3, 0.0, 0.5, -0.1);
-        let (sys, cost) = problem.assemble(&knots);
-        let mut rhs = vec![V18::repeat(f64::NAN); n];
-        let gcost = problem.gradient_into(&knots, &mut rhs);
-        assert_eq!(gcost, cost);
-        for (k, (a, b)) in rhs.iter().zip(&sys.rhs).enumerate() {
-            assert_eq!(a, b, "knot {k}");
-        }
-    }
-
-    #[test]
-    fn solution_checked_by_its_gradient_is_the_map_with_its_information() {
-        // The fit stops on the right-hand side at the step's end and hands back the previous
-        // factorisation: the point must be the solution to the stop rule's accuracy when
-        // checked with its own system, and the covariance that of its own system to well under
-        // a percent.
-        let n = 2 * ASSEMBLY_CHUNK + 37;
-        let (times, meas, info) = poses(n);
-        let problem = Problem {
-            times: &times,
-            meas: &meas,
-            info: &info,
-            qc_inv: Vector6::repeat(50.0),
-        };
-        let start = initial_knots(
-            &times
-                .iter()
-                .zip(&meas)
-                .map(|(&t, &pose)| PoseMeasurement { t, pose, cov: None })
-                .collect::<Vec<_>>(),
-        );
-        let opts = GaussNewtonOptions {
-            max_iterations: 30,
-            factor: true,
-            storage: None,
-        };
-        let solved = gauss_newton(&problem, start, opts).unwrap();
-        assert!(solved.converged);
-        let (own, _) = problem.assemble(&solved.knots);
-        let own = own.factor().unwrap();
-        assert!(own.decrement() < STEP_DECREMENT, "{:e}", own.decrement());
-        let handed = solved.factor.unwrap();
-        // The check was taken: the factor handed back is not the end point's own.
-        assert_ne!(handed.log_det(), own.log_det());
-        let (a, b) = (handed.banded_inverse(), own.banded_inverse());
-        let worst = a
-            .diag
-            .iter()
-            .zip(&b.diag)
-            .flat_map(|(x, y)| (0..18).map(move |i| (x[(i, i)] / y[(i, i)] - 1.0).abs()))
-            .fold(0.0, f64::max);
-        assert!(worst < 1e-3, "variances differ by {worst:e} relative");
-        // The check itself: a point that is not the solution (the start, with no step) is not
-        // taken; the solution with its own tiny step is.
-        let start = initial_knots(
-            &times
-                .iter()
-                .zip(&meas)
-                .map(|(&t, &pose)| PoseMeasurement { t, pose, cov: None })
-                .collect::<Vec<_>>(),
-        );
-        let (sys, cost) = problem.assemble(&start);
-        let factor = sys.factor().unwrap();
-        assert!(factor.decrement() > 1.0);
-        let none = vec![V18::zeros(); n];
-        let checked = check_by_gradient(&problem, &start, &none, cost, factor).unwrap();
-        assert!(matches!(checked, Checked::NotYet(_)));
-        let (sys, cost) = problem.assemble(&solved.knots);
-        let factor = sys.factor().unwrap();
-        let dx = factor.solve();
-        let checked = check_by_gradient(&problem, &solved.knots, &dx, cost, factor).unwrap();
-        assert!(matches!(checked, Checked::Converged(..)));
     }
 }
