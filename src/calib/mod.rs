@@ -41,8 +41,8 @@ use prior::Priors;
 use refine::{FreeParams, calibration_update};
 use robust::{Loss, RobustSummary};
 use state::{
-    AssembledJoint, JointProblem, assemble_joint, joint_cost, joint_covariance,
-    joint_covariance_of, joint_step, part_linear_estimate, state_update,
+    AssembledJoint, JointProblem, assemble_joint, joint_covariance, joint_covariance_of,
+    joint_step, part_linear_estimate, state_update,
 };
 use whiteness::Whiteness;
 
@@ -1214,8 +1214,7 @@ struct Refined {
 
 /// Stage 4: rounds of a calibration update with the trajectory fixed and a state update with the
 /// calibration fixed, until nothing changes (at most `rounds`); a Gauss-Newton step on the joint
-/// problem after each unsettled round. A round right after a joint step ends with its
-/// calibration update when that moves nothing by a twentieth of a standard deviation.
+/// problem after each unsettled round.
 fn refine_jointly(
     jp: &JointProblem,
     mut traj: Trajectory,
@@ -1229,22 +1228,12 @@ fn refine_jointly(
     let mut params = start;
     let mut iterations = Vec::new();
     let mut last_cost = f64::INFINITY;
-    let mut after_joint_step = false;
     let rounds = rounds.max(1);
     for round in 1..=rounds {
         // Calibration update with the trajectory fixed, then state update with it fixed.
         let up = calibration_update(&traj, obs, idx, &params, free, &jp.priors, 50)?;
         let change = refine::change_in_std(&params, &up.params, &up.hessian, &mask);
         params = up.params;
-        // Settled right after a joint step: the calibration update moved no parameter by a
-        // twentieth of its standard deviation. The parameters are final; a state update would
-        // only refit the trajectory to them, and the joint step's trajectory is already the
-        // joint problem's to first order, fitted to parameters that close.
-        if after_joint_step && change < 0.05 {
-            let cost = joint_cost(jp, &traj, &params)?;
-            iterations.push(IterationRecord { cost, params });
-            break;
-        }
         // Warm-started from the previous state, one Gauss-Newton step per round: the rounds
         // themselves iterate it.
         let (refit, cost) = state_update(jp, &traj, &params, 1)?;
@@ -1261,13 +1250,11 @@ fn refine_jointly(
         // error when the clock offset and the trajectory are coupled). A Gauss-Newton step on
         // the joint problem takes both close to the fixed point the rounds are heading for; the
         // next round then starts there and confirms it.
-        after_joint_step = false;
         if round < rounds
             && let Some(js) = joint_step(jp, &traj, &params, &mask)?
         {
             traj = js.trajectory;
             params = js.params;
-            after_joint_step = true;
         }
     }
     Ok(Refined {
