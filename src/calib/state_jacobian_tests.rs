@@ -396,6 +396,18 @@ fn interpolated_rate_is_the_twist_derivative_only_at_the_first_knot() {
     assert!(worst_beyond < 0.6, "{worst_beyond:e}");
 }
 
+/// Pose measurements near `knots` with their weights, and a `Qc^-1`, chosen so that pose, prior
+/// and DVL terms are of similar size.
+fn pose_terms(rng: &mut Rng, knots: &[Knot]) -> (Vec<Se3>, Vec<Matrix6<f64>>, Vector6<f64>) {
+    let meas: Vec<Se3> = knots
+        .iter()
+        .map(|k| k.pose * Se3::exp(&rng.vec6(0.05)))
+        .collect();
+    let pose_info: Vec<Matrix6<f64>> = knots.iter().map(|_| rng.spd::<6>(2.5e5)).collect();
+    let qc_inv = Vector6::from_fn(|_, _| 2e-3 * (1.5 + rng.next()));
+    (meas, pose_info, qc_inv)
+}
+
 /// A joint problem over `times` with the given weights (set directly: `JointProblem::new`
 /// needs a fitted trajectory).
 fn joint_problem<'a>(
@@ -523,12 +535,7 @@ fn assembled_normal_equations_match_numeric_jacobian() {
         .rev()
         .filter(|i| i % 7 != 3 && !(40..44).contains(i))
         .collect();
-    let meas: Vec<Se3> = knots
-        .iter()
-        .map(|k| k.pose * Se3::exp(&rng.vec6(0.05)))
-        .collect();
-    let pose_info: Vec<Matrix6<f64>> = (0..n).map(|_| rng.spd::<6>(2.5e5)).collect();
-    let qc_inv = Vector6::from_fn(|_, _| 2e-3 * (1.5 + rng.next()));
+    let (meas, pose_info, qc_inv) = pose_terms(&mut rng, &knots);
     let jp = joint_problem(&times, meas, pose_info, qc_inv, &obs, &idx);
 
     let factors = DvlFactors::new(&jp, &p).unwrap();
@@ -587,12 +594,7 @@ fn halves_from_the_whole_system_equal_their_own_assembly() {
     let idx: Vec<usize> = (0..obs.len())
         .filter(|i| i % 5 != 2 && (120..obs.len() - 120).contains(i))
         .collect();
-    let meas: Vec<Se3> = knots
-        .iter()
-        .map(|k| k.pose * Se3::exp(&rng.vec6(0.05)))
-        .collect();
-    let pose_info: Vec<Matrix6<f64>> = (0..n).map(|_| rng.spd::<6>(2.5e5)).collect();
-    let qc_inv = Vector6::from_fn(|_, _| 2e-3 * (1.5 + rng.next()));
+    let (meas, pose_info, qc_inv) = pose_terms(&mut rng, &knots);
     let whole_jp = joint_problem(&times, meas.clone(), pose_info.clone(), qc_inv, &obs, &idx);
     let whole = assemble_joint(&whole_jp, &knots, &p).unwrap();
     // The cut falls inside an interval: its first sample goes to the first half.
