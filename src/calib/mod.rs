@@ -832,16 +832,7 @@ pub fn calibrate(
         } else {
             1.0
         };
-        halves_estimates(
-            &jp,
-            &assembled,
-            poses,
-            &traj,
-            obs_used,
-            &idx,
-            free,
-            noise_factor,
-        )?
+        halves_estimates(&jp, &assembled, &traj, obs_used, &idx, free, noise_factor)?
     } else {
         None
     };
@@ -1706,11 +1697,9 @@ struct HalfEstimates {
 /// alarm. The halves' normal equations are taken from the whole's, `whole`, assembled at the
 /// result ([`part_linear_estimate`]): only the knots near the cut and at the ends of each
 /// half's span are assembled again.
-#[allow(clippy::too_many_arguments)]
 fn halves_estimates(
     jp: &JointProblem,
     whole: &AssembledJoint,
-    poses: &[PoseMeasurement],
     traj: &Trajectory,
     obs: &[DvlObs],
     idx: &[usize],
@@ -1744,13 +1733,12 @@ fn halves_estimates(
         let hi = times.partition_point(|&t| t <= t1 + HALF_MARGIN_S);
         let lo = lo.saturating_sub(HALF_MARGIN_KNOTS);
         let hi = (hi + HALF_MARGIN_KNOTS).min(times.len());
-        let sub = traj.slice(lo..hi);
-        let mut jh = JointProblem::new(&poses[lo..hi], &sub, obs, part)?;
-        jh.priors = jp.priors;
+        let jh = jp.part(part, lo..hi);
         if let Some(st) = storage.take() {
             jh.keep_storage(st);
         }
-        let (p, cov) = part_linear_estimate(jp, whole, &jh, sub.knots(), lo..hi, &mask)?;
+        let knots = &traj.knots()[lo..hi];
+        let (p, cov) = part_linear_estimate(jp, whole, &jh, knots, lo..hi, &mask)?;
         storage = jh.take_storage();
         Ok((p, cov * noise_factor))
     };

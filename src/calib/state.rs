@@ -73,6 +73,23 @@ impl<'a> JointProblem<'a> {
         })
     }
 
+    /// The problem of the samples `idx` (a subset of this one's) on the knots `range` alone:
+    /// this problem's pose terms, weights and DVL information restricted to them, without
+    /// computing any of them again.
+    pub fn part<'p>(&'p self, idx: &'p [usize], range: std::ops::Range<usize>) -> JointProblem<'p> {
+        JointProblem {
+            obs: self.obs,
+            idx,
+            dvl_info: self.dvl_info.clone(),
+            priors: self.priors,
+            times: self.times[range.clone()].to_vec(),
+            meas: self.meas[range.clone()].to_vec(),
+            pose_info: self.pose_info[range].to_vec(),
+            qc_inv: self.qc_inv,
+            storage: Mutex::new(None),
+        }
+    }
+
     /// The kept system storage, if any.
     pub(crate) fn take_storage(&self) -> Option<BlockTridiagonal> {
         self.storage.lock().ok().and_then(|mut s| s.take())
@@ -308,12 +325,12 @@ impl<'a> DvlFactors<'a> {
     ) {
         let n = knots.len();
         cross[range.clone()].fill(CrossBlock::zeros());
-        let upper_end = range.end.min(n - 1).max(range.start.min(n - 1));
         let mut chunk = JointChunk {
             sys: AssemblyChunk {
                 first: range.start,
                 diag: &mut sys.diag[range.clone()],
-                upper: &mut sys.upper[range.start.min(n - 1)..upper_end],
+                // Knot `k` owns the coupling to `k + 1`; the last knot has none.
+                upper: &mut sys.upper[range.start.min(n - 1)..range.end.min(n - 1)],
                 rhs: &mut sys.rhs[range.clone()],
                 cost: 0.0,
             },

@@ -150,18 +150,6 @@ impl Trajectory {
         }
     }
 
-    /// The knots `range` alone (times, states, `Qc` and fit report; no covariance): the model of
-    /// a part of the recording, for problems that involve only that part.
-    pub fn slice(&self, range: std::ops::Range<usize>) -> Trajectory {
-        Trajectory {
-            times: self.times[range.clone()].to_vec(),
-            knots: self.knots[range].to_vec(),
-            qc: self.qc,
-            cov: None,
-            report: self.report.clone(),
-        }
-    }
-
     /// Fits a trajectory to at least three poses with strictly increasing times.
     pub fn fit(poses: &[PoseMeasurement], opts: &FitOptions) -> Result<Trajectory> {
         check_poses(poses)?;
