@@ -41,24 +41,29 @@ fn cols_mut(m: &mut M18) -> &mut Cols {
 pub fn cholesky_in_place(s: &mut M18) -> Option<f64> {
     let a = cols_mut(s);
     let mut log_det = 0.0;
-    for j in 0..N {
-        let d = a[j][j];
+    // Left-looking: column `k` is brought up to date in registers, with the updates of the
+    // columns before it subtracted in their order (the order a right-looking loop applies
+    // them in, so the factor is the same to the bit), then scaled and stored once.
+    for k in 0..N {
+        let mut col = a[k];
+        for lj in &a[..k] {
+            let l_kj = lj[k];
+            // Rows above `k` of a finished column are zero: the whole column is updated so
+            // that the loop has a fixed length; rows above `k` are cleared below.
+            for (c, l) in col.iter_mut().zip(lj) {
+                *c -= l * l_kj;
+            }
+        }
+        let d = col[k];
         if d.is_nan() || d <= 0.0 || d.is_infinite() {
             return None;
         }
         let d = d.sqrt();
         log_det += 2.0 * d.ln();
-        a[j][j] = d;
-        a[j][j + 1..].iter_mut().for_each(|v| *v /= d);
-        a[j][..j].fill(0.0);
-        // Right-looking update of the trailing lower triangle.
-        let lj = a[j];
-        for (k, col) in a.iter_mut().enumerate().skip(j + 1) {
-            let l_kj = lj[k];
-            for r in k..N {
-                col[r] -= lj[r] * l_kj;
-            }
-        }
+        col[..k].fill(0.0);
+        col[k] = d;
+        col[k + 1..].iter_mut().for_each(|v| *v /= d);
+        a[k] = col;
     }
     Some(log_det)
 }
@@ -234,33 +239,26 @@ fn middle(n: usize) -> usize {
 /// knot, so it is not formed here: that would be a third of the step's work.)
 fn eliminate(l: &Cols, mut y: Cols, w: &[f64; N], next: &mut M18, next_w: &mut V18) -> Cols {
     // Rows of Y = L^-1 C by forward substitution on the rows of C, so that every inner loop
-    // runs over a full row of 18.
+    // runs over a full row of 18; each row is kept in registers until it is done.
     for j in 0..N {
-        let (done, rest) = y.split_at_mut(j);
-        let yj = &mut rest[0];
-        for (yk, lk) in done.iter().zip(l) {
+        let mut row = y[j];
+        for (yk, lk) in y[..j].iter().zip(l) {
             let l_jk = lk[j];
-            for (a, b) in yj.iter_mut().zip(yk) {
+            for (a, b) in row.iter_mut().zip(yk) {
                 *a -= l_jk * b;
             }
         }
         let d = l[j][j];
-        yj.iter_mut().for_each(|a| *a /= d);
+        row.iter_mut().for_each(|a| *a /= d);
+        y[j] = row;
     }
-    // next -= Y^T Y (a sum of outer products of the rows of Y) on the lower triangle only: the
-    // Cholesky factorisation of `next` reads nothing else.
-    let s = cols_mut(next);
-    let mut yty = [[0.0; N]; N];
-    for yj in &y {
-        for (c, (col, yjc)) in yty.iter_mut().zip(yj).enumerate() {
-            for (a, b) in col[c..].iter_mut().zip(&yj[c..]) {
-                *a += b * yjc;
-            }
-        }
-    }
-    for (c, (sc, pc)) in s.iter_mut().zip(&yty).enumerate() {
-        for (a, b) in sc[c..].iter_mut().zip(&pc[c..]) {
-            *a -= b;
+    // next -= Y^T Y on the lower triangle only (the Cholesky factorisation of `next` reads
+    // nothing else), one column at a time.
+    for (c, sc) in cols_mut(next).iter_mut().enumerate() {
+        match c {
+            0..6 => subtract_column_of_yty::<18>(&y, c, sc),
+            6..12 => subtract_column_of_yty::<12>(&y, c, sc),
+            _ => subtract_column_of_yty::<6>(&y, c, sc),
         }
     }
     // next_w -= Y^T w.
@@ -272,6 +270,25 @@ fn eliminate(l: &Cols, mut y: Cols, w: &[f64; N], next: &mut M18, next_w: &mut V
     }
     *next_w -= V18::from(ytw);
     y
+}
+
+/// `s_c -= (Y^T Y)_c` on rows `c..` of column `c`, with `Y` given by its rows. The column's
+/// sum over the rows of `Y` is kept in registers for its last `R` rows (`R` fixed, covering
+/// row `c`, so that the loop has a constant length), each element's terms added in the order
+/// of the rows of `Y`.
+#[inline(always)]
+fn subtract_column_of_yty<const R: usize>(y: &Cols, c: usize, s_c: &mut [f64; N]) {
+    let first = N - R;
+    let mut acc = [0.0; R];
+    for yj in y {
+        let yjc = yj[c];
+        for (a, b) in acc.iter_mut().zip(&yj[first..]) {
+            *a += b * yjc;
+        }
+    }
+    for (a, b) in s_c[c..].iter_mut().zip(&acc[c - first..]) {
+        *a -= b;
+    }
 }
 
 /// Factorises a block in place and forward-substitutes its right-hand side; returns the
