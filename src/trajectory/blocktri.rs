@@ -425,11 +425,29 @@ fn forward_columns<const C: usize>(l: &Cols, x: &mut SMatrix<f64, N, C>) {
     }
 }
 
-/// `x <- L^-T x` on every column of an 18 x C block.
+/// `x <- L^-T x` on every column of an 18 x C block. The rows of `L` are copied out once
+/// for several columns; a single column reads them in place.
 fn backward_columns<const C: usize>(l: &Cols, x: &mut SMatrix<f64, N, C>) {
+    if C == 1 {
+        for col in x.data.0.iter_mut() {
+            backward_substitute_in_place(l, col);
+        }
+        return;
+    }
     let lt = transpose(l);
     for col in x.data.0.iter_mut() {
         backward_substitute(&lt, col);
+    }
+}
+
+/// [`backward_substitute`] reading `L` itself (the same operations in the same order).
+fn backward_substitute_in_place(l: &Cols, x: &mut [f64; N]) {
+    for j in (0..N).rev() {
+        x[j] /= l[j][j];
+        let xj = x[j];
+        for r in 0..j {
+            x[r] -= l[r][j] * xj;
+        }
     }
 }
 

@@ -233,8 +233,15 @@ fn d_series_times(
                 for (si, di) in s.iter_mut().zip(col) {
                     let t = a * di;
                     *si += t;
-                    term = term.max(t.abs());
-                    total = total.max(si.abs());
+                    // Comparisons rather than `f64::max`, whose NaN rule costs several
+                    // instructions; neither running maximum can become NaN either way.
+                    let (t, s) = (t.abs(), si.abs());
+                    if t > term {
+                        term = t;
+                    }
+                    if s > total {
+                        total = s;
+                    }
                 }
             }
             if n >= 4 && term <= 1e-16 * total {
