@@ -104,6 +104,17 @@ fn transpose(m: &Cols) -> Cols {
     t
 }
 
+/// Transposes a block in place.
+fn transpose_in_place(m: &mut Cols) {
+    for c in 0..N {
+        for r in c + 1..N {
+            let v = m[c][r];
+            m[c][r] = m[r][c];
+            m[r][c] = v;
+        }
+    }
+}
+
 /// `out = a b`.
 pub fn mul(a: &M18, b: &M18) -> M18 {
     let (a, b) = (cols(a), cols(b));
@@ -234,10 +245,10 @@ fn middle(n: usize) -> usize {
 /// One elimination step. `l` is the Cholesky factor of the block being eliminated and `y` holds
 /// the rows of its coupling block `C` to the next block in the sweep. With `Y = L^-1 C`:
 /// subtracts `Y^T Y` from `next` and `Y^T w` from `next_w` (`w = L^-1 z` of the block), and
-/// returns the rows of `Y`, which are the columns of `Y^T`: the column-major storage of `Y^T`.
-/// (Solves and the banded inverse need `G = L^-T Y` only applied to vectors or once per
+/// replaces `y` by the rows of `Y`, which are the columns of `Y^T`: the column-major storage of
+/// `Y^T`. (Solves and the banded inverse need `G = L^-T Y` only applied to vectors or once per
 /// knot, so it is not formed here: that would be a third of the step's work.)
-fn eliminate(l: &Cols, mut y: Cols, w: &[f64; N], next: &mut M18, next_w: &mut V18) -> Cols {
+fn eliminate(l: &Cols, y: &mut Cols, w: &[f64; N], next: &mut M18, next_w: &mut V18) {
     // Rows of Y = L^-1 C by forward substitution on the rows of C, so that every inner loop
     // runs over a full row of 18; each row is kept in registers until it is done.
     for j in 0..N {
@@ -256,9 +267,9 @@ fn eliminate(l: &Cols, mut y: Cols, w: &[f64; N], next: &mut M18, next_w: &mut V
     // nothing else), one column at a time.
     for (c, sc) in cols_mut(next).iter_mut().enumerate() {
         match c {
-            0..6 => subtract_column_of_yty::<18>(&y, c, sc),
-            6..12 => subtract_column_of_yty::<12>(&y, c, sc),
-            _ => subtract_column_of_yty::<6>(&y, c, sc),
+            0..6 => subtract_column_of_yty::<18>(y, c, sc),
+            6..12 => subtract_column_of_yty::<12>(y, c, sc),
+            _ => subtract_column_of_yty::<6>(y, c, sc),
         }
     }
     // next_w -= Y^T w.
@@ -269,7 +280,6 @@ fn eliminate(l: &Cols, mut y: Cols, w: &[f64; N], next: &mut M18, next_w: &mut V
         }
     }
     *next_w -= V18::from(ytw);
-    y
 }
 
 /// `s_c -= (Y^T Y)_c` on rows `c..` of column `c`, with `Y` given by its rows. The column's
@@ -369,9 +379,9 @@ impl BlockTridiagonal {
                     let (wc, wn) = top_w.split_at_mut(k + 1);
                     log_det += factor_block(k, &mut cur[k], &mut wc[k])?;
                     let wk: [f64; N] = wc[k].into();
-                    let y = transpose(cols(&top_gain[k]));
-                    *cols_mut(&mut top_gain[k]) =
-                        eliminate(cols(&cur[k]), y, &wk, &mut next[0], &mut wn[0]);
+                    let y = cols_mut(&mut top_gain[k]);
+                    transpose_in_place(y);
+                    eliminate(cols(&cur[k]), y, &wk, &mut next[0], &mut wn[0]);
                 }
                 Ok(log_det)
             },
@@ -385,13 +395,18 @@ impl BlockTridiagonal {
                     let (wp, wc) = bottom_w.split_at_mut(j);
                     log_det += factor_block(m + 1 + j, &mut cur[0], &mut wc[0])?;
                     let wk: [f64; N] = wc[0].into();
-                    let y = *cols(&bottom_gain[j]);
                     let (next, next_w) = if j > 0 {
                         (&mut prev[j - 1], &mut wp[j - 1])
                     } else {
                         (&mut to_mid, &mut to_mid_w)
                     };
-                    *cols_mut(&mut bottom_gain[j]) = eliminate(cols(&cur[0]), y, &wk, next, next_w);
+                    eliminate(
+                        cols(&cur[0]),
+                        cols_mut(&mut bottom_gain[j]),
+                        &wk,
+                        next,
+                        next_w,
+                    );
                 }
                 Ok((log_det, to_mid, to_mid_w))
             },
