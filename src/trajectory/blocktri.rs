@@ -120,11 +120,7 @@ pub fn mul(a: &M18, b: &M18) -> M18 {
     let (a, b) = (cols(a), cols(b));
     let mut out = M18::zeros();
     for (o, bc) in cols_mut(&mut out).iter_mut().zip(b) {
-        for (ak, bkj) in a.iter().zip(bc) {
-            for r in 0..N {
-                o[r] += ak[r] * bkj;
-            }
-        }
+        *o = combine_columns::<N>(a, bc);
     }
     out
 }
@@ -133,24 +129,50 @@ pub fn mul(a: &M18, b: &M18) -> M18 {
 /// products known to be symmetric).
 fn add_symmetric_abt(out: &mut M18, a: &Cols, b: &Cols, sign: f64) {
     let o = cols_mut(out);
-    let mut acc = [[0.0; N]; N];
-    for (m, am) in a.iter().enumerate() {
-        for (j, accj) in acc.iter_mut().enumerate() {
-            let bjm = b[m][j];
-            for r in j..N {
-                accj[r] += am[r] * bjm;
-            }
-        }
-    }
     for j in 0..N {
-        for (v, s) in o[j][j..].iter_mut().zip(&acc[j][j..]) {
-            *v += sign * s;
+        let bj: [f64; N] = std::array::from_fn(|m| b[m][j]);
+        match j {
+            0..6 => add_scaled_tail(&mut o[j][j..], &combine_columns::<18>(a, &bj)[j..], sign),
+            6..12 => add_scaled_tail(
+                &mut o[j][j..],
+                &combine_columns::<12>(a, &bj)[j - 6..],
+                sign,
+            ),
+            _ => add_scaled_tail(
+                &mut o[j][j..],
+                &combine_columns::<6>(a, &bj)[j - 12..],
+                sign,
+            ),
         }
         let (left, right) = o.split_at_mut(j);
         for (r, col) in left.iter().enumerate() {
             right[0][r] = col[j];
         }
     }
+}
+
+/// `out += sign s`, element by element.
+#[inline(always)]
+fn add_scaled_tail(out: &mut [f64], s: &[f64], sign: f64) {
+    for (v, s) in out.iter_mut().zip(s) {
+        *v += sign * s;
+    }
+}
+
+/// The last `R` rows of `sum_m coef[m] a_m` (`a_m` the columns of `a`), kept in registers: each
+/// element's terms `a_m[r] * coef[m]` are added in the order of `m`, starting from zero. The
+/// kernels below are written with it so that each element of their results gets the
+/// operations, and the order, of a plain triple loop.
+#[inline(always)]
+fn combine_columns<const R: usize>(a: &Cols, coef: &[f64; N]) -> [f64; R] {
+    let first = N - R;
+    let mut acc = [0.0; R];
+    for (am, &c) in a.iter().zip(coef) {
+        for (s, v) in acc.iter_mut().zip(&am[first..]) {
+            *s += v * c;
+        }
+    }
+    acc
 }
 
 /// `S^-1` from the Cholesky factor `L` of `S` (lower triangle of `l`).
@@ -162,15 +184,13 @@ pub fn inverse_from_cholesky(l: &M18) -> M18 {
         vc[c] = 1.0;
         backward_substitute(&lt, vc);
     }
+    // Column j of V V^T is sum_k V[j, k] v_k. Only k >= j contribute: V[j, k] is zero below the
+    // diagonal, and so are the rows of v_k below k, so the zero products the full sums add
+    // change no bit of the result.
     let mut out = M18::zeros();
-    let o = cols_mut(&mut out);
-    for (k, vk) in v.iter().enumerate() {
-        for j in 0..=k {
-            let s = vk[j];
-            for r in 0..=k {
-                o[j][r] += vk[r] * s;
-            }
-        }
+    for (j, o) in cols_mut(&mut out).iter_mut().enumerate() {
+        let vj: [f64; N] = std::array::from_fn(|k| v[k][j]);
+        *o = combine_columns::<N>(&v, &vj);
     }
     out
 }
@@ -282,10 +302,8 @@ fn eliminate(l: &Cols, y: &mut Cols, w: &[f64; N], next: &mut M18, next_w: &mut 
     *next_w -= V18::from(ytw);
 }
 
-/// `s_c -= (Y^T Y)_c` on rows `c..` of column `c`, with `Y` given by its rows. The column's
-/// sum over the rows of `Y` is kept in registers for its last `R` rows (`R` fixed, covering
-/// row `c`, so that the loop has a constant length), each element's terms added in the order
-/// of the rows of `Y`.
+/// `s_c -= (Y^T Y)_c` on rows `c..` of column `c`, with `Y` given by its rows: as
+/// [`combine_columns`], with the coefficients read from column `c` of the rows as it goes.
 #[inline(always)]
 fn subtract_column_of_yty<const R: usize>(y: &Cols, c: usize, s_c: &mut [f64; N]) {
     let first = N - R;
