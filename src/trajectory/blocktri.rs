@@ -35,12 +35,23 @@ fn cols_mut(m: &mut M18) -> &mut Cols {
     &mut m.data.0
 }
 
-/// In-place Cholesky factorisation `S = L L^T` of a symmetric matrix (only its lower triangle is
-/// read). On success the lower triangle holds `L`, the strict upper triangle is zeroed, and the
-/// result is `log det S`; `None` when `S` is not (numerically) positive definite.
-pub fn cholesky_in_place(s: &mut M18) -> Option<f64> {
-    let a = cols_mut(s);
+/// `log det (L L^T)` from the factor `L` of [`cholesky_factor`], its diagonal's logarithms
+/// summed in order.
+fn log_det_of_factor(l: &M18) -> f64 {
+    let a = cols(l);
     let mut log_det = 0.0;
+    for (j, col) in a.iter().enumerate() {
+        log_det += 2.0 * col[j].ln();
+    }
+    log_det
+}
+
+/// In-place Cholesky factorisation `S = L L^T` of a symmetric matrix (only its lower triangle is
+/// read). On success the lower triangle holds `L` and the strict upper triangle is zeroed;
+/// `false` when `S` is not (numerically) positive definite. The log-determinant (18 logarithms,
+/// which only the likelihoods need) is left to [`log_det_of_factor`].
+fn cholesky_factor(s: &mut M18) -> bool {
+    let a = cols_mut(s);
     // Left-looking: column `k` is brought up to date in registers, with the updates of the
     // columns before it subtracted in their order (the order a right-looking loop applies
     // them in, so the factor is the same to the bit), then scaled and stored once.
@@ -56,19 +67,18 @@ pub fn cholesky_in_place(s: &mut M18) -> Option<f64> {
         }
         let d = col[k];
         if d.is_nan() || d <= 0.0 || d.is_infinite() {
-            return None;
+            return false;
         }
         let d = d.sqrt();
-        log_det += 2.0 * d.ln();
         col[..k].fill(0.0);
         col[k] = d;
         col[k + 1..].iter_mut().for_each(|v| *v /= d);
         a[k] = col;
     }
-    Some(log_det)
+    true
 }
 
-/// `x <- L^-1 x` for the lower-triangular `L` of [`cholesky_in_place`].
+/// `x <- L^-1 x` for the lower-triangular `L` of [`cholesky_factor`].
 #[inline]
 fn forward_substitute(l: &Cols, x: &mut [f64; N]) {
     for j in 0..N {
@@ -222,7 +232,6 @@ pub struct Factored {
     chol: Vec<M18>,
     gain: Vec<M18>,
     w: Vec<V18>,
-    log_det: f64,
 }
 
 /// Diagonal and first off-diagonal blocks of `A^-1`.
@@ -319,18 +328,17 @@ fn subtract_column_of_yty<const R: usize>(y: &Cols, c: usize, s_c: &mut [f64; N]
     }
 }
 
-/// Factorises a block in place and forward-substitutes its right-hand side; returns the
-/// log-determinant of the block.
-fn factor_block(k: usize, chol: &mut M18, w: &mut V18) -> Result<f64> {
-    let log_det = cholesky_in_place(chol).ok_or_else(|| {
-        Error::Numerical(format!(
+/// Factorises a block in place and forward-substitutes its right-hand side.
+fn factor_block(k: usize, chol: &mut M18, w: &mut V18) -> Result<()> {
+    if !cholesky_factor(chol) {
+        return Err(Error::Numerical(format!(
             "information matrix not positive definite at knot {k} (too few or degenerate measurements)"
-        ))
-    })?;
+        )));
+    }
     let mut wk: [f64; N] = (*w).into();
     forward_substitute(cols(chol), &mut wk);
     *w = wk.into();
-    Ok(log_det)
+    Ok(())
 }
 
 impl BlockTridiagonal {
@@ -390,28 +398,26 @@ impl BlockTridiagonal {
         // the top sweep's, so both orders of completion give the same middle block.
         let (top, bottom) = both(
             n >= PARALLEL_MIN,
-            || -> Result<f64> {
-                let mut log_det = 0.0;
+            || -> Result<()> {
                 for k in 0..m {
                     let (cur, next) = top_chol.split_at_mut(k + 1);
                     let (wc, wn) = top_w.split_at_mut(k + 1);
-                    log_det += factor_block(k, &mut cur[k], &mut wc[k])?;
+                    factor_block(k, &mut cur[k], &mut wc[k])?;
                     let wk: [f64; N] = wc[k].into();
                     let y = cols_mut(&mut top_gain[k]);
                     transpose_in_place(y);
                     eliminate(cols(&cur[k]), y, &wk, &mut next[0], &mut wn[0]);
                 }
-                Ok(log_det)
+                Ok(())
             },
-            || -> Result<(f64, M18, V18)> {
-                let mut log_det = 0.0;
+            || -> Result<(M18, V18)> {
                 let (mut to_mid, mut to_mid_w) = (M18::zeros(), V18::zeros());
                 // Bottom block j is knot m + 1 + j; its coupling to knot m + j sits in gain slot
                 // m + j, i.e. bottom_gain[j].
                 for j in (0..bottom_chol.len()).rev() {
                     let (prev, cur) = bottom_chol.split_at_mut(j);
                     let (wp, wc) = bottom_w.split_at_mut(j);
-                    log_det += factor_block(m + 1 + j, &mut cur[0], &mut wc[0])?;
+                    factor_block(m + 1 + j, &mut cur[0], &mut wc[0])?;
                     let wk: [f64; N] = wc[0].into();
                     let (next, next_w) = if j > 0 {
                         (&mut prev[j - 1], &mut wp[j - 1])
@@ -426,21 +432,16 @@ impl BlockTridiagonal {
                         next_w,
                     );
                 }
-                Ok((log_det, to_mid, to_mid_w))
+                Ok((to_mid, to_mid_w))
             },
         );
-        let top = top?;
-        let (bottom, to_mid, to_mid_w) = bottom?;
+        top?;
+        let (to_mid, to_mid_w) = bottom?;
         // `to_mid` holds `-C^T C` and `to_mid_w` `-C^T w` (subtracted from zero).
         chol[m] += to_mid;
         w[m] += to_mid_w;
-        let mid = factor_block(m, &mut chol[m], &mut w[m])?;
-        Ok(Factored {
-            chol,
-            gain,
-            w,
-            log_det: top + bottom + mid,
-        })
+        factor_block(m, &mut chol[m], &mut w[m])?;
+        Ok(Factored { chol, gain, w })
     }
 }
 
@@ -658,9 +659,17 @@ impl Factored {
         self.w.iter().map(|w| w.norm_squared()).sum()
     }
 
-    /// `log det A`.
+    /// `log det A`, from the factor's diagonals, summed in the order of the elimination: the
+    /// top sweep's blocks, the bottom sweep's, then the middle block.
     pub fn log_det(&self) -> f64 {
-        self.log_det
+        let m = self.middle();
+        let (top, rest) = self.chol.split_at(m);
+        let top: f64 = top.iter().fold(0.0, |s, l| s + log_det_of_factor(l));
+        let bottom: f64 = rest[1..]
+            .iter()
+            .rev()
+            .fold(0.0, |s, l| s + log_det_of_factor(l));
+        top + bottom + log_det_of_factor(&rest[0])
     }
 
     /// Blocks of `A^-1` on and next to the diagonal, from the middle block outwards:
@@ -866,7 +875,8 @@ mod tests {
             let s = random_spd(&mut seed);
             let reference = s.cholesky().unwrap();
             let mut l = s;
-            let log_det = cholesky_in_place(&mut l).unwrap();
+            assert!(cholesky_factor(&mut l));
+            let log_det = log_det_of_factor(&l);
             let lr = reference.l();
             assert!((l - lr).abs().max() <= 1e-13 * lr.abs().max(), "{}", l - lr);
             let ld: f64 = lr.diagonal().iter().map(|d| 2.0 * d.ln()).sum();
@@ -881,10 +891,10 @@ mod tests {
         }
         let mut indefinite = M18::identity();
         indefinite[(7, 7)] = -1.0;
-        assert!(cholesky_in_place(&mut indefinite).is_none());
+        assert!(!cholesky_factor(&mut indefinite));
         let mut nan = M18::identity();
         nan[(3, 3)] = f64::NAN;
-        assert!(cholesky_in_place(&mut nan).is_none());
+        assert!(!cholesky_factor(&mut nan));
     }
 
     #[test]
