@@ -117,10 +117,10 @@ fn transpose(m: &Cols) -> Cols {
 /// Transposes a block in place.
 fn transpose_in_place(m: &mut Cols) {
     for c in 0..N {
-        for r in c + 1..N {
-            let v = m[c][r];
-            m[c][r] = m[r][c];
-            m[r][c] = v;
+        let (left, right) = m.split_at_mut(c + 1);
+        let col_c = &mut left[c];
+        for (r, col_r) in (c + 1..N).zip(right.iter_mut()) {
+            std::mem::swap(&mut col_c[r], &mut col_r[c]);
         }
     }
 }
