@@ -16,7 +16,7 @@ use super::refine::{ParamMat, ParamVec, pin_fixed};
 use crate::error::{Error, Result};
 use crate::lie::Se3;
 use crate::trajectory::blocktri::{BlockTridiagonal, M18, V18};
-use crate::trajectory::gp::LocalState;
+use crate::trajectory::gp::{LocalState, PriorNormal};
 use crate::trajectory::solver::{
     ASSEMBLY_CHUNK, AssemblyChunk, GaussNewtonOptions, NormalEquations, Problem, assembly_chunks,
     gauss_newton, measurement_information, step,
@@ -418,8 +418,9 @@ impl<'a> DvlFactors<'a> {
         let (first, diag, rhs, upper) = (c.first, &mut *c.diag, &mut *c.rhs, &mut *c.upper);
         let mut pose_cost = pose.pose_terms(knots, first, &mut diag[0], &mut rhs[0]);
         let mut d = IntervalTerms::zeros();
+        let mut t = PriorNormal::zeros();
         if first > 0 {
-            let (t, ls) = pose.prior_terms(knots, first - 1);
+            let ls = pose.prior_terms(knots, first - 1, &mut t);
             diag[0] += t.d2;
             rhs[0] += t.r2;
             if self.interval_terms(view, first - 1, &ls, with_params, &mut d) {
@@ -439,7 +440,7 @@ impl<'a> DvlFactors<'a> {
                 pose_cost = pose.pose_terms(knots, k + 1, &mut diag[i + 1], &mut rhs[i + 1]);
             }
             if k + 1 < n {
-                let (t, ls) = pose.prior_terms(knots, k);
+                let ls = pose.prior_terms(knots, k, &mut t);
                 diag[i] += t.d1;
                 rhs[i] += t.r1;
                 upper[i] = t.upper;

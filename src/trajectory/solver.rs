@@ -173,8 +173,9 @@ impl Problem<'_> {
             &mut *chunk.upper,
         );
         let mut pose_cost = self.pose_terms(knots, first, &mut diag[0], &mut rhs[0]);
+        let mut t = PriorNormal::zeros();
         if first > 0 {
-            let t = self.prior_terms(knots, first - 1).0;
+            self.prior_terms(knots, first - 1, &mut t);
             diag[0] += t.d2;
             rhs[0] += t.r2;
         }
@@ -186,7 +187,7 @@ impl Problem<'_> {
                 pose_cost = self.pose_terms(knots, k + 1, &mut diag[i + 1], &mut rhs[i + 1]);
             }
             if k + 1 < n {
-                let t = self.prior_terms(knots, k).0;
+                self.prior_terms(knots, k, &mut t);
                 diag[i] += t.d1;
                 rhs[i] += t.r1;
                 upper[i] = t.upper;
@@ -226,11 +227,16 @@ impl Problem<'_> {
 
     /// The normal-equation blocks of the prior factor between knots `k` and `k + 1`, and the
     /// local state of knot `k + 1` relative to knot `k` with its Jacobians.
-    pub(crate) fn prior_terms(&self, knots: &[Knot], k: usize) -> (PriorNormal, LocalState) {
+    pub(crate) fn prior_terms(
+        &self,
+        knots: &[Knot],
+        k: usize,
+        out: &mut PriorNormal,
+    ) -> LocalState {
         let dt = self.times[k + 1] - self.times[k];
         let f = prior_factor(&knots[k], &knots[k + 1], dt);
-        let normal = prior_normal(&f, &q_scalar_inv(dt), &self.qc_inv);
-        (normal, f.local)
+        prior_normal(&f, &q_scalar_inv(dt), &self.qc_inv, out);
+        f.local
     }
 
     /// The cost of the prior factor between knots `k` and `k + 1` (as
