@@ -15,6 +15,7 @@
 
 use nalgebra::Vector6;
 
+use super::blocktri::BlockTridiagonal;
 use super::gp::Knot;
 use super::solver::{
     GaussNewtonOptions, Problem, gauss_newton, initial_knots, measurement_information, step,
@@ -91,6 +92,9 @@ struct Window<'a> {
     meas: Vec<Se3>,
     knots: Vec<Knot>,
     converged_once: bool,
+    /// The storage of the previous candidate's system, assembled into again (assembly writes
+    /// every block).
+    spare: Option<BlockTridiagonal>,
 }
 
 /// Parameters searched: `[ln q_trans, ln q_rot]` and, when estimated, `[ln s_pos, ln s_rot]`.
@@ -123,7 +127,13 @@ fn window_log_likelihood(w: &mut Window, qc: &Vector6<f64>, sigma: (f64, f64)) -
         w.knots = gauss_newton(&problem, w.knots.clone(), opts)?.knots;
         w.converged_once = true;
     }
-    let (sys, cost) = problem.assemble(&w.knots);
+    let n_knots = w.knots.len();
+    let mut sys = w
+        .spare
+        .take()
+        .filter(|s| s.len() == n_knots)
+        .unwrap_or_else(|| BlockTridiagonal::zeros(n_knots));
+    let cost = problem.assemble_into(&w.knots, &mut sys);
     let rhs = sys.rhs.clone();
     let factor = sys.factor()?;
     let dx = factor.solve();
@@ -132,6 +142,7 @@ fn window_log_likelihood(w: &mut Window, qc: &Vector6<f64>, sigma: (f64, f64)) -
     let log_det_q = (n - 1.0) * 3.0 * qc.iter().map(|q| q.ln()).sum::<f64>();
     let log_det_r: f64 = info.iter().map(|i| -i.determinant().max(1e-300).ln()).sum();
     let ll = -0.5 * ((cost - decrease) + factor.log_det() + log_det_q + log_det_r);
+    w.spare = Some(factor.into_system());
     w.knots = step(&w.knots, &dx, 1.0);
     Ok(ll)
 }
@@ -260,6 +271,7 @@ pub fn choose(
                 meas: ps.iter().map(|p| p.pose).collect(),
                 knots: initial_knots(ps),
                 converged_once: false,
+                spare: None,
             }
         })
         .collect();

@@ -121,15 +121,9 @@ pub(crate) fn assembly_chunks(sys: &mut BlockTridiagonal) -> Vec<AssemblyChunk<'
 }
 
 impl Problem<'_> {
-    /// Normal equations linearised at `knots`, and the cost there.
-    pub fn assemble(&self, knots: &[Knot]) -> (BlockTridiagonal, f64) {
-        let mut sys = BlockTridiagonal::zeros(knots.len());
-        let cost = self.assemble_into(knots, &mut sys);
-        (sys, cost)
-    }
-
-    /// As [`Problem::assemble`], overwriting every block of `sys` (which must have `knots.len()`
-    /// blocks). Chunks of knots are assembled on all available cores.
+    /// The normal equations linearised at `knots` into `sys` (which must have `knots.len()`
+    /// blocks; every block is overwritten, so its storage can be reused as it is), and the cost
+    /// there. Chunks of knots are assembled on all available cores.
     pub fn assemble_into(&self, knots: &[Knot], sys: &mut BlockTridiagonal) -> f64 {
         assert_eq!(
             sys.len(),
