@@ -130,7 +130,7 @@ pub fn mul(a: &M18, b: &M18) -> M18 {
     let (a, b) = (cols(a), cols(b));
     let mut out = M18::zeros();
     for (o, bc) in cols_mut(&mut out).iter_mut().zip(b) {
-        *o = combine_columns::<N>(a, bc);
+        *o = combine_columns::<N>(a, |m, _| bc[m]);
     }
     out
 }
@@ -140,20 +140,7 @@ pub fn mul(a: &M18, b: &M18) -> M18 {
 fn add_symmetric_abt(out: &mut M18, a: &Cols, b: &Cols, sign: f64) {
     let o = cols_mut(out);
     for j in 0..N {
-        let bj: [f64; N] = std::array::from_fn(|m| b[m][j]);
-        match j {
-            0..6 => add_scaled_tail(&mut o[j][j..], &combine_columns::<18>(a, &bj)[j..], sign),
-            6..12 => add_scaled_tail(
-                &mut o[j][j..],
-                &combine_columns::<12>(a, &bj)[j - 6..],
-                sign,
-            ),
-            _ => add_scaled_tail(
-                &mut o[j][j..],
-                &combine_columns::<6>(a, &bj)[j - 12..],
-                sign,
-            ),
-        }
+        add_lower_column(a, |m, _| b[m][j], j, sign, &mut o[j]);
         let (left, right) = o.split_at_mut(j);
         for (r, col) in left.iter().enumerate() {
             right[0][r] = col[j];
@@ -161,23 +148,39 @@ fn add_symmetric_abt(out: &mut M18, a: &Cols, b: &Cols, sign: f64) {
     }
 }
 
-/// `out += sign s`, element by element.
+/// `out[j..] += sign (sum_m coef(m, a_m) a_m)[j..]`: the lower part of column `j` of a sum of
+/// the columns `a_m` of `a`, through [`combine_columns`] over the shortest of 18, 12 or 6 rows
+/// that covers it. (`x - s` and `x + (-1) s` round alike, so `sign = -1` subtracts.)
 #[inline(always)]
-fn add_scaled_tail(out: &mut [f64], s: &[f64], sign: f64) {
-    for (v, s) in out.iter_mut().zip(s) {
-        *v += sign * s;
+fn add_lower_column(
+    a: &Cols,
+    coef: impl Fn(usize, &[f64; N]) -> f64,
+    j: usize,
+    sign: f64,
+    out: &mut [f64; N],
+) {
+    let add = |out: &mut [f64], s: &[f64]| {
+        for (v, s) in out.iter_mut().zip(s) {
+            *v += sign * s;
+        }
+    };
+    match j {
+        0..6 => add(&mut out[j..], &combine_columns::<18>(a, &coef)[j..]),
+        6..12 => add(&mut out[j..], &combine_columns::<12>(a, &coef)[j - 6..]),
+        _ => add(&mut out[j..], &combine_columns::<6>(a, &coef)[j - 12..]),
     }
 }
 
-/// The last `R` rows of `sum_m coef[m] a_m` (`a_m` the columns of `a`), kept in registers: each
-/// element's terms `a_m[r] * coef[m]` are added in the order of `m`, starting from zero. The
-/// kernels below are written with it so that each element of their results gets the
-/// operations, and the order, of a plain triple loop.
+/// The last `R` rows of `sum_m coef(m, a_m) a_m` (`a_m` the columns of `a`), kept in
+/// registers: each element's terms `a_m[r] * coef(m, a_m)` are added in the order of `m`,
+/// starting from zero. The kernels below are written with it so that each element of their
+/// results gets the operations, and the order, of a plain triple loop.
 #[inline(always)]
-fn combine_columns<const R: usize>(a: &Cols, coef: &[f64; N]) -> [f64; R] {
+fn combine_columns<const R: usize>(a: &Cols, coef: impl Fn(usize, &[f64; N]) -> f64) -> [f64; R] {
     let first = N - R;
     let mut acc = [0.0; R];
-    for (am, &c) in a.iter().zip(coef) {
+    for (m, am) in a.iter().enumerate() {
+        let c = coef(m, am);
         for (s, v) in acc.iter_mut().zip(&am[first..]) {
             *s += v * c;
         }
@@ -199,8 +202,7 @@ pub fn inverse_from_cholesky(l: &M18) -> M18 {
     // change no bit of the result.
     let mut out = M18::zeros();
     for (j, o) in cols_mut(&mut out).iter_mut().enumerate() {
-        let vj: [f64; N] = std::array::from_fn(|k| v[k][j]);
-        *o = combine_columns::<N>(&v, &vj);
+        *o = combine_columns::<N>(&v, |_, vk| vk[j]);
     }
     out
 }
@@ -295,11 +297,7 @@ fn eliminate(l: &Cols, y: &mut Cols, w: &[f64; N], next: &mut M18, next_w: &mut 
     // next -= Y^T Y on the lower triangle only (the Cholesky factorisation of `next` reads
     // nothing else), one column at a time.
     for (c, sc) in cols_mut(next).iter_mut().enumerate() {
-        match c {
-            0..6 => subtract_column_of_yty::<18>(y, c, sc),
-            6..12 => subtract_column_of_yty::<12>(y, c, sc),
-            _ => subtract_column_of_yty::<6>(y, c, sc),
-        }
+        add_lower_column(y, |_, yj| yj[c], c, -1.0, sc);
     }
     // next_w -= Y^T w.
     let mut ytw = [0.0; N];
@@ -309,23 +307,6 @@ fn eliminate(l: &Cols, y: &mut Cols, w: &[f64; N], next: &mut M18, next_w: &mut 
         }
     }
     *next_w -= V18::from(ytw);
-}
-
-/// `s_c -= (Y^T Y)_c` on rows `c..` of column `c`, with `Y` given by its rows: as
-/// [`combine_columns`], with the coefficients read from column `c` of the rows as it goes.
-#[inline(always)]
-fn subtract_column_of_yty<const R: usize>(y: &Cols, c: usize, s_c: &mut [f64; N]) {
-    let first = N - R;
-    let mut acc = [0.0; R];
-    for yj in y {
-        let yjc = yj[c];
-        for (a, b) in acc.iter_mut().zip(&yj[first..]) {
-            *a += b * yjc;
-        }
-    }
-    for (a, b) in s_c[c..].iter_mut().zip(&acc[c - first..]) {
-        *a -= b;
-    }
 }
 
 /// Factorises a block in place and forward-substitutes its right-hand side.
