@@ -171,16 +171,7 @@ impl IntervalTerms {
 
     /// Every sum back to zero, in place.
     fn clear(&mut self) {
-        self.d1.fill(0.0);
-        self.upper.fill(0.0);
-        self.d2.fill(0.0);
-        self.r1.fill(0.0);
-        self.r2.fill(0.0);
-        self.c1.fill(0.0);
-        self.c2.fill(0.0);
-        self.theta.fill(0.0);
-        self.gradient.fill(0.0);
-        self.cost = 0.0;
+        *self = IntervalTerms::zeros();
     }
 }
 

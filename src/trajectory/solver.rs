@@ -219,8 +219,9 @@ impl Problem<'_> {
         (e.transpose() * self.info[k] * e)[0]
     }
 
-    /// The normal-equation blocks of the prior factor between knots `k` and `k + 1`, and the
-    /// local state of knot `k + 1` relative to knot `k` with its Jacobians.
+    /// The normal-equation blocks of the prior factor between knots `k` and `k + 1`, written
+    /// into `out`; returns the local state of knot `k + 1` relative to knot `k` with its
+    /// Jacobians.
     pub(crate) fn prior_terms(
         &self,
         knots: &[Knot],
