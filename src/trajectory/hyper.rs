@@ -92,8 +92,8 @@ struct Window<'a> {
     meas: Vec<Se3>,
     knots: Vec<Knot>,
     converged_once: bool,
-    /// The storage of the previous candidate's system, assembled into again (assembly writes
-    /// every block).
+    /// The storage of the window's last system (the first fit's, then each candidate's),
+    /// assembled into again: assembly writes every block.
     spare: Option<BlockTridiagonal>,
 }
 
@@ -122,9 +122,11 @@ fn window_log_likelihood(w: &mut Window, qc: &Vector6<f64>, sigma: (f64, f64)) -
         let opts = GaussNewtonOptions {
             max_iterations: 5,
             factor: false,
-            storage: None,
+            storage: w.spare.take(),
         };
-        w.knots = gauss_newton(&problem, w.knots.clone(), opts)?.knots;
+        let solved = gauss_newton(&problem, w.knots.clone(), opts)?;
+        w.knots = solved.knots;
+        w.spare = solved.spare;
         w.converged_once = true;
     }
     let n_knots = w.knots.len();
