@@ -482,8 +482,14 @@ fn rendered_kalibr_boards_give_corners_close_to_todays() {
 }
 
 /// Translation (m) and rotation (rad) RMS of the poses of a rendered stereo sequence of `board`,
-/// and the number of frames posed.
-fn sequence_errors(board: &Board, n: usize, name: &str) -> (f64, f64, usize) {
+/// and the number of frames posed, with the detector settings `det` made for the board read
+/// back from the sequence's target YAML.
+fn sequence_errors(
+    board: &Board,
+    n: usize,
+    name: &str,
+    det: impl Fn(&Board) -> DetectorSettings,
+) -> (f64, f64, usize) {
     use dvlcal::vision::camera::Camchain;
     use dvlcal::vision::frames::detect_frames;
     use dvlcal::vision::images::scan_images;
@@ -502,7 +508,7 @@ fn sequence_errors(board: &Board, n: usize, name: &str) -> (f64, f64, usize) {
         &frames,
         &target,
         &chain,
-        &DetectorSettings::default(),
+        &det(&target),
         &PnpOptions::default(),
         false,
     )
@@ -523,8 +529,10 @@ fn sequence_errors(board: &Board, n: usize, name: &str) -> (f64, f64, usize) {
 #[test]
 fn rendered_kalibr_sequence_poses_within_1_6_times_todays_errors() {
     let n = 16;
-    let (tk, rk, nk) = sequence_errors(&vision_seq::board().printed_by_kalibr(), n, "kalibr-seq");
-    let (ta, ra, na) = sequence_errors(&vision_seq::board(), n, "apriltag-seq");
+    let default = |_: &Board| DetectorSettings::default();
+    let kalibr = vision_seq::board().printed_by_kalibr();
+    let (tk, rk, nk) = sequence_errors(&kalibr, n, "kalibr-seq", default);
+    let (ta, ra, na) = sequence_errors(&vision_seq::board(), n, "apriltag-seq", default);
     eprintln!(
         "{n} stereo frames: Kalibr print {nk} poses, RMS {:.3} mm {:.4} deg; libapriltag print \
          {na} poses, RMS {:.3} mm {:.4} deg",
@@ -543,6 +551,22 @@ fn rendered_kalibr_sequence_poses_within_1_6_times_todays_errors() {
     assert!(tk <= 1.6 * ta, "translation {tk} m vs {ta} m");
     assert!(rk <= 1.6 * ra, "rotation {rk} rad vs {ra} rad");
     assert!(tk < 3e-4 && rk < 0.015f64.to_radians(), "{tk} m, {rk} rad");
+    // The pipeline's settings (`dvlcal detect`): the board's ids, and the Kalibr print known
+    // from the Kalibr target YAML, so that the brightened pass runs first. The poses are as
+    // good as with today's order (observed: the same to 0.1 %).
+    let pipeline = |b: &Board| dvlcal::pipeline::detector_settings(b, &Default::default());
+    assert!(pipeline(&kalibr).kalibr_print && !pipeline(&vision_seq::board()).kalibr_print);
+    let (tp, rp, np) = sequence_errors(&kalibr, n, "kalibr-seq-pipeline", pipeline);
+    eprintln!(
+        "pipeline settings: {np} poses, RMS {:.3} mm {:.4} deg",
+        tp * 1e3,
+        rp.to_degrees()
+    );
+    assert_eq!(np, n);
+    assert!(
+        tp <= 1.05 * tk && rp <= 1.05 * rk,
+        "{tp} m {rp} rad against {tk} m {rk} rad"
+    );
 }
 
 #[test]
@@ -954,4 +978,127 @@ fn one_pass_brightest_decimation_equals_the_two_steps() {
         &mut Rng::new(2),
     );
     assert_eq!(max3_decimate(&img), max_decimate(&max3(&img)));
+}
+
+/// A detector for a known board of `ids`, told (`kalibr_print`) or not that it is a Kalibr print.
+fn board_detector(ids: Vec<u32>, kalibr_print: bool) -> Detector {
+    Detector::new(&DetectorSettings {
+        board_ids: Some(ids),
+        kalibr_print,
+        ..DetectorSettings::default()
+    })
+    .unwrap()
+}
+
+/// Largest distance (px) between the corners of the same ids; panics when the ids differ.
+fn largest_corner_move(a: &[TagDetection], b: &[TagDetection], what: &str) -> f64 {
+    let ids = |v: &[TagDetection]| v.iter().map(|d| d.id).collect::<Vec<_>>();
+    assert_eq!(ids(a), ids(b), "{what}: the two orders find different tags");
+    a.iter()
+        .zip(b)
+        .flat_map(|(x, y)| (0..4).map(move |k| (x.corners[k] - y.corners[k]).norm()))
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn a_board_known_as_a_kalibr_print_gives_the_same_tags_as_accurately() {
+    // The brightened pass first and libapriltag's own detection only for ids it leaves
+    // unfound, against today's order (libapriltag first), with the same board's ids.
+    // Photos: the same tags, corners within a hundredth of a pixel (observed: 0.0014 px), and
+    // as good a fit to a flat board.
+    for name in PHOTOS {
+        let img = load_gray(&fixtures().join(name)).unwrap();
+        let ids: Vec<u32> = (0..layout(name).1).collect();
+        let today = board_detector(ids.clone(), false).detect(&img);
+        let first = board_detector(ids, true).detect(&img);
+        let moved = largest_corner_move(&today, &first, name);
+        eprintln!(
+            "{name}: {} tags, corners moved by up to {moved:.4} px",
+            first.len()
+        );
+        assert!(moved < 0.01, "{name}: corners moved by {moved} px");
+    }
+    for (name, ids, cols) in [
+        ("two_boards.png", 0..36, 6),
+        ("two_boards.png", 36..72, 6),
+        ("iphone.png", 0..66, 11),
+    ] {
+        let img = load_gray(&fixtures().join(name)).unwrap();
+        let all: Vec<u32> = (0..layout(name).1).collect();
+        let rms = |kalibr_print: bool| {
+            let d = board_detector(all.clone(), kalibr_print).detect(&img);
+            let tags: Vec<(u32, [Vector2<f64>; 4])> = d
+                .iter()
+                .filter(|d| ids.contains(&d.id))
+                .map(|d| (d.id - ids.start, d.corners))
+                .collect();
+            homography_rms(&tags, cols)
+        };
+        let (today, first) = (rms(false), rms(true));
+        eprintln!("{name} ids {ids:?}: homography RMS {first:.4} px, today's order {today:.4} px");
+        assert!(
+            first <= today * 1.01 + 1e-4,
+            "{name}: {first} px against {today} px"
+        );
+    }
+    // Renders at three distances and four tilts, against the projected board corners: the same
+    // number of tags and the same corner RMS within 2 % (observed: within 0.8 %). Where the
+    // brightened pass finds every tag, libapriltag's detection does not run (observed: 7 of the
+    // 9 renders that show all 36 tags); where tags are out of view or too oblique to read, it
+    // runs as before.
+    let cam = camera();
+    let board = kalibr_board();
+    let ids: Vec<u32> = board.tags.iter().map(|t| t.id).collect();
+    let views = [
+        Vector3::zeros(),
+        Vector3::new(0.3, -0.4, 0.2),
+        Vector3::new(-0.5, 0.2, 0.8),
+        Vector3::new(0.6, 0.5, -0.3),
+    ];
+    let (mut fast, mut today) = (
+        board_detector(ids.clone(), true),
+        board_detector(ids.clone(), false),
+    );
+    let mut images = 0;
+    for (s, label) in [
+        (RenderSettings::default(), "realistic"),
+        (RenderSettings::ideal(), "ideal"),
+    ] {
+        for (i, tilt) in views.iter().enumerate() {
+            for dist in [0.9, 1.3, 2.0] {
+                let t = facing(&board, dist, *tilt);
+                let img = render(&board, &cam, &t, &s, &mut Rng::new(70 + i as u64));
+                images += 1;
+                let err = |det: &mut Detector| {
+                    let d = det.detect_with_camera(&img, Some(&cam));
+                    let mut sq = 0.0;
+                    for d in &d {
+                        let tag = board.tag(d.id).unwrap();
+                        for (got, c) in d.corners.iter().zip(&tag.corners) {
+                            sq +=
+                                (got - cam.project(&t.transform_point(c)).unwrap()).norm_squared();
+                        }
+                    }
+                    ((sq / (4 * d.len().max(1)) as f64).sqrt(), d.len())
+                };
+                let ((et, nt), (ef, nf)) = (err(&mut today), err(&mut fast));
+                eprintln!(
+                    "{label} view {i} at {dist} m: {nf} tags, RMS {ef:.4} px; today's order {nt} \
+                     tags, RMS {et:.4} px"
+                );
+                assert_eq!(nf, nt, "{label} view {i} at {dist} m");
+                assert!(
+                    ef <= 1.02 * et + 1e-3,
+                    "{label} view {i} at {dist} m: {ef} px, {et} px"
+                );
+            }
+        }
+    }
+    eprintln!(
+        "libapriltag's detection ran on {} of {images} renders (today's order: {})",
+        fast.library_detections(),
+        today.library_detections()
+    );
+    assert_eq!(today.library_detections(), images);
+    assert!(fast.library_detections() <= images - 5);
 }

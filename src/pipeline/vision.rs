@@ -10,7 +10,7 @@ use crate::io::frames_csv::{FrameRow, format_frames_csv};
 use crate::io::tum::as_read_back;
 use crate::time::Epoch;
 use crate::types::PoseMeasurement;
-use crate::vision::board::Board;
+use crate::vision::board::{Board, TagPrint};
 use crate::vision::camera::Camchain;
 use crate::vision::detect::DetectorSettings;
 use crate::vision::frames::{DetectStats, FrameResult, detect_frames};
@@ -151,13 +151,15 @@ pub fn poses_from_images_with_chain(
 
 /// The detector settings of the image pipeline for `board`: one thread per detector (the frames
 /// run in parallel), the decimation of `opts`, the board's ids (the Kalibr second pass stops
-/// once they are all found).
+/// once they are all found) and whether it is a Kalibr print (its brightened pass then runs
+/// first, libapriltag's own detection only for ids it leaves unfound).
 pub fn detector_settings(board: &Board, opts: &VisionOptions) -> DetectorSettings {
     DetectorSettings {
         family: board.family,
         decimate: opts.decimate,
         threads: 1,
         board_ids: Some(board.tags.iter().map(|t| t.id).collect()),
+        kalibr_print: board.print == TagPrint::Kalibr,
         ..DetectorSettings::default()
     }
 }

@@ -80,6 +80,12 @@ pub struct DetectorSettings {
     /// a tag that is not on the board or a second tag with a board id, neither of which a
     /// board pose uses.
     pub board_ids: Option<Vec<u32>>,
+    /// The board in view is printed the way Kalibr prints an aprilgrid (a Kalibr target YAML,
+    /// [`crate::vision::board::TagPrint::Kalibr`]). With `board_ids` and `kalibr_layout`, the
+    /// Kalibr pass on the brightened half image runs first, and libapriltag's own detection of
+    /// the whole image only when that pass leaves ids of the board unfound (see
+    /// `vision::kalibr`). Off by default: without it the order suits any board.
+    pub kalibr_print: bool,
 }
 
 impl Default for DetectorSettings {
@@ -95,6 +101,7 @@ impl Default for DetectorSettings {
             max_hamming: 1,
             kalibr_layout: true,
             board_ids: None,
+            kalibr_print: false,
         }
     }
 }
@@ -169,6 +176,8 @@ pub struct Detector {
     /// The board's ids, sorted and without repeats (`DetectorSettings::board_ids`); `None` when
     /// the board is not known or has no tags.
     board_ids: Option<Vec<u32>>,
+    /// Images given to libapriltag's own detection ([`Detector::library_detections`]).
+    library_detections: usize,
 }
 
 /// What the detector needs to read Kalibr-printed tags: the widened copy of tag36h11 given to
@@ -221,6 +230,7 @@ impl Detector {
                 v.dedup();
                 v
             }),
+            library_detections: 0,
         };
         // SAFETY: td and tf are valid; the family outlives the detector (Drop destroys the detector
         // first). The settings fields are plain values.
@@ -277,6 +287,14 @@ impl Detector {
         &self.settings
     }
 
+    /// How many images this detector has given to libapriltag's own detection of the whole
+    /// image: every image, except on a known Kalibr print
+    /// ([`DetectorSettings::kalibr_print`]), where only those on which the brightened pass left
+    /// an id of the board unfound.
+    pub fn library_detections(&self) -> usize {
+        self.library_detections
+    }
+
     /// Detects the tags in a grey image. Detections are sorted by id, then by their first corner,
     /// so the result does not depend on the number of threads. With `refine_corners`, the sides
     /// are fitted as straight lines in the image.
@@ -291,8 +309,25 @@ impl Detector {
         gray: &image::GrayImage,
         cam: Option<&Camera>,
     ) -> Vec<TagDetection> {
-        let mut out = self.detect_raw(gray);
+        if self.kalibr.is_some() && self.settings.kalibr_print && self.board_ids.is_some() {
+            return self.detect_kalibr_board(gray, cam);
+        }
+        let mut out = self.library_pass(gray, cam);
         let kalibr_seen = out.iter().any(|d| d.border_bits == KALIBR_BORDER_BITS);
+        let second = self.kalibr.is_some() && (out.is_empty() || kalibr_seen);
+        if second {
+            let more = self.kalibr_second_pass(gray, cam, &out, &SECOND_PASS_LEVELS);
+            out.extend(more);
+            sort_detections(&mut out);
+        }
+        out
+    }
+
+    /// libapriltag's detection of the whole image (both layouts), with the corners refined as
+    /// `refine_corners` asks.
+    fn library_pass(&mut self, gray: &image::GrayImage, cam: Option<&Camera>) -> Vec<TagDetection> {
+        self.library_detections += 1;
+        let mut out = self.detect_raw(gray);
         if self.settings.refine_corners {
             out.retain_mut(|d| {
                 if d.border_bits == KALIBR_BORDER_BITS {
@@ -314,13 +349,52 @@ impl Detector {
                 }
             });
         }
-        let second = self.kalibr.is_some() && (out.is_empty() || kalibr_seen);
-        if second {
-            let more = self.kalibr_second_pass(gray, cam, &out);
-            out.extend(more);
-            sort_detections(&mut out);
-        }
         out
+    }
+
+    /// A known board printed by Kalibr: the pass on the 2x2-brightest half image first (on
+    /// such a print it finds most or all of the tags, at under half the cost of libapriltag's
+    /// own detection), then libapriltag's detection of the whole image and the 3x3-brightest
+    /// image, each only while an id of the board is still missing. A tag found again by a later
+    /// pass keeps the corners of the first.
+    fn detect_kalibr_board(
+        &mut self,
+        gray: &image::GrayImage,
+        cam: Option<&Camera>,
+    ) -> Vec<TagDetection> {
+        self.ensure_worker_pool();
+        let mut out = self.kalibr_second_pass(gray, cam, &[], &SECOND_PASS_LEVELS[..1]);
+        if !self.board_complete(&out) {
+            let first = self.library_pass(gray, cam);
+            for d in first {
+                let centre = d.corners.iter().sum::<Vector2<f64>>() / 4.0;
+                if !out.iter().any(|o| covers(o, &centre)) {
+                    out.push(d);
+                }
+            }
+        }
+        let more = self.kalibr_second_pass(gray, cam, &out, &SECOND_PASS_LEVELS[1..]);
+        out.extend(more);
+        sort_detections(&mut out);
+        out
+    }
+
+    /// Whether every id of the board (when it is known) is among `found`.
+    fn board_complete(&self, found: &[TagDetection]) -> bool {
+        self.board_ids
+            .as_deref()
+            .is_some_and(|ids| every_id_found(ids, found.iter()))
+    }
+
+    /// libapriltag makes its worker pool, which its segmentation alone (`vision::kalibr::quads`)
+    /// needs, in its first detection: a detector whose first pass is the Kalibr one runs
+    /// libapriltag once on a small blank image.
+    fn ensure_worker_pool(&mut self) {
+        // SAFETY: the detector is ours and used by this thread only.
+        if unsafe { (*self.td).wp.is_null() } {
+            let side = (8.0 * self.settings.decimate.max(1.0)).ceil() as u32;
+            let _ = self.detect_raw(&image::GrayImage::new(side.max(16), side.max(16)));
+        }
     }
 
     /// The second pass for Kalibr tags (see `vision::kalibr`): quads of the brightened
@@ -332,12 +406,13 @@ impl Detector {
         gray: &image::GrayImage,
         cam: Option<&Camera>,
         known: &[TagDetection],
+        levels: &[SecondPassLevel],
     ) -> Vec<TagDetection> {
         let Some(k) = &self.kalibr else {
             return Vec::new();
         };
         let mut out: Vec<TagDetection> = Vec::new();
-        for (level, growth) in SECOND_PASS_LEVELS.iter().enumerate() {
+        for level in levels {
             if self
                 .board_ids
                 .as_deref()
@@ -345,10 +420,10 @@ impl Detector {
             {
                 break;
             }
-            let half = if level == 0 {
-                max_decimate(gray)
-            } else {
+            let half = if level.max3_first {
                 max3_decimate(gray)
+            } else {
+                max_decimate(gray)
             };
             // SAFETY: the detector is ours and used by this thread only.
             let found = unsafe { quads(self.td, &half) };
@@ -360,7 +435,7 @@ impl Detector {
                 if known.iter().chain(&out).any(|d| covers(d, &centre)) {
                     continue;
                 }
-                let Some(q) = grow(&q, *growth) else {
+                let Some(q) = grow(&q, level.growth) else {
                     continue;
                 };
                 // Too small to read (under 1.5 px per cell), or nothing light inside.
@@ -459,11 +534,27 @@ impl Detector {
     }
 }
 
-/// The second pass's images, and how far each moves the sides of its quads out before
-/// refinement (full-resolution pixels: about what the brightening took off every black region):
-/// the 2x2-brightest half-resolution image, and the same after a 3x3 brightest filter at full
-/// resolution (for the blurred photos whose corner contacts are wider).
-const SECOND_PASS_LEVELS: [f64; 2] = [0.5, 1.5];
+/// One image of the Kalibr second pass.
+struct SecondPassLevel {
+    /// A 3x3 brightest filter at full resolution before the 2x2-brightest decimation.
+    max3_first: bool,
+    /// How far the sides of its quads move out before refinement (full-resolution pixels:
+    /// about what the brightening took off every black region).
+    growth: f64,
+}
+
+/// The second pass's images: the 2x2-brightest half-resolution image, and the same after a 3x3
+/// brightest filter at full resolution (for the blurred photos whose corner contacts are wider).
+const SECOND_PASS_LEVELS: [SecondPassLevel; 2] = [
+    SecondPassLevel {
+        max3_first: false,
+        growth: 0.5,
+    },
+    SecondPassLevel {
+        max3_first: true,
+        growth: 1.5,
+    },
+];
 
 /// The refined corners of a Kalibr tag from a rough quad: refined as they are, or, when that
 /// fails, after its sides are re-fitted with a wider reach (`vision::kalibr::coarse_fit`).

@@ -29,6 +29,11 @@
 //!    of a tag36h11 code (in one of its four rotations). When the board is known
 //!    (`DetectorSettings::board_ids`), the pass stops as soon as every one of its ids is found.
 //!
+//! When the board is also known to be a Kalibr print (`DetectorSettings::kalibr_print`, set by
+//! the pipeline for a Kalibr aprilgrid YAML), the first image of pass 2 runs before pass 1, and
+//! pass 1 and the second image of pass 2 only while ids of the board are still missing: on such
+//! a print pass 2 is the one that finds the tags, so pass 1 is mostly work for nothing.
+//!
 //! The corners of every Kalibr tag end on the saddle points of the X-junctions between the tag
 //! and its corner squares, which the ink spread of a printer does not move. Tags found twice (by
 //! both passes, or by both families) are kept once: same id, centres closer than a quarter of the

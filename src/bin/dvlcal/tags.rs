@@ -64,6 +64,7 @@ pub fn run(a: TagsArgs) -> Result<()> {
         max_hamming: a.max_hamming,
         kalibr_layout: true,
         board_ids: None,
+        kalibr_print: false,
     };
     let mut det = Detector::new(&settings)?;
     let stdout = std::io::stdout();
