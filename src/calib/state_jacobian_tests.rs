@@ -353,7 +353,7 @@ fn interpolated_rate_is_the_twist_derivative_only_at_the_first_knot() {
                 let xi: Vector6<f64> = gamma.fixed_rows::<6>(0).into_owned();
                 let xid: Vector6<f64> = gamma.fixed_rows::<6>(6).into_owned();
                 let xidd: Vector6<f64> = gamma.fixed_rows::<6>(12).into_owned();
-                let exact = se3_right_jacobian(&xi) * xidd + d_jr_times(&xi, &[&xid])[0] * xid;
+                let exact = se3_right_jacobian(&xi) * xidd + d_jr_times(&xi, [&xid])[0] * xid;
                 let numeric = twist_derivative(&times, &knots, t);
                 let e = (exact - numeric).norm() / numeric.norm();
                 worst_exact = worst_exact.max(e);

@@ -393,7 +393,7 @@ impl KnotView<'_> {
         let xi: Vector6<f64> = gamma.fixed_rows::<6>(0).into_owned();
         let xid: Vector6<f64> = gamma.fixed_rows::<6>(6).into_owned();
         // m d twist / d gamma = [p0, p1, 0] (the twist does not depend on xi'').
-        let p0: M36 = m * d_jr_times(&xi, &[&xid])[0];
+        let p0: M36 = m * d_jr_times(&xi, [&xid])[0];
         let p1: M36 = m * se3_right_jacobian(&xi);
         // Through Lambda (x) I6 and Omega (x) I6: block j is p0 s[0][j] + p1 s[1][j].
         let through = |s: &Matrix3<f64>, j: usize| -> M36 { p0 * s[(0, j)] + p1 * s[(1, j)] };
@@ -429,7 +429,7 @@ impl KnotView<'_> {
         let mut d_local = SMatrix::<f64, 6, 18>::zeros();
         d_local
             .fixed_view_mut::<6, 6>(0, 0)
-            .copy_from(&d_jr_times(&xi, &[&xid])[0]);
+            .copy_from(&d_jr_times(&xi, [&xid])[0]);
         d_local
             .fixed_view_mut::<6, 6>(0, 6)
             .copy_from(&se3_right_jacobian(&xi));

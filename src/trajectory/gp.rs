@@ -181,13 +181,39 @@ fn curly_times(xi: &[f64; 6], v: &[f64; 6]) -> [f64; 6] {
     [a[0] + b[0], a[1] + b[1], a[2] + b[2], c[0], c[1], c[2]]
 }
 
+/// `s += coef d` for a 3x3 block stored by columns, keeping in `largest` the largest magnitude of
+/// a term added and of a sum (the series' convergence test).
+#[inline(always)]
+fn add_scaled_block(s: &mut [[f64; 3]; 3], d: &[[f64; 3]; 3], coef: f64, largest: &mut (f64, f64)) {
+    for (sc, dc) in s.iter_mut().zip(d) {
+        for (si, di) in sc.iter_mut().zip(dc) {
+            let t = coef * di;
+            *si += t;
+            // Comparisons rather than `f64::max`, whose NaN rule costs several instructions;
+            // neither running maximum can become NaN either way.
+            let (t, s) = (t.abs(), si.abs());
+            if t > largest.0 {
+                largest.0 = t;
+            }
+            if s > largest.1 {
+                largest.1 = s;
+            }
+        }
+    }
+}
+
 /// Derivative with respect to `xi` of `(sum_n a_n ad^n) c`, `ad = curly(xi)`, for a power series
 /// with coefficients `coef(n)` (`n >= 1`; the constant term does not depend on `xi`).
 ///
 /// With `v_n = ad^n c`, `d v_n / d xi = D_n = ad D_{n-1} - curly(v_{n-1})` (`D_0 = 0`), because
-/// `curly(a) b = -curly(b) a`. The sum stops at the first non-zero term (from `n = 4`) below
-/// 1e-16 of the sum, or after `max_n` terms. The series used here shrink by at least a factor
-/// of four per non-zero term (rotation angles up to pi), so the remainder is below 4e-17.
+/// `curly(a) b = -curly(b) a`. In 3x3 blocks `D_n = [A_n B_n; 0 A_n]`: the translation columns of
+/// `-curly(v)` are `[e_j x v_phi; 0]` and its rotation columns `[e_i x v_rho; e_i x v_phi]`, and
+/// `ad = [phi^ rho^; 0 phi^]` keeps a zero lower-left block zero, so
+/// `A_n = phi^ A_{n-1} + [e_j x v_phi]_j` for both diagonal blocks (the same recursion from zero)
+/// and `B_n = phi^ B_{n-1} + rho^ A_{n-1} + [e_i x v_rho]_i`. Only `A` and `B` are formed.
+/// The sum stops at the first non-zero term (from `n = 4`) below 1e-16 of the sum, or after
+/// `max_n` terms. The series used here shrink by at least a factor of four per non-zero term
+/// (rotation angles up to pi), so the remainder is below 4e-17.
 fn d_series_times(
     xi: &Vector6<f64>,
     c: &Vector6<f64>,
@@ -195,84 +221,84 @@ fn d_series_times(
     max_n: usize,
 ) -> Matrix6<f64> {
     let xi: [f64; 6] = (*xi).into();
+    let (rho, phi) = split(&xi);
     let mut v: [f64; 6] = (*c).into();
-    // Columns of D_n and of the sum.
-    let mut d = [[0.0; 6]; 6];
-    let mut sum = [[0.0; 6]; 6];
+    // Columns of A_n and B_n, and of their sums.
+    let (mut a, mut b) = ([[0.0; 3]; 3], [[0.0; 3]; 3]);
+    let (mut sa, mut sb) = ([[0.0; 3]; 3], [[0.0; 3]; 3]);
     for n in 1..=max_n {
-        // Column j of -curly(v) is curly(e_j) v: [e_j x v_phi; 0] for j < 3, and
-        // [e_i x v_rho; e_i x v_phi] for j = 3 + i; e_i x u = [0, -u2, u1], [u2, 0, -u0],
-        // [-u1, u0, 0].
+        // e_i x u = [0, -u2, u1], [u2, 0, -u0], [-u1, u0, 0].
         let (vr, vp) = split(&v);
         let e_cross = |i: usize, u: [f64; 3]| match i {
             0 => [0.0, -u[2], u[1]],
             1 => [u[2], 0.0, -u[0]],
             _ => [-u[1], u[0], 0.0],
         };
-        for (j, col) in d.iter_mut().enumerate() {
-            let new = curly_times(&xi, col);
-            let (top, bottom) = if j < 3 {
-                (e_cross(j, vp), [0.0; 3])
-            } else {
-                (e_cross(j - 3, vr), e_cross(j - 3, vp))
-            };
-            *col = [
-                new[0] + top[0],
-                new[1] + top[1],
-                new[2] + top[2],
-                new[3] + bottom[0],
-                new[4] + bottom[1],
-                new[5] + bottom[2],
+        for i in 0..3 {
+            let (pa, pb, ra) = (cross(phi, a[i]), cross(phi, b[i]), cross(rho, a[i]));
+            let (ea, eb) = (e_cross(i, vp), e_cross(i, vr));
+            a[i] = [pa[0] + ea[0], pa[1] + ea[1], pa[2] + ea[2]];
+            b[i] = [
+                pb[0] + ra[0] + eb[0],
+                pb[1] + ra[1] + eb[1],
+                pb[2] + ra[2] + eb[2],
             ];
         }
         v = curly_times(&xi, &v);
-        let a = coef(n);
-        if a != 0.0 {
-            let (mut term, mut total) = (0.0f64, 0.0f64);
-            for (s, col) in sum.iter_mut().zip(&d) {
-                for (si, di) in s.iter_mut().zip(col) {
-                    let t = a * di;
-                    *si += t;
-                    // Comparisons rather than `f64::max`, whose NaN rule costs several
-                    // instructions; neither running maximum can become NaN either way.
-                    let (t, s) = (t.abs(), si.abs());
-                    if t > term {
-                        term = t;
-                    }
-                    if s > total {
-                        total = s;
-                    }
-                }
-            }
+        let coef_n = coef(n);
+        if coef_n != 0.0 {
+            let mut largest = (0.0f64, 0.0f64);
+            add_scaled_block(&mut sa, &a, coef_n, &mut largest);
+            add_scaled_block(&mut sb, &b, coef_n, &mut largest);
+            let (term, total) = largest;
             if n >= 4 && term <= 1e-16 * total {
                 break;
             }
         }
     }
-    Matrix6::from_fn(|r, c| sum[c][r])
+    Matrix6::from_fn(|r, c| match (r < 3, c < 3) {
+        (true, true) => sa[c][r],
+        (true, false) => sb[c - 3][r],
+        (false, true) => 0.0,
+        (false, false) => sa[c - 3][r - 3],
+    })
 }
 
-/// Derivative with respect to `xi` of `J_r^-1(xi) c`, from the Bernoulli series of `J_r^-1`
-/// (which converges for rotation angles below 2 pi; the local states use angles up to pi).
-pub fn d_jr_inv_times(xi: &Vector6<f64>, c: &[&Vector6<f64>]) -> Vec<Matrix6<f64>> {
+/// Derivative with respect to `xi` of `J_r^-1(xi) c` for each `c`, from the Bernoulli series of
+/// `J_r^-1` (which converges for rotation angles below 2 pi; the local states use angles up to
+/// pi).
+pub fn d_jr_inv_times<const N: usize>(
+    xi: &Vector6<f64>,
+    c: [&Vector6<f64>; N],
+) -> [Matrix6<f64>; N] {
     let coef = |n: usize| match n {
         1 => 0.5,
         _ if n % 2 == 1 => 0.0,
         _ => BERNOULLI_OVER_FACTORIAL[n / 2 - 1],
     };
-    c.iter()
-        .map(|c| d_series_times(xi, c, coef, 2 * BERNOULLI_OVER_FACTORIAL.len()))
-        .collect()
+    c.map(|c| d_series_times(xi, c, coef, 2 * BERNOULLI_OVER_FACTORIAL.len()))
 }
 
-/// Derivative with respect to `xi` of `J_r(xi) c`, from `J_r(xi) = sum_n (-ad)^n / (n+1)!`.
-pub fn d_jr_times(xi: &Vector6<f64>, c: &[&Vector6<f64>]) -> Vec<Matrix6<f64>> {
+/// `(n+1)!` for `n = 0..=60`, each the product `2 * 3 * ... * (n+1)` in that order.
+const FACTORIAL_OF_NEXT: [f64; 61] = {
+    let mut f = [1.0; 61];
+    let mut n = 1;
+    while n < 61 {
+        f[n] = f[n - 1] * (n + 1) as f64;
+        n += 1;
+    }
+    f
+};
+
+/// Derivative with respect to `xi` of `J_r(xi) c` for each `c`, from
+/// `J_r(xi) = sum_n (-ad)^n / (n+1)!`.
+pub fn d_jr_times<const N: usize>(xi: &Vector6<f64>, c: [&Vector6<f64>; N]) -> [Matrix6<f64>; N] {
     // (-1)^n / (n+1)!; 60 terms reach 1e-17 for any angle below ~10 rad.
     let coef = |n: usize| {
-        let f: f64 = (2..=n + 1).map(|k| k as f64).product();
+        let f = FACTORIAL_OF_NEXT[n];
         if n % 2 == 0 { 1.0 / f } else { -1.0 / f }
     };
-    c.iter().map(|c| d_series_times(xi, c, coef, 60)).collect()
+    c.map(|c| d_series_times(xi, c, coef, 60))
 }
 
 /// The local state of the second knot relative to the first, with the 6x6 pieces of its
@@ -339,8 +365,7 @@ pub fn local_state(k1: &Knot, k2: &Knot) -> LocalState {
     let dw2 = k2.rate;
     let u = jri * w2;
     let a = jri * dw2 + curly(&u) * w2 * 0.5;
-    let d = d_jr_inv_times(&xi, &[&w2, &dw2]);
-    let (du_dxi, ddw_dxi) = (d[0], d[1]);
+    let [du_dxi, ddw_dxi] = d_jr_inv_times(&xi, [&w2, &dw2]);
     // d(curly(u) w2)/du = -curly(w2)
     let cw2 = curly(&w2);
     let da_dxi = ddw_dxi - cw2 * du_dxi * 0.5;
@@ -649,12 +674,12 @@ mod tests {
                 }
                 for (series, f, h) in [
                     (
-                        d_jr_inv_times(&xi, &[&c])[0],
+                        d_jr_inv_times(&xi, [&c])[0],
                         se3_right_jacobian_inv as fn(&_) -> _,
                         1e-3,
                     ),
                     (
-                        d_jr_times(&xi, &[&c])[0],
+                        d_jr_times(&xi, [&c])[0],
                         se3_right_jacobian as fn(&_) -> _,
                         1e-3,
                     ),
