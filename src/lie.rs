@@ -180,6 +180,25 @@ pub mod so3 {
         Matrix3::identity() - k * 0.5 + k * k * c
     }
 
+    /// `J_l^-1(phi)` and `J_l^-1(-phi)` (= `J_r^-1(phi)`) with one evaluation of the shared
+    /// coefficient and square: the values [`left_jacobian_inv`] gives for each.
+    pub fn left_jacobian_inv_both(phi: &Vector3<f64>) -> (Matrix3<f64>, Matrix3<f64>) {
+        let th2 = phi.norm_squared();
+        let th = th2.sqrt();
+        let c = if th < SMALL_ANGLE {
+            1.0 / 12.0 + th2 / 720.0 + th2 * th2 / 30240.0
+        } else {
+            1.0 / th2 - (0.5 * th).cos() / ((0.5 * th).sin() * 2.0 * th)
+        };
+        let (k, km) = (hat(phi), hat(&-phi));
+        // hat(-phi)^2 has the same products as hat(phi)^2, term by term.
+        let kkc = k * k * c;
+        (
+            Matrix3::identity() - k * 0.5 + kkc,
+            Matrix3::identity() - km * 0.5 + kkc,
+        )
+    }
+
     /// Right Jacobian of SO(3): `J_r(phi) = J_l(-phi)`.
     pub fn right_jacobian(phi: &Vector3<f64>) -> Matrix3<f64> {
         left_jacobian(&-phi)
@@ -219,11 +238,10 @@ pub fn se3_vee(m: &Matrix4<f64>) -> Vector6<f64> {
     Vector6::new(m[(0, 3)], m[(1, 3)], m[(2, 3)], w.x, w.y, w.z)
 }
 
-/// The Q block of the SE(3) left Jacobian (Barfoot, State Estimation for Robotics, eq. 7.86).
-fn q_block(rho: &Vector3<f64>, phi: &Vector3<f64>) -> Matrix3<f64> {
-    let th2 = phi.norm_squared();
+/// The coefficients of the Q block's three groups of products, for `th2 = |phi|^2`.
+fn q_coefficients(th2: f64) -> (f64, f64, f64) {
     let th = th2.sqrt();
-    let (c1, c2, c3) = if th < Q_SMALL_ANGLE {
+    if th < Q_SMALL_ANGLE {
         // c1 = sum (-th^2)^k / (2k+3)!, c2 = sum (-th^2)^k / (2k+4)!,
         // c3 = sum (-th^2)^k (k+1) / (2k+5)!.
         let x = th2;
@@ -246,7 +264,12 @@ fn q_block(rho: &Vector3<f64>, phi: &Vector3<f64>) -> Matrix3<f64> {
             (th2 - 4.0 * sh * sh) / (2.0 * th4),
             (2.0 * th - 3.0 * s + th * c) / (2.0 * th4 * th),
         )
-    };
+    }
+}
+
+/// The Q block of the SE(3) left Jacobian (Barfoot, State Estimation for Robotics, eq. 7.86).
+fn q_block(rho: &Vector3<f64>, phi: &Vector3<f64>) -> Matrix3<f64> {
+    let (c1, c2, c3) = q_coefficients(phi.norm_squared());
     let p = hat(phi);
     let r = hat(rho);
     let pr = p * r;
@@ -257,6 +280,48 @@ fn q_block(rho: &Vector3<f64>, phi: &Vector3<f64>) -> Matrix3<f64> {
         + (pr + rp + prp) * c1
         + (pp * r + rp * p - prp * 3.0) * c2
         + (prp * p + pp * r * p) * c3
+}
+
+/// [`q_block`] at `(rho, phi)` and at `(-rho, -phi)`, from one set of products: those of
+/// `Q(-rho, -phi)` are the products of `Q(rho, phi)` or their negatives (negation is exact), so
+/// the values are those of two calls of [`q_block`] (up to the sign of an exact zero).
+fn q_block_both(rho: &Vector3<f64>, phi: &Vector3<f64>) -> (Matrix3<f64>, Matrix3<f64>) {
+    let th2 = phi.norm_squared();
+    let (c1, c2, c3) = q_coefficients(th2);
+    let p = hat(phi);
+    let r = hat(rho);
+    let pr = p * r;
+    let rp = r * p;
+    let prp = pr * p;
+    let pp = p * p;
+    let ppr = pp * r;
+    let rpp = rp * p;
+    let prpp = prp * p;
+    let pprp = ppr * p;
+    let plus = r * 0.5 + (pr + rp + prp) * c1 + (ppr + rpp - prp * 3.0) * c2 + (prpp + pprp) * c3;
+    let (mprp, mppr, mrpp) = (-prp, -ppr, -rpp);
+    let minus = hat(&-rho) * 0.5
+        + (pr + rp + mprp) * c1
+        + (mppr + mrpp - mprp * 3.0) * c2
+        + (prpp + pprp) * c3;
+    (plus, minus)
+}
+
+/// `J_l^-1(xi)` and `J_l^-1(-xi)` (= `J_r^-1(xi)`), with the trigonometry and the products of
+/// the Q blocks shared: the values [`se3_left_jacobian_inv`] gives for each.
+pub fn se3_left_jacobian_inv_both(xi: &Vector6<f64>) -> (Matrix6<f64>, Matrix6<f64>) {
+    let rho = xi.fixed_rows::<3>(0).into_owned();
+    let phi = xi.fixed_rows::<3>(3).into_owned();
+    let (ji, jim) = so3::left_jacobian_inv_both(&phi);
+    let (q, qm) = q_block_both(&rho, &phi);
+    let block = |ji: &Matrix3<f64>, q: &Matrix3<f64>| {
+        let mut m = Matrix6::zeros();
+        m.fixed_view_mut::<3, 3>(0, 0).copy_from(ji);
+        m.fixed_view_mut::<3, 3>(3, 3).copy_from(ji);
+        m.fixed_view_mut::<3, 3>(0, 3).copy_from(&(-ji * q * ji));
+        m
+    };
+    (block(&ji, &q), block(&jim, &qm))
 }
 
 /// Left Jacobian of SE(3): `[[J_l(phi), Q], [0, J_l(phi)]]`.

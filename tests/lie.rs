@@ -981,3 +981,30 @@ fn taylor_switch_over_sweep() {
         th *= 1.07;
     }
 }
+
+#[test]
+fn both_inverse_jacobians_at_once_equal_two_separate_calls() {
+    // `se3_left_jacobian_inv_both` shares the trigonometry and the Q block's products between
+    // `xi` and `-xi`: its values are those of the two separate calls (compared with `==`, which
+    // also equates the two signs of an exact zero), across both Taylor switch-overs, with zero
+    // components, and up to near pi.
+    let u = Vector3::new(0.48, -0.6, 0.64);
+    let rho = Vector3::new(1.5, -0.7, 1.9);
+    let mut th = 1e-7;
+    while th < 3.1 {
+        for x in [
+            <Se3 as Group<6>>::tangent(&rho, &(u * th)),
+            <Se3 as Group<6>>::tangent(&(rho * th), &(u * th)),
+            <Se3 as Group<6>>::tangent(&Vector3::new(0.3, 0.0, 0.0), &Vector3::new(0.0, 0.0, th)),
+        ] {
+            let (jl, jr) = lie::se3_left_jacobian_inv_both(&x);
+            assert_eq!(jl, lie::se3_left_jacobian_inv(&x), "J_l^-1 at {x:?}");
+            assert_eq!(jr, lie::se3_right_jacobian_inv(&x), "J_r^-1 at {x:?}");
+            let phi = x.fixed_rows::<3>(3).into_owned();
+            let (sl, sr) = so3::left_jacobian_inv_both(&phi);
+            assert_eq!(sl, so3::left_jacobian_inv(&phi));
+            assert_eq!(sr, so3::right_jacobian_inv(&phi));
+        }
+        th *= 1.09;
+    }
+}

@@ -15,7 +15,9 @@
 use nalgebra::{Matrix3, Matrix6, SMatrix, Vector6};
 
 use super::blocktri::{M18, V18};
-use crate::lie::{Se3, curly, se3_right_jacobian, se3_right_jacobian_inv};
+use crate::lie::{
+    Se3, curly, se3_left_jacobian_inv_both, se3_right_jacobian, se3_right_jacobian_inv,
+};
 
 /// State of the trajectory at a knot.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -359,8 +361,8 @@ pub fn local_gamma(k1: &Knot, k2: &Knot) -> V18 {
 /// `gamma_2` of knot `k2` in the local frame of `k1`, and its Jacobians.
 pub fn local_state(k1: &Knot, k2: &Knot) -> LocalState {
     let xi = (k1.pose.inverse() * k2.pose).log();
-    let jri = se3_right_jacobian_inv(&xi);
-    let jli = se3_right_jacobian_inv(&-xi); // J_l^-1(xi) = J_r^-1(-xi)
+    // J_r^-1(xi) = J_l^-1(-xi).
+    let (jli, jri) = se3_left_jacobian_inv_both(&xi);
     let w2 = k2.twist;
     let dw2 = k2.rate;
     let u = jri * w2;
