@@ -1273,9 +1273,9 @@ fn mirror_if_better(
     let p = refined.params;
     let mut m = Matrix3::zeros();
     for &i in idx {
-        let q = refined.trajectory.state(obs[i].t + p.time_offset_s)?;
-        let v = q.twist.fixed_rows::<3>(0).into_owned();
-        let w = q.twist.fixed_rows::<3>(3).into_owned();
+        let twist = refined.trajectory.twist(obs[i].t + p.time_offset_s)?;
+        let v = twist.fixed_rows::<3>(0).into_owned();
+        let w = twist.fixed_rows::<3>(3).into_owned();
         let u = v + w.cross(&p.lever_arm_cam_m());
         m += u * u.transpose();
     }
@@ -1515,8 +1515,8 @@ fn whitened_residuals(
 ) -> Result<Vec<f64>> {
     crate::parallel::map_indices(idx.len(), 2048, |j| {
         let o = &obs[idx[j]];
-        let q = traj.state(o.t + params.time_offset_s)?;
-        let r = o.v - predict(params, &q.twist);
+        let twist = traj.twist(o.t + params.time_offset_s)?;
+        let r = o.v - predict(params, &twist);
         let w = o.cov.try_inverse().ok_or_else(|| {
             Error::Input(format!("DVL sample at t = {}: singular covariance", o.t))
         })?;
@@ -1643,8 +1643,8 @@ fn residual_whiteness(
     kept.sort_by(|&a, &b| obs[a].t.total_cmp(&obs[b].t));
     let r: Vec<Vector3<f64>> = crate::parallel::map_indices(kept.len(), 2048, |j| {
         let o = &obs[kept[j]];
-        let q = traj.state(o.t + params.time_offset_s)?;
-        let r = o.v - predict(params, &q.twist);
+        let twist = traj.twist(o.t + params.time_offset_s)?;
+        let r = o.v - predict(params, &twist);
         Ok(Vector3::new(
             r.x / o.cov[(0, 0)].max(1e-300).sqrt(),
             r.y / o.cov[(1, 1)].max(1e-300).sqrt(),
@@ -1964,11 +1964,11 @@ fn residuals_and_excitation(
         let mut sq = Vector3::zeros();
         let (mut sv, mut sw, mut sl) = (0.0, 0.0, 0.0);
         for &i in &idx[r] {
-            let q = traj.state(obs[i].t + params.time_offset_s)?;
-            let r = obs[i].v - predict(params, &q.twist);
+            let twist = traj.twist(obs[i].t + params.time_offset_s)?;
+            let r = obs[i].v - predict(params, &twist);
             sq += r.component_mul(&r);
-            let v = q.twist.fixed_rows::<3>(0).into_owned();
-            let w = q.twist.fixed_rows::<3>(3).into_owned();
+            let v = twist.fixed_rows::<3>(0).into_owned();
+            let w = twist.fixed_rows::<3>(3).into_owned();
             sv += v.norm_squared();
             sw += w.norm_squared();
             sl += w.cross(&params.lever_arm_cam_m()).norm_squared();

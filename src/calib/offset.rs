@@ -133,8 +133,8 @@ fn objective(
         let (mut saa, mut sab, mut sbb) = (0.0, 0.0, 0.0);
         for &i in &idx[r] {
             let o = &obs[i];
-            let q = traj.state(o.t + delta).ok()?;
-            let v = q.twist.fixed_rows::<3>(0);
+            let twist = traj.twist(o.t + delta).ok()?;
+            let v = twist.fixed_rows::<3>(0);
             let a = o.v.norm_squared() - o.cov.trace();
             let b = v.norm_squared() - tr_sv[i];
             saa += a * a;
@@ -267,8 +267,8 @@ pub fn estimate_offset(
     let near = inside(traj, obs, flo, fhi);
     let is_calm = crate::parallel::map_indices(near.len(), 4096, |j| {
         [flo, coarse_offset, fhi].iter().all(|d| {
-            traj.state(obs[near[j]].t + d)
-                .map(|q| q.twist.fixed_rows::<3>(3).norm() < opts.calm_threshold)
+            traj.twist(obs[near[j]].t + d)
+                .map(|w| w.fixed_rows::<3>(3).norm() < opts.calm_threshold)
                 .unwrap_or(false)
         })
     });

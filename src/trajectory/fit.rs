@@ -11,7 +11,7 @@ use nalgebra::{Matrix3, Matrix6, SMatrix, Vector6};
 use super::blocktri::{BandedInverse, BlockTridiagonal, Factored, V18};
 use super::gp::{
     Knot, LocalState, apply_scalar, d_jr_times, first_local_state, interpolation_weights,
-    knot_from_local, kron_diag_mul, local_gamma, local_state,
+    knot_from_local, kron_diag_mul, local_gamma, local_state, twist_from_local,
 };
 use super::hyper;
 use super::solver::{
@@ -268,6 +268,12 @@ impl Trajectory {
         self.view().state(t)
     }
 
+    /// The twist at `t` alone: the value [`Trajectory::state`] gives, without forming the pose
+    /// and the rate.
+    pub fn twist(&self, t: f64) -> Result<Vector6<f64>> {
+        self.view().twist(t)
+    }
+
     /// The interpolated state at `t` with the twist's Jacobian with respect to the two knots.
     pub fn twist_jacobian(&self, t: f64) -> Result<TwistJacobian> {
         self.view().twist_jacobian(t)
@@ -347,6 +353,16 @@ impl KnotView<'_> {
             rate: s.rate,
             twist_cov: None,
         })
+    }
+
+    /// The twist at `t` alone (the value of [`KnotView::state`]).
+    pub fn twist(&self, t: f64) -> Result<Vector6<f64>> {
+        let k = self.locate(t)?;
+        let (s, dt) = self.offset_in(k, t);
+        let (lambda, omega, _) = interpolation_weights(s, dt);
+        let gamma = apply_scalar(&lambda, &first_local_state(&self.knots[k]))
+            + apply_scalar(&omega, &local_gamma(&self.knots[k], &self.knots[k + 1]));
+        Ok(twist_from_local(&gamma))
     }
 
     /// The time since knot `k` (clamped to the interval) and the interval's length.

@@ -600,6 +600,13 @@ pub fn interpolation_weights(s: f64, dt: f64) -> (Matrix3<f64>, Matrix3<f64>, Ma
     (lambda, omega, (cond + cond.transpose()) * 0.5)
 }
 
+/// The twist of [`knot_from_local`] alone: `J_r(xi) xi'`.
+pub fn twist_from_local(gamma: &V18) -> Vector6<f64> {
+    let xi: Vector6<f64> = gamma.fixed_rows::<6>(0).into_owned();
+    let xid: Vector6<f64> = gamma.fixed_rows::<6>(6).into_owned();
+    se3_right_jacobian(&xi) * xid
+}
+
 /// Knot state at an interpolated local state `gamma` relative to `pose1`: inverts the mapping
 /// used for `gamma_2`.
 pub fn knot_from_local(pose1: &Se3, gamma: &V18) -> Knot {
