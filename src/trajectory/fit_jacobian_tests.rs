@@ -320,3 +320,27 @@ fn public_twist_jacobian_matches_central_differences_of_state() {
     }
     eprintln!("Trajectory::twist_jacobian: max relative column error {worst:e}");
 }
+
+#[test]
+fn the_twist_alone_is_the_states_twist() {
+    // `KnotView::twist` skips the pose and the rate, not any step of the twist: the same value
+    // to the last bit, in every interval (one with a 2.4 rad rotation) and outside the span.
+    for seed in 1..4 {
+        let (times, knots) = test_knots(seed);
+        let view = KnotView {
+            times: &times,
+            knots: &knots,
+        };
+        for k in 0..times.len() - 1 {
+            for t in times_in(&times, k) {
+                assert_eq!(
+                    view.twist(t).unwrap(),
+                    view.state(t).unwrap().twist,
+                    "t = {t}"
+                );
+            }
+        }
+        let after = times[times.len() - 1] + 1.0;
+        assert!(view.twist(after).is_err() && view.state(after).is_err());
+    }
+}
