@@ -56,7 +56,8 @@ fn cholesky_factor(s: &mut M18) -> bool {
     // columns before it subtracted in their order (the order a right-looking loop applies
     // them in, so the factor is the same to the bit), then scaled and stored once.
     for k in 0..N {
-        let mut col = a[k];
+        let mut col = [0.0; N];
+        copy_in_halves(&mut col, &a[k]);
         for lj in &a[..k] {
             let l_kj = lj[k];
             // Rows above `k` of a finished column are zero: the whole column is updated so
@@ -73,9 +74,18 @@ fn cholesky_factor(s: &mut M18) -> bool {
         col[..k].fill(0.0);
         col[k] = d;
         col[k + 1..].iter_mut().for_each(|v| *v /= d);
-        a[k] = col;
+        copy_in_halves(&mut a[k], &col);
     }
     true
+}
+
+/// `dst = src` for a column, as two copies of nine rows: the compiler moves copies of that size
+/// through registers, where it makes one of a whole column a call into libc.
+#[inline(always)]
+fn copy_in_halves(dst: &mut [f64; N], src: &[f64; N]) {
+    const H: usize = N / 2;
+    dst[..H].copy_from_slice(&src[..H]);
+    dst[H..].copy_from_slice(&src[H..]);
 }
 
 /// `x <- L^-1 x` for the lower-triangular `L` of [`cholesky_factor`].
