@@ -168,28 +168,26 @@ pub mod so3 {
 
     /// Inverse of the left Jacobian of SO(3) (singular at angles 2 pi k, k != 0).
     pub fn left_jacobian_inv(phi: &Vector3<f64>) -> Matrix3<f64> {
-        let th2 = phi.norm_squared();
+        let c = inv_square_coefficient(phi.norm_squared());
+        let k = hat(phi);
+        Matrix3::identity() - k * 0.5 + k * k * c
+    }
+
+    /// The coefficient of `hat(phi)^2` in `J_l^-1(phi)`, for `th2 = |phi|^2`.
+    fn inv_square_coefficient(th2: f64) -> f64 {
         let th = th2.sqrt();
-        let c = if th < SMALL_ANGLE {
+        if th < SMALL_ANGLE {
             1.0 / 12.0 + th2 / 720.0 + th2 * th2 / 30240.0
         } else {
             // 1/th^2 - (1 + cos th) / (2 th sin th) == 1/th^2 - cot(th/2) / (2 th)
             1.0 / th2 - (0.5 * th).cos() / ((0.5 * th).sin() * 2.0 * th)
-        };
-        let k = hat(phi);
-        Matrix3::identity() - k * 0.5 + k * k * c
+        }
     }
 
     /// `J_l^-1(phi)` and `J_l^-1(-phi)` (= `J_r^-1(phi)`) with one evaluation of the shared
     /// coefficient and square: the values [`left_jacobian_inv`] gives for each.
     pub fn left_jacobian_inv_both(phi: &Vector3<f64>) -> (Matrix3<f64>, Matrix3<f64>) {
-        let th2 = phi.norm_squared();
-        let th = th2.sqrt();
-        let c = if th < SMALL_ANGLE {
-            1.0 / 12.0 + th2 / 720.0 + th2 * th2 / 30240.0
-        } else {
-            1.0 / th2 - (0.5 * th).cos() / ((0.5 * th).sin() * 2.0 * th)
-        };
+        let c = inv_square_coefficient(phi.norm_squared());
         let (k, km) = (hat(phi), hat(&-phi));
         // hat(-phi)^2 has the same products as hat(phi)^2, term by term.
         let kkc = k * k * c;
@@ -267,44 +265,64 @@ fn q_coefficients(th2: f64) -> (f64, f64, f64) {
     }
 }
 
+/// The products of `p = hat(phi)` and `r = hat(rho)` in the Q block.
+struct QProducts {
+    pr: Matrix3<f64>,
+    rp: Matrix3<f64>,
+    prp: Matrix3<f64>,
+    ppr: Matrix3<f64>,
+    rpp: Matrix3<f64>,
+    prpp: Matrix3<f64>,
+    pprp: Matrix3<f64>,
+}
+
+impl QProducts {
+    fn of(p: &Matrix3<f64>, r: &Matrix3<f64>) -> QProducts {
+        let pr = p * r;
+        let rp = r * p;
+        let prp = pr * p;
+        let ppr = p * p * r;
+        QProducts {
+            pr,
+            rp,
+            prp,
+            rpp: rp * p,
+            prpp: prp * p,
+            pprp: ppr * p,
+            ppr,
+        }
+    }
+
+    /// `r/2 + (pr + rp + prp) c1 + (ppr + rpp - 3 prp) c2 + (prpp + pprp) c3`.
+    fn sum(&self, r: &Matrix3<f64>, (c1, c2, c3): (f64, f64, f64)) -> Matrix3<f64> {
+        r * 0.5
+            + (self.pr + self.rp + self.prp) * c1
+            + (self.ppr + self.rpp - self.prp * 3.0) * c2
+            + (self.prpp + self.pprp) * c3
+    }
+}
+
 /// The Q block of the SE(3) left Jacobian (Barfoot, State Estimation for Robotics, eq. 7.86).
 fn q_block(rho: &Vector3<f64>, phi: &Vector3<f64>) -> Matrix3<f64> {
-    let (c1, c2, c3) = q_coefficients(phi.norm_squared());
-    let p = hat(phi);
     let r = hat(rho);
-    let pr = p * r;
-    let rp = r * p;
-    let prp = pr * p;
-    let pp = p * p;
-    r * 0.5
-        + (pr + rp + prp) * c1
-        + (pp * r + rp * p - prp * 3.0) * c2
-        + (prp * p + pp * r * p) * c3
+    QProducts::of(&hat(phi), &r).sum(&r, q_coefficients(phi.norm_squared()))
 }
 
 /// [`q_block`] at `(rho, phi)` and at `(-rho, -phi)`, from one set of products: those of
 /// `Q(-rho, -phi)` are the products of `Q(rho, phi)` or their negatives (negation is exact), so
 /// the values are those of two calls of [`q_block`] (up to the sign of an exact zero).
 fn q_block_both(rho: &Vector3<f64>, phi: &Vector3<f64>) -> (Matrix3<f64>, Matrix3<f64>) {
-    let th2 = phi.norm_squared();
-    let (c1, c2, c3) = q_coefficients(th2);
-    let p = hat(phi);
+    let c = q_coefficients(phi.norm_squared());
     let r = hat(rho);
-    let pr = p * r;
-    let rp = r * p;
-    let prp = pr * p;
-    let pp = p * p;
-    let ppr = pp * r;
-    let rpp = rp * p;
-    let prpp = prp * p;
-    let pprp = ppr * p;
-    let plus = r * 0.5 + (pr + rp + prp) * c1 + (ppr + rpp - prp * 3.0) * c2 + (prpp + pprp) * c3;
-    let (mprp, mppr, mrpp) = (-prp, -ppr, -rpp);
-    let minus = hat(&-rho) * 0.5
-        + (pr + rp + mprp) * c1
-        + (mppr + mrpp - mprp * 3.0) * c2
-        + (prpp + pprp) * c3;
-    (plus, minus)
+    let q = QProducts::of(&hat(phi), &r);
+    let plus = q.sum(&r, c);
+    let negated = QProducts {
+        prp: -q.prp,
+        ppr: -q.ppr,
+        rpp: -q.rpp,
+        ..q
+    };
+    (plus, negated.sum(&hat(&-rho), c))
 }
 
 /// `J_l^-1(xi)` and `J_l^-1(-xi)` (= `J_r^-1(xi)`), with the trigonometry and the products of
