@@ -277,6 +277,7 @@ struct QProducts {
 }
 
 impl QProducts {
+    #[inline(always)]
     fn of(p: &Matrix3<f64>, r: &Matrix3<f64>) -> QProducts {
         let pr = p * r;
         let rp = r * p;
@@ -294,6 +295,7 @@ impl QProducts {
     }
 
     /// `r/2 + (pr + rp + prp) c1 + (ppr + rpp - 3 prp) c2 + (prpp + pprp) c3`.
+    #[inline(always)]
     fn sum(&self, r: &Matrix3<f64>, (c1, c2, c3): (f64, f64, f64)) -> Matrix3<f64> {
         r * 0.5
             + (self.pr + self.rp + self.prp) * c1
