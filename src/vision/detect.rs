@@ -40,7 +40,7 @@ use crate::vision::kalibr::{
     KALIBR_BORDER_BITS, KALIBR_CELLS_ACROSS, coarse_fit, decode_quad, grow, has_light_code_cell,
     max_decimate, max3_decimate, quads, saddle_point, widen_border,
 };
-use crate::vision::refine::refine_corners;
+use crate::vision::refine::{quad_centre, refine_corners};
 use crate::{Error, Result};
 
 /// Settings of the AprilTag detector. `Default` gives the library's defaults and at most one
@@ -364,10 +364,10 @@ impl Detector {
     ) -> Vec<TagDetection> {
         self.ensure_worker_pool();
         let mut out = self.kalibr_second_pass(gray, cam, &[], &SECOND_PASS_LEVELS[..1]);
-        if !self.board_complete(&out) {
+        if !self.board_complete(out.iter()) {
             let first = self.library_pass(gray, cam);
             for d in first {
-                let centre = d.corners.iter().sum::<Vector2<f64>>() / 4.0;
+                let centre = quad_centre(&d.corners);
                 if !out.iter().any(|o| covers(o, &centre)) {
                     out.push(d);
                 }
@@ -380,10 +380,10 @@ impl Detector {
     }
 
     /// Whether every id of the board (when it is known) is among `found`.
-    fn board_complete(&self, found: &[TagDetection]) -> bool {
+    fn board_complete<'a>(&self, found: impl Iterator<Item = &'a TagDetection>) -> bool {
         self.board_ids
             .as_deref()
-            .is_some_and(|ids| every_id_found(ids, found.iter()))
+            .is_some_and(|ids| every_id_found(ids, found))
     }
 
     /// libapriltag makes its worker pool, which its segmentation alone (`vision::kalibr::quads`)
@@ -413,11 +413,7 @@ impl Detector {
         };
         let mut out: Vec<TagDetection> = Vec::new();
         for level in levels {
-            if self
-                .board_ids
-                .as_deref()
-                .is_some_and(|ids| every_id_found(ids, known.iter().chain(&out)))
-            {
+            if self.board_complete(known.iter().chain(&out)) {
                 break;
             }
             let half = if level.max3_first {
@@ -431,7 +427,7 @@ impl Detector {
                 // Half-resolution pixels (libapriltag's convention) to full-resolution OpenCV
                 // pixels.
                 let q = q.map(|p| Vector2::new(2.0 * p[0] - 0.5, 2.0 * p[1] - 0.5));
-                let centre = q.iter().sum::<Vector2<f64>>() / 4.0;
+                let centre = quad_centre(&q);
                 if known.iter().chain(&out).any(|d| covers(d, &centre)) {
                     continue;
                 }
@@ -606,7 +602,7 @@ fn sort_detections(v: &mut [TagDetection]) {
 
 /// Whether `p` lies within a quarter of a detection's side from its centre (on the same tag).
 fn covers(d: &TagDetection, p: &Vector2<f64>) -> bool {
-    let centre = d.corners.iter().sum::<Vector2<f64>>() / 4.0;
+    let centre = quad_centre(&d.corners);
     let side = (d.corners[1] - d.corners[0])
         .norm()
         .max((d.corners[2] - d.corners[1]).norm());
@@ -618,7 +614,7 @@ fn same_tag(a: &TagDetection, b: &TagDetection) -> bool {
     if a.id != b.id {
         return false;
     }
-    let centre = |d: &TagDetection| d.corners.iter().sum::<Vector2<f64>>() / 4.0;
+    let centre = |d: &TagDetection| quad_centre(&d.corners);
     let side = (a.corners[1] - a.corners[0])
         .norm()
         .max((a.corners[2] - a.corners[1]).norm());

@@ -46,7 +46,7 @@ use image::GrayImage;
 use nalgebra::{Matrix3, SMatrix, SVector, Vector2, Vector3};
 
 use crate::vision::family::{FamilyCodes, TagCells, TagFamily, tags_cells};
-use crate::vision::refine::bilinear;
+use crate::vision::refine::{bilinear, quad_centre};
 
 /// Width of a Kalibr tag's black border, in bits.
 pub const KALIBR_BORDER_BITS: u32 = 2;
@@ -509,7 +509,7 @@ pub(crate) fn has_light_code_cell(img: &GrayImage, quad: &[Vector2<f64>; 4]) -> 
 
 /// The quad with every side moved outward (away from the centre) by `d` pixels.
 pub(crate) fn grow(q: &[Vector2<f64>; 4], d: f64) -> Option<[Vector2<f64>; 4]> {
-    let centre = q.iter().sum::<Vector2<f64>>() / 4.0;
+    let centre = quad_centre(q);
     // Side k runs from corner k to corner k + 1, moved out along its normal.
     let mut sides = [(Vector2::zeros(), Vector2::zeros()); 4];
     for k in 0..4 {
@@ -553,7 +553,7 @@ pub(crate) fn coarse_fit(
     reach: f64,
 ) -> Option<[Vector2<f64>; 4]> {
     const STEP: f64 = 0.5;
-    let centre = q.iter().sum::<Vector2<f64>>() / 4.0;
+    let centre = quad_centre(q);
     let mut lines = [(Vector2::zeros(), Vector2::zeros()); 4];
     for k in 0..4 {
         let (a, b) = (q[k], q[(k + 1) % 4]);

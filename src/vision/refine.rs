@@ -186,6 +186,11 @@ fn fit_line(pts: &[(Vector2<f64>, f64)]) -> Option<Line> {
     })
 }
 
+/// The mean of a quad's four corners.
+pub(crate) fn quad_centre(q: &[Vector2<f64>; 4]) -> Vector2<f64> {
+    q.iter().sum::<Vector2<f64>>() / 4.0
+}
+
 /// Refines the four corners of one tag (OpenCV pixel convention, libapriltag's order around the
 /// square). `cells_across` is the number of pattern cells across the square whose corners these
 /// are (the family's `width_at_border`); it sets the search window to a fraction of a cell, so
@@ -203,7 +208,7 @@ pub fn refine_corners(
     for (k, c) in corners.iter().enumerate() {
         q[k] = space.to_line(c)?;
     }
-    let centre_img = corners.iter().sum::<Vector2<f64>>() / 4.0;
+    let centre_img = quad_centre(corners);
     let side_img: f64 = (0..4)
         .map(|k| (corners[(k + 1) % 4] - corners[k]).norm())
         .sum::<f64>()
