@@ -334,14 +334,16 @@ pub fn se3_left_jacobian_inv_both(xi: &Vector6<f64>) -> (Matrix6<f64>, Matrix6<f
     let phi = xi.fixed_rows::<3>(3).into_owned();
     let (ji, jim) = so3::left_jacobian_inv_both(&phi);
     let (q, qm) = q_block_both(&rho, &phi);
-    let block = |ji: &Matrix3<f64>, q: &Matrix3<f64>| {
-        let mut m = Matrix6::zeros();
-        m.fixed_view_mut::<3, 3>(0, 0).copy_from(ji);
-        m.fixed_view_mut::<3, 3>(3, 3).copy_from(ji);
-        m.fixed_view_mut::<3, 3>(0, 3).copy_from(&(-ji * q * ji));
-        m
-    };
-    (block(&ji, &q), block(&jim, &qm))
+    (se3_jacobian_inv_of(&ji, &q), se3_jacobian_inv_of(&jim, &qm))
+}
+
+/// `[[J^-1, -J^-1 Q J^-1], [0, J^-1]]` from the SO(3) inverse Jacobian and the Q block.
+fn se3_jacobian_inv_of(ji: &Matrix3<f64>, q: &Matrix3<f64>) -> Matrix6<f64> {
+    let mut m = Matrix6::zeros();
+    m.fixed_view_mut::<3, 3>(0, 0).copy_from(ji);
+    m.fixed_view_mut::<3, 3>(3, 3).copy_from(ji);
+    m.fixed_view_mut::<3, 3>(0, 3).copy_from(&(-ji * q * ji));
+    m
 }
 
 /// Left Jacobian of SE(3): `[[J_l(phi), Q], [0, J_l(phi)]]`.
@@ -361,13 +363,7 @@ pub fn se3_left_jacobian(xi: &Vector6<f64>) -> Matrix6<f64> {
 pub fn se3_left_jacobian_inv(xi: &Vector6<f64>) -> Matrix6<f64> {
     let rho = xi.fixed_rows::<3>(0).into_owned();
     let phi = xi.fixed_rows::<3>(3).into_owned();
-    let ji = so3::left_jacobian_inv(&phi);
-    let mut m = Matrix6::zeros();
-    m.fixed_view_mut::<3, 3>(0, 0).copy_from(&ji);
-    m.fixed_view_mut::<3, 3>(3, 3).copy_from(&ji);
-    m.fixed_view_mut::<3, 3>(0, 3)
-        .copy_from(&(-ji * q_block(&rho, &phi) * ji));
-    m
+    se3_jacobian_inv_of(&so3::left_jacobian_inv(&phi), &q_block(&rho, &phi))
 }
 
 /// Right Jacobian of SE(3): `J_r(xi) = J_l(-xi)`.

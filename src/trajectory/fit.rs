@@ -358,11 +358,8 @@ impl KnotView<'_> {
     /// The twist at `t` alone (the value of [`KnotView::state`]).
     pub fn twist(&self, t: f64) -> Result<Vector6<f64>> {
         let k = self.locate(t)?;
-        let (s, dt) = self.offset_in(k, t);
-        let (lambda, omega, _) = interpolation_weights(s, dt);
-        let gamma = apply_scalar(&lambda, &first_local_state(&self.knots[k]))
-            + apply_scalar(&omega, &local_gamma(&self.knots[k], &self.knots[k + 1]));
-        Ok(twist_from_local(&gamma))
+        let gamma2 = local_gamma(&self.knots[k], &self.knots[k + 1]);
+        Ok(twist_from_local(&self.local_at(k, t, &gamma2)))
     }
 
     /// The time since knot `k` (clamped to the interval) and the interval's length.
@@ -374,11 +371,15 @@ impl KnotView<'_> {
     /// The state at `t` in the interval `k`, given the local state `gamma_2` of knot `k + 1`
     /// relative to knot `k` ([`local_gamma`]).
     pub(crate) fn state_in(&self, k: usize, t: f64, gamma2: &V18) -> Knot {
+        knot_from_local(&self.knots[k].pose, &self.local_at(k, t, gamma2))
+    }
+
+    /// The interpolated local state at `t` in the interval `k` (relative to knot `k`), given
+    /// knot `k + 1`'s local state `gamma2`.
+    fn local_at(&self, k: usize, t: f64, gamma2: &V18) -> V18 {
         let (s, dt) = self.offset_in(k, t);
         let (lambda, omega, _) = interpolation_weights(s, dt);
-        let gamma = apply_scalar(&lambda, &first_local_state(&self.knots[k]))
-            + apply_scalar(&omega, gamma2);
-        knot_from_local(&self.knots[k].pose, &gamma)
+        apply_scalar(&lambda, &first_local_state(&self.knots[k])) + apply_scalar(&omega, gamma2)
     }
 
     /// The interpolated state at `t` with the twist's Jacobian with respect to the two knots.
