@@ -316,7 +316,7 @@ impl Detector {
         let kalibr_seen = out.iter().any(|d| d.border_bits == KALIBR_BORDER_BITS);
         let second = self.kalibr.is_some() && (out.is_empty() || kalibr_seen);
         if second {
-            let more = self.kalibr_second_pass(gray, cam, &out, &SECOND_PASS_LEVELS);
+            let more = self.brightened_pass(gray, cam, &out, &BRIGHTENED_IMAGES);
             out.extend(more);
             sort_detections(&mut out);
         }
@@ -363,7 +363,7 @@ impl Detector {
         cam: Option<&Camera>,
     ) -> Vec<TagDetection> {
         self.ensure_worker_pool();
-        let mut out = self.kalibr_second_pass(gray, cam, &[], &SECOND_PASS_LEVELS[..1]);
+        let mut out = self.brightened_pass(gray, cam, &[], &BRIGHTENED_IMAGES[..1]);
         if !self.board_complete(out.iter()) {
             let first = self.library_pass(gray, cam);
             for d in first {
@@ -373,7 +373,7 @@ impl Detector {
                 }
             }
         }
-        let more = self.kalibr_second_pass(gray, cam, &out, &SECOND_PASS_LEVELS[1..]);
+        let more = self.brightened_pass(gray, cam, &out, &BRIGHTENED_IMAGES[1..]);
         out.extend(more);
         sort_detections(&mut out);
         out
@@ -397,22 +397,23 @@ impl Detector {
         }
     }
 
-    /// The second pass for Kalibr tags (see `vision::kalibr`): quads of the brightened
-    /// half-resolution images, refined and decoded on `gray`. Quads on a tag already in `known`
+    /// The Kalibr pass on brightened images (pass 2 of `vision::kalibr`; the first pass on a
+    /// known Kalibr print): quads of the brightened half-resolution `images`, refined and
+    /// decoded on `gray`. Quads on a tag already in `known`
     /// are skipped, and so are quads whose sides cannot be re-located (the bits of a small tag
     /// are read right only off accurate corners).
-    fn kalibr_second_pass(
+    fn brightened_pass(
         &mut self,
         gray: &image::GrayImage,
         cam: Option<&Camera>,
         known: &[TagDetection],
-        levels: &[SecondPassLevel],
+        images: &[BrightenedImage],
     ) -> Vec<TagDetection> {
         let Some(k) = &self.kalibr else {
             return Vec::new();
         };
         let mut out: Vec<TagDetection> = Vec::new();
-        for level in levels {
+        for level in images {
             if self.board_complete(known.iter().chain(&out)) {
                 break;
             }
@@ -530,8 +531,8 @@ impl Detector {
     }
 }
 
-/// One image of the Kalibr second pass.
-struct SecondPassLevel {
+/// One image of the Kalibr pass on brightened images.
+struct BrightenedImage {
     /// A 3x3 brightest filter at full resolution before the 2x2-brightest decimation.
     max3_first: bool,
     /// How far the sides of its quads move out before refinement (full-resolution pixels:
@@ -539,14 +540,14 @@ struct SecondPassLevel {
     growth: f64,
 }
 
-/// The second pass's images: the 2x2-brightest half-resolution image, and the same after a 3x3
+/// The brightened pass's images: the 2x2-brightest half-resolution image, and the same after a 3x3
 /// brightest filter at full resolution (for the blurred photos whose corner contacts are wider).
-const SECOND_PASS_LEVELS: [SecondPassLevel; 2] = [
-    SecondPassLevel {
+const BRIGHTENED_IMAGES: [BrightenedImage; 2] = [
+    BrightenedImage {
         max3_first: false,
         growth: 0.5,
     },
-    SecondPassLevel {
+    BrightenedImage {
         max3_first: true,
         growth: 1.5,
     },
