@@ -1718,9 +1718,8 @@ fn halves_estimates(
         return Ok(None);
     }
     let (first_idx, second_idx) = by_time.split_at(n);
-    let mut storage = None;
     let times = traj.times();
-    let mut half = |part: &[usize]| -> Result<(CalibrationParams, ParamMat)> {
+    let half = |part: &[usize]| -> Result<(CalibrationParams, ParamMat)> {
         // The knots the half's samples fall between, and a margin on either side: further knots
         // carry only poses and the prior, whose pull on the half's parameters has died out.
         let (t0, t1) = part
@@ -1734,12 +1733,8 @@ fn halves_estimates(
         let lo = lo.saturating_sub(HALF_MARGIN_KNOTS);
         let hi = (hi + HALF_MARGIN_KNOTS).min(times.len());
         let jh = jp.part(part, lo..hi);
-        if let Some(st) = storage.take() {
-            jh.keep_storage(st);
-        }
         let knots = &traj.knots()[lo..hi];
         let (p, cov) = part_linear_estimate(jp, whole, &jh, knots, lo..hi, &mask)?;
-        storage = jh.take_storage();
         Ok((p, cov * noise_factor))
     };
     let first = half(first_idx)?;

@@ -15,7 +15,9 @@ use super::prior::Priors;
 use super::refine::{ParamMat, ParamVec, pin_fixed};
 use crate::error::{Error, Result};
 use crate::lie::Se3;
-use crate::trajectory::blocktri::{BlockTridiagonal, M18, V18};
+use crate::trajectory::blocktri::{
+    BlockSource, BlockTridiagonal, M18, V18, streamed_quadratic_forms,
+};
 use crate::trajectory::gp::{LocalState, PriorNormal};
 use crate::trajectory::solver::{
     ASSEMBLY_CHUNK, AssemblyChunk, GaussNewtonOptions, NormalEquations, Problem, assembly_chunks,
@@ -328,30 +330,10 @@ impl<'a> DvlFactors<'a> {
         (theta, gradient)
     }
 
-    /// Assembles the knots `range` of `sys` and `cross` alone (as [`DvlFactors::assemble`]
-    /// would form them), leaving every other block as it is.
-    fn assemble_range(
-        &self,
-        knots: &[Knot],
-        sys: &mut BlockTridiagonal,
-        cross: &mut [CrossBlock],
-        range: std::ops::Range<usize>,
-    ) {
-        let n = knots.len();
-        cross[range.clone()].fill(CrossBlock::zeros());
-        let mut chunk = JointChunk {
-            sys: AssemblyChunk {
-                first: range.start,
-                diag: &mut sys.diag[range.clone()],
-                // Knot `k` owns the coupling to `k + 1`; the last knot has none.
-                upper: &mut sys.upper[range.start.min(n - 1)..range.end.min(n - 1)],
-                rhs: &mut sys.rhs[range.clone()],
-                cost: 0.0,
-            },
-            cross: &mut cross[range],
-            theta: ParamMat::zeros(),
-            gradient: ParamVec::zeros(),
-        };
+    /// Assembles the knots of `chunk` alone (as [`DvlFactors::assemble`] forms them), its
+    /// blocks of `H_x theta` from zero.
+    fn assemble_run(&self, knots: &[Knot], mut chunk: JointChunk) {
+        chunk.cross.fill(CrossBlock::zeros());
         self.assemble_chunk(self.jp.view(knots), &mut chunk, true);
     }
 
@@ -582,14 +564,25 @@ fn joint_system(
 /// An assembled joint system with the fixed parameters decoupled and the priors added,
 /// factorised.
 fn finish(jp: &JointProblem, aj: AssembledJoint, free: &[bool; NPARAM]) -> Result<JointSystem> {
-    let AssembledJoint {
-        sys,
-        mut a,
-        params: p,
-    } = aj;
-    let p = &p;
+    let AssembledJoint { sys, mut a, params } = aj;
     for (c, _) in free.iter().enumerate().filter(|(_, f)| !**f) {
         a.cross.iter_mut().for_each(|m| m.column_mut(c).fill(0.0));
+    }
+    decouple(jp, &mut a, &params, free);
+    Ok(JointSystem {
+        factor: sys.factor()?,
+        cross: a.cross,
+        theta: a.theta,
+        gradient: a.gradient,
+        cost: a.cost,
+    })
+}
+
+/// The calibration's own blocks of `a` with the fixed parameters decoupled (their gradient
+/// zero, their rows and columns of `H_theta theta` pinned) and the priors at `p` added. The
+/// fixed columns of `H_x theta` are left to the caller.
+fn decouple(jp: &JointProblem, a: &mut Assembled, p: &CalibrationParams, free: &[bool; NPARAM]) {
+    for (c, _) in free.iter().enumerate().filter(|(_, f)| !**f) {
         a.gradient[c] = 0.0;
     }
     if jp.priors.any() {
@@ -603,24 +596,32 @@ fn finish(jp: &JointProblem, aj: AssembledJoint, free: &[bool; NPARAM]) -> Resul
         }
     }
     pin_fixed(&mut a.theta, free);
-    Ok(JointSystem {
-        factor: sys.factor()?,
-        cross: a.cross,
-        theta: a.theta,
-        gradient: a.gradient,
-        cost: a.cost,
-    })
 }
 
 /// The calibration's reduced normal equations of a factorised joint system: the Schur complement
 /// `S = H_tt - H_tx H_xx^-1 H_xt` (symmetrised, fixed parameters pinned) and the reduced
 /// gradient `b = g_t - H_tx H_xx^-1 g_x` (zero for fixed parameters).
 fn reduced(js: &JointSystem, free: &[bool; NPARAM]) -> (ParamMat, ParamVec) {
-    let (reduction, cross_g) = js.factor.quadratic_forms(&js.cross);
-    let schur = js.theta - reduction;
+    reduced_from(
+        &js.theta,
+        &js.gradient,
+        js.factor.quadratic_forms(&js.cross),
+        free,
+    )
+}
+
+/// [`reduced`] from the calibration's blocks and the quadratic forms `(H_tx H_xx^-1 H_xt,
+/// H_tx H_xx^-1 g_x)`.
+fn reduced_from(
+    theta: &ParamMat,
+    gradient: &ParamVec,
+    (reduction, cross_g): (ParamMat, ParamVec),
+    free: &[bool; NPARAM],
+) -> (ParamMat, ParamVec) {
+    let schur = theta - reduction;
     let mut schur = (schur + schur.transpose()) * 0.5;
     pin_fixed(&mut schur, free);
-    let mut b = js.gradient - cross_g;
+    let mut b = gradient - cross_g;
     for c in 0..NPARAM {
         if !free[c] {
             b[c] = 0.0;
@@ -666,12 +667,10 @@ pub fn joint_covariance_of(
     Ok((held_at_zero(cov, free), js.cost))
 }
 
-/// The linearised estimate of the calibration at `p` and its marginal covariance, from one
-/// factorisation of the joint system `js` (linearised at `p`): `p` moved by the calibration part
-/// of a Gauss-Newton step (`dtheta = S^-1 b` with `S` the Schur complement and `b` the reduced
-/// gradient), and `S^-1`. The trajectory's part of the step is not formed. For a problem whose
-/// solution lies near `p` (a part of the data, starting from the whole's estimate) this is its
-/// estimate to first order.
+/// The linearised estimate of the calibration at `p` and its marginal covariance from the
+/// factorised joint system `js` (linearised at `p`), as [`estimate_from`] forms it: the
+/// reference that [`part_linear_estimate`] is tested against.
+#[cfg(test)]
 fn linear_estimate_of(
     jp: &JointProblem,
     js: JointSystem,
@@ -680,24 +679,41 @@ fn linear_estimate_of(
 ) -> Result<(CalibrationParams, ParamMat)> {
     let (schur, b) = reduced(&js, free);
     jp.keep_storage(js.factor.into_system());
-    let Some(chol) = schur.cholesky() else {
-        return Ok((*p, ParamMat::from_diagonal_element(f64::INFINITY)));
-    };
-    Ok((
-        p.updated(&chol.solve(&b)),
-        held_at_zero(chol.inverse(), free),
-    ))
+    Ok(estimate_from(p, &schur, &b, free))
 }
 
-/// The linearised estimate and covariance (see `linear_estimate_of`) of the problem `part` at
+/// The linearised estimate of the calibration at `p` and its marginal covariance, from the
+/// reduced normal equations `(S, b)` of a joint system linearised at `p`: `p` moved by the
+/// calibration part of a Gauss-Newton step (`dtheta = S^-1 b` with `S` the Schur complement and
+/// `b` the reduced gradient), and `S^-1`. The trajectory's part of the step is not formed. For
+/// a problem whose solution lies near `p` (a part of the data, starting from the whole's
+/// estimate) this is its estimate to first order.
+fn estimate_from(
+    p: &CalibrationParams,
+    schur: &ParamMat,
+    b: &ParamVec,
+    free: &[bool; NPARAM],
+) -> (CalibrationParams, ParamMat) {
+    let Some(chol) = schur.cholesky() else {
+        return (*p, ParamMat::from_diagonal_element(f64::INFINITY));
+    };
+    (
+        p.updated(&chol.solve(b)),
+        held_at_zero(chol.inverse(), free),
+    )
+}
+
+/// The linearised estimate and covariance (see [`estimate_from`]) of the problem `part` at
 /// the calibration the whole was assembled at (`part` holds a subset of the whole's samples, on the
 /// knots `range` of the whole's trajectory; `knots` are their states), taken from the whole's
 /// assembled system `whole` rather than assembled afresh. Knot by knot the part's normal
 /// equations are the whole's wherever no sample of the whole outside the part lies in the
 /// intervals next to the knot, and the knot is not at either end of the slice (where the whole
-/// has prior terms across the cut); those knots are copied, the others assembled anew, and the
-/// calibration's own blocks formed from the part's samples alone. The result is the one the
-/// part's own assembly gives.
+/// has prior terms across the cut); those knots are read from the whole's system, the others
+/// assembled anew, and the calibration's own blocks formed from the part's samples alone. The
+/// part's system is eliminated as it is read ([`streamed_quadratic_forms`]), so nothing of its
+/// length is copied or stored. The result is the one the part's own assembly and factorisation
+/// give, to the bit.
 pub fn part_linear_estimate(
     whole_jp: &JointProblem,
     whole: &AssembledJoint,
@@ -716,14 +732,6 @@ pub fn part_linear_estimate(
             whole.sys.len()
         )));
     }
-    let mut sys = part
-        .take_storage()
-        .map(|s| s.resized(n))
-        .unwrap_or_else(|| BlockTridiagonal::zeros(n));
-    sys.diag.copy_from_slice(&whole.sys.diag[range.clone()]);
-    sys.rhs.copy_from_slice(&whole.sys.rhs[range.clone()]);
-    sys.upper[..n - 1].copy_from_slice(&whole.sys.upper[range.start..range.end - 1]);
-    let mut cross = whole.a.cross[range.clone()].to_vec();
     // Knots whose blocks differ: both ends, and the knots of every interval holding a sample of
     // the whole that the part leaves out.
     let mut redo = vec![false; n];
@@ -747,6 +755,7 @@ pub fn part_linear_estimate(
         }
     }
     let factors = DvlFactors::new(part, &p)?;
+    let mut own = PartBlocks::new(whole, range.start, &redo, free);
     let mut k = 0;
     while k < n {
         if !redo[k] {
@@ -757,20 +766,124 @@ pub fn part_linear_estimate(
         while k < n && redo[k] {
             k += 1;
         }
-        factors.assemble_range(knots, &mut sys, &mut cross, start..k);
+        own.assemble(&factors, knots, start..k);
     }
     let (theta, gradient) = factors.theta_terms(knots);
-    let aj = AssembledJoint {
-        sys,
-        a: Assembled {
-            cost: 0.0,
-            cross,
-            theta,
-            gradient,
-        },
-        params: p,
+    let mut a = Assembled {
+        cost: 0.0,
+        cross: Vec::new(),
+        theta,
+        gradient,
     };
-    linear_estimate_of(part, finish(part, aj, free)?, &p, free)
+    decouple(part, &mut a, &p, free);
+    let forms = streamed_quadratic_forms(&own)?;
+    let (schur, b) = reduced_from(&a.theta, &a.gradient, forms, free);
+    Ok(estimate_from(&p, &schur, &b, free))
+}
+
+/// A part's joint system as [`part_linear_estimate`] reads it: the whole's blocks, except at
+/// the knots assembled anew, whose blocks it holds (in the order of the knots), with the fixed
+/// parameters' columns of `H_x theta` read as zero.
+struct PartBlocks<'w> {
+    whole: &'w AssembledJoint,
+    /// The part's first knot in the whole.
+    first: usize,
+    /// Per knot of the part, the position of its own blocks (`usize::MAX`: the whole's).
+    slot: Vec<usize>,
+    diag: Vec<M18>,
+    /// `A[k, k + 1]` of the knot in the slot (none for the part's last knot).
+    upper: Vec<M18>,
+    rhs: Vec<V18>,
+    cross: Vec<CrossBlock>,
+    free: [bool; NPARAM],
+}
+
+impl<'w> PartBlocks<'w> {
+    /// Room for the knots marked in `redo` (a part of `redo.len()` knots from `first` on).
+    fn new(whole: &'w AssembledJoint, first: usize, redo: &[bool], free: &[bool; NPARAM]) -> Self {
+        let mut count = 0;
+        let slot = redo
+            .iter()
+            .map(|&r| {
+                if r {
+                    count += 1;
+                    count - 1
+                } else {
+                    usize::MAX
+                }
+            })
+            .collect();
+        PartBlocks {
+            whole,
+            first,
+            slot,
+            diag: vec![M18::zeros(); count],
+            upper: vec![M18::zeros(); count],
+            rhs: vec![V18::zeros(); count],
+            cross: vec![CrossBlock::zeros(); count],
+            free: *free,
+        }
+    }
+
+    /// Assembles the knots `range` of the part (all marked) into their slots.
+    fn assemble(&mut self, factors: &DvlFactors, knots: &[Knot], range: std::ops::Range<usize>) {
+        let n = self.slot.len();
+        let s = self.slot[range.start];
+        let len = range.len();
+        // Knot `k` owns the coupling to `k + 1`; the last knot has none.
+        let uppers = range.end.min(n - 1) - range.start.min(n - 1);
+        let chunk = JointChunk {
+            sys: AssemblyChunk {
+                first: range.start,
+                diag: &mut self.diag[s..s + len],
+                upper: &mut self.upper[s..s + uppers],
+                rhs: &mut self.rhs[s..s + len],
+                cost: 0.0,
+            },
+            cross: &mut self.cross[s..s + len],
+            theta: ParamMat::zeros(),
+            gradient: ParamVec::zeros(),
+        };
+        factors.assemble_run(knots, chunk);
+    }
+}
+
+impl BlockSource<NPARAM> for PartBlocks<'_> {
+    fn len(&self) -> usize {
+        self.slot.len()
+    }
+
+    fn diag(&self, k: usize) -> M18 {
+        match self.slot[k] {
+            usize::MAX => self.whole.sys.diag[self.first + k],
+            s => self.diag[s],
+        }
+    }
+
+    fn upper(&self, k: usize) -> M18 {
+        match self.slot[k] {
+            usize::MAX => self.whole.sys.upper[self.first + k],
+            s => self.upper[s],
+        }
+    }
+
+    fn rhs(&self, k: usize) -> V18 {
+        match self.slot[k] {
+            usize::MAX => self.whole.sys.rhs[self.first + k],
+            s => self.rhs[s],
+        }
+    }
+
+    fn columns(&self, k: usize) -> CrossBlock {
+        let mut c = match self.slot[k] {
+            usize::MAX => self.whole.a.cross[self.first + k],
+            s => self.cross[s],
+        };
+        for (j, _) in self.free.iter().enumerate().filter(|(_, f)| !**f) {
+            c.column_mut(j).fill(0.0);
+        }
+        c
+    }
 }
 
 /// Outcome of a joint step.

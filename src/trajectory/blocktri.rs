@@ -476,6 +476,157 @@ fn backward_substitute_in_place(l: &Cols, x: &mut [f64; N]) {
     }
 }
 
+/// Sums `R^T A^-1 R` and `R^T A^-1 rhs` of [`Factored::quadratic_forms`].
+type Sums<const C: usize> = (SMatrix<f64, C, C>, SMatrix<f64, C, 1>);
+
+/// Zero [`Sums`].
+fn zero_sums<const C: usize>() -> Sums<C> {
+    (SMatrix::zeros(), SMatrix::zeros())
+}
+
+/// One knot's terms of [`Factored::quadratic_forms`]: forward-substitutes the carried block
+/// `z` with the knot's factor `l`, adds `z^T z` and `z^T w` (`w` the knot's eliminated
+/// right-hand side) to `sums`, and returns `z`.
+#[inline]
+fn add_forms<const C: usize>(
+    l: &M18,
+    w: &V18,
+    mut z: SMatrix<f64, N, C>,
+    sums: &mut Sums<C>,
+) -> SMatrix<f64, N, C> {
+    forward_columns(cols(l), &mut z);
+    sums.0 += z.tr_mul(&z);
+    sums.1 += z.tr_mul(w);
+    z
+}
+
+/// The blocks of a system held elsewhere, for [`streamed_quadratic_forms`], with `C` further
+/// columns `R` per knot.
+pub trait BlockSource<const C: usize>: Sync {
+    /// Number of blocks.
+    fn len(&self) -> usize;
+    /// `A[k, k]`.
+    fn diag(&self, k: usize) -> M18;
+    /// `A[k, k + 1]`.
+    fn upper(&self, k: usize) -> M18;
+    /// The right-hand side of block `k`.
+    fn rhs(&self, k: usize) -> V18;
+    /// The rows of `R` of block `k`.
+    fn columns(&self, k: usize) -> SMatrix<f64, N, C>;
+}
+
+/// What one sweep of [`streamed_quadratic_forms`] hands to the middle block.
+struct SweepEnd<const C: usize> {
+    /// The middle block's complement and eliminated right-hand side so far.
+    diag: M18,
+    w: V18,
+    /// The sweep's sums and its contribution to the middle block's carried columns.
+    sums: Sums<C>,
+    to_mid: SMatrix<f64, N, C>,
+}
+
+/// [`BlockTridiagonal::factor`] followed by [`Factored::quadratic_forms`] for a system read
+/// block by block from `src`, without storing the factor: each sweep carries one block of the
+/// complement, one right-hand side and one block of columns from knot to knot. Every operation
+/// is the one those two functions apply, in the same order, so the sums are the same to the
+/// bit as factorising a copy of the system; the memory is that of a few blocks, whatever the
+/// system's length.
+pub fn streamed_quadratic_forms<const C: usize>(
+    src: &impl BlockSource<C>,
+) -> Result<(SMatrix<f64, C, C>, SMatrix<f64, C, 1>)> {
+    let n = src.len();
+    if n == 0 {
+        return Err(Error::Numerical("empty system".into()));
+    }
+    let m = middle(n);
+    let (top, bottom) = both(
+        n >= PARALLEL_MIN,
+        || -> Result<SweepEnd<C>> {
+            let (mut cur, mut w, mut z) = (src.diag(0), src.rhs(0), src.columns(0));
+            let (mut sums, mut to_mid) = (zero_sums::<C>(), SMatrix::zeros());
+            for k in 0..m {
+                factor_block(k, &mut cur, &mut w)?;
+                let zl = add_forms(&cur, &w, z, &mut sums);
+                let mut y = src.upper(k);
+                transpose_in_place(cols_mut(&mut y));
+                let (mut next, mut next_w) = (src.diag(k + 1), src.rhs(k + 1));
+                eliminate(
+                    cols(&cur),
+                    cols_mut(&mut y),
+                    &w.into(),
+                    &mut next,
+                    &mut next_w,
+                );
+                let contribution = y * zl;
+                if k + 1 < m {
+                    z = src.columns(k + 1) - contribution;
+                } else {
+                    to_mid = contribution;
+                }
+                (cur, w) = (next, next_w);
+            }
+            Ok(SweepEnd {
+                diag: cur,
+                w,
+                sums,
+                to_mid,
+            })
+        },
+        || -> Result<SweepEnd<C>> {
+            let (mut diag, mut w) = (M18::zeros(), V18::zeros());
+            let (mut sums, mut to_mid) = (zero_sums::<C>(), SMatrix::zeros());
+            if m + 1 < n {
+                let (mut cur, mut wc, mut z) =
+                    (src.diag(n - 1), src.rhs(n - 1), src.columns(n - 1));
+                for knot in (m + 1..n).rev() {
+                    factor_block(knot, &mut cur, &mut wc)?;
+                    let zl = add_forms(&cur, &wc, z, &mut sums);
+                    let mut y = src.upper(knot - 1);
+                    let (mut next, mut next_w) = if knot - 1 > m {
+                        (src.diag(knot - 1), src.rhs(knot - 1))
+                    } else {
+                        (M18::zeros(), V18::zeros())
+                    };
+                    eliminate(
+                        cols(&cur),
+                        cols_mut(&mut y),
+                        &wc.into(),
+                        &mut next,
+                        &mut next_w,
+                    );
+                    let contribution = y * zl;
+                    if knot - 1 > m {
+                        z = src.columns(knot - 1) - contribution;
+                    } else {
+                        to_mid = contribution;
+                    }
+                    (cur, wc) = (next, next_w);
+                }
+                (diag, w) = (cur, wc);
+            }
+            Ok(SweepEnd {
+                diag,
+                w,
+                sums,
+                to_mid,
+            })
+        },
+    );
+    let (top, bottom) = (top?, bottom?);
+    let (mut chol, mut w) = (top.diag, top.w);
+    chol += bottom.diag;
+    w += bottom.w;
+    factor_block(m, &mut chol, &mut w)?;
+    let mut sums = (top.sums.0 + bottom.sums.0, top.sums.1 + bottom.sums.1);
+    add_forms(
+        &chol,
+        &w,
+        src.columns(m) - top.to_mid - bottom.to_mid,
+        &mut sums,
+    );
+    Ok(sums)
+}
+
 impl Factored {
     fn middle(&self) -> usize {
         middle(self.chol.len())
@@ -582,18 +733,11 @@ impl Factored {
         &self,
         r: &[SMatrix<f64, N, C>],
     ) -> (SMatrix<f64, C, C>, SMatrix<f64, C, 1>) {
-        type Sums<const C: usize> = (SMatrix<f64, C, C>, SMatrix<f64, C, 1>);
         let n = self.chol.len();
         let m = self.middle();
         let block = |k: usize| r.get(k).copied().unwrap_or_else(SMatrix::zeros);
-        // Forward-substitutes the carried block `z` of knot `k` and adds its terms.
-        let add = |k: usize, mut z: SMatrix<f64, N, C>, sums: &mut Sums<C>| {
-            forward_columns(cols(&self.chol[k]), &mut z);
-            sums.0 += z.tr_mul(&z);
-            sums.1 += z.tr_mul(&self.w[k]);
-            z
-        };
-        let zero = || (SMatrix::<f64, C, C>::zeros(), SMatrix::<f64, C, 1>::zeros());
+        let add = |k: usize, z, sums: &mut Sums<C>| add_forms(&self.chol[k], &self.w[k], z, sums);
+        let zero = zero_sums::<C>;
         let (top, bottom) = both(
             n >= PARALLEL_MIN,
             || {
@@ -886,6 +1030,58 @@ mod tests {
         let mut nan = M18::identity();
         nan[(3, 3)] = f64::NAN;
         assert!(!cholesky_factor(&mut nan));
+    }
+
+    /// A system with `C` columns per block, read through [`BlockSource`].
+    struct Held<'a, const C: usize> {
+        sys: &'a BlockTridiagonal,
+        columns: &'a [SMatrix<f64, 18, C>],
+    }
+
+    impl<const C: usize> BlockSource<C> for Held<'_, C> {
+        fn len(&self) -> usize {
+            self.sys.len()
+        }
+        fn diag(&self, k: usize) -> M18 {
+            self.sys.diag[k]
+        }
+        fn upper(&self, k: usize) -> M18 {
+            self.sys.upper[k]
+        }
+        fn rhs(&self, k: usize) -> V18 {
+            self.sys.rhs[k]
+        }
+        fn columns(&self, k: usize) -> SMatrix<f64, 18, C> {
+            self.columns[k]
+        }
+    }
+
+    #[test]
+    fn streamed_forms_equal_the_stored_factors_to_the_bit() {
+        // Short systems (one sweep empty, a single block), and one long enough for the sweeps
+        // to run on two threads.
+        let mut seed = 5;
+        for n in [1usize, 2, 3, 6, 11, PARALLEL_MIN + 37] {
+            let sys = random_system(n, &mut seed);
+            let columns: Vec<SMatrix<f64, 18, 3>> = (0..n)
+                .map(|_| SMatrix::from_fn(|_, _| pseudo_random(&mut seed)))
+                .collect();
+            let stored = sys.clone().factor().unwrap().quadratic_forms(&columns);
+            let held = Held {
+                sys: &sys,
+                columns: &columns,
+            };
+            assert_eq!(streamed_quadratic_forms(&held).unwrap(), stored, "n = {n}");
+        }
+        // A complement that is not positive definite is the same error.
+        let mut sys = random_system(4, &mut seed);
+        sys.diag[3] = -M18::identity();
+        let columns = vec![SMatrix::<f64, 18, 1>::zeros(); 4];
+        let held = Held {
+            sys: &sys,
+            columns: &columns,
+        };
+        assert!(streamed_quadratic_forms(&held).is_err());
     }
 
     #[test]
