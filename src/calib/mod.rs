@@ -677,7 +677,7 @@ pub fn calibrate(
     let mut traj = traj;
     // The fit's covariance was for the initialisation; its storage serves the joint problem.
     if let Some(storage) = traj.take_covariance_storage() {
-        jp.keep_storage(storage);
+        jp.keep_system(storage);
     }
     // The pose-only trajectory, for the drift check: the refined one has absorbed part of the
     // DVL's misfit under a constant offset. Kept only when the offset is estimated.
@@ -758,12 +758,9 @@ pub fn calibrate(
         if change < 0.01 || pass == IRLS_PASSES {
             break;
         }
-        let storage = jp.take_storage();
         let mut jw = JointProblem::new(poses, &refined.trajectory, &weighted, &idx)?;
         jw.priors = priors;
-        if let Some(st) = storage {
-            jw.keep_storage(st);
-        }
+        jw.keep_storage(jp.take_storage());
         refined = refine_jointly(
             &jw,
             refined.trajectory,
@@ -773,9 +770,7 @@ pub fn calibrate(
             free,
             opts.max_outer_iterations,
         )?;
-        if let Some(st) = jw.take_storage() {
-            jp.keep_storage(st);
-        }
+        jp.keep_storage(jw.take_storage());
     }
     clock.done("reweighting");
     counts.dvl_downweighted = dvl_robust.outliers;
@@ -815,12 +810,9 @@ pub fn calibrate(
     }
     let obs_used = &weighted;
     let mut jp = {
-        let storage = jp.take_storage();
         let mut jw = JointProblem::new(poses, &traj, obs_used, &idx)?;
         jw.priors = priors;
-        if let Some(st) = storage {
-            jw.keep_storage(st);
-        }
+        jw.keep_storage(jp.take_storage());
         jw
     };
     // One assembly of the joint system at the result serves the covariance and both halves.
@@ -1291,7 +1283,7 @@ fn mirror_if_better(
     );
     let mut fresh = Trajectory::fit(poses, &opts.fit)?;
     if let Some(storage) = fresh.take_covariance_storage() {
-        jp.keep_storage(storage);
+        jp.keep_system(storage);
     }
     let other = refine_jointly(
         jp,

@@ -41,9 +41,18 @@ pub struct JointProblem<'a> {
     meas: Vec<Se3>,
     pose_info: Vec<Matrix6<f64>>,
     qc_inv: Vector6<f64>,
-    /// Storage of a system of the problem's size, kept between the updates (a system of 100k
-    /// knots takes half a gigabyte, which is slow to allocate and fault in every time).
-    storage: Mutex<Option<BlockTridiagonal>>,
+    /// Storage kept from one system to the next.
+    storage: Mutex<JointStorage>,
+}
+
+/// What a joint problem keeps from one system to the next: the storage of the trajectory's
+/// system (a system of 100k knots takes half a gigabyte, which is slow to allocate, and whose
+/// pages are slow to fault in, every time) and of the calibration's coupling blocks `H_x theta`
+/// (an eighth of a gigabyte more).
+#[derive(Default)]
+pub(crate) struct JointStorage {
+    system: Option<BlockTridiagonal>,
+    cross: Vec<CrossBlock>,
 }
 
 impl<'a> JointProblem<'a> {
@@ -71,7 +80,7 @@ impl<'a> JointProblem<'a> {
             meas: poses.iter().map(|m| m.pose).collect(),
             pose_info: measurement_information(poses, traj.report().pose_sigma)?,
             qc_inv: traj.qc().map(|q| 1.0 / q),
-            storage: Mutex::new(None),
+            storage: Mutex::new(JointStorage::default()),
         })
     }
 
@@ -88,19 +97,50 @@ impl<'a> JointProblem<'a> {
             meas: self.meas[range.clone()].to_vec(),
             pose_info: self.pose_info[range].to_vec(),
             qc_inv: self.qc_inv,
-            storage: Mutex::new(None),
+            storage: Mutex::new(JointStorage::default()),
+        }
+    }
+
+    /// All the kept storage, to hand to another problem of the same knots.
+    pub(crate) fn take_storage(&self) -> JointStorage {
+        self.storage
+            .lock()
+            .map(|mut s| std::mem::take(&mut *s))
+            .unwrap_or_default()
+    }
+
+    /// Keeps `storage` (from [`JointProblem::take_storage`]) for the next systems.
+    pub(crate) fn keep_storage(&self, storage: JointStorage) {
+        if let Ok(mut s) = self.storage.lock() {
+            *s = storage;
         }
     }
 
     /// The kept system storage, if any.
-    pub(crate) fn take_storage(&self) -> Option<BlockTridiagonal> {
-        self.storage.lock().ok().and_then(|mut s| s.take())
+    pub(crate) fn take_system(&self) -> Option<BlockTridiagonal> {
+        self.storage.lock().ok().and_then(|mut s| s.system.take())
     }
 
     /// Keeps `sys` for the next update.
-    pub(crate) fn keep_storage(&self, sys: BlockTridiagonal) {
+    pub(crate) fn keep_system(&self, sys: BlockTridiagonal) {
         if let Ok(mut s) = self.storage.lock() {
-            *s = Some(sys);
+            s.system = Some(sys);
+        }
+    }
+
+    /// The kept storage of `H_x theta` (empty when there is none).
+    fn take_cross(&self) -> Vec<CrossBlock> {
+        self.storage
+            .lock()
+            .map(|mut s| std::mem::take(&mut s.cross))
+            .unwrap_or_default()
+    }
+
+    /// Keeps the system and the coupling blocks of a finished joint system.
+    fn keep_joint(&self, js: JointSystem) {
+        if let Ok(mut s) = self.storage.lock() {
+            s.system = Some(js.factor.into_system());
+            s.cross = js.cross;
         }
     }
 
@@ -330,10 +370,8 @@ impl<'a> DvlFactors<'a> {
         (theta, gradient)
     }
 
-    /// Assembles the knots of `chunk` alone (as [`DvlFactors::assemble`] forms them), its
-    /// blocks of `H_x theta` from zero.
+    /// Assembles the knots of `chunk` alone (as [`DvlFactors::assemble`] forms them).
     fn assemble_run(&self, knots: &[Knot], mut chunk: JointChunk) {
-        chunk.cross.fill(CrossBlock::zeros());
         self.assemble_chunk(self.jp.view(knots), &mut chunk, true);
     }
 
@@ -344,8 +382,11 @@ impl<'a> DvlFactors<'a> {
     fn assemble(&self, knots: &[Knot], sys: &mut BlockTridiagonal, with_params: bool) -> Assembled {
         let n = knots.len();
         assert_eq!(sys.len(), n, "system size does not match the knots");
+        // Each chunk clears its own blocks of `H_x theta` before it adds to them.
         let mut cross = if with_params {
-            vec![CrossBlock::zeros(); n]
+            let mut c = self.jp.take_cross();
+            c.resize(n, CrossBlock::zeros());
+            c
         } else {
             Vec::new()
         };
@@ -389,6 +430,8 @@ impl<'a> DvlFactors<'a> {
         let c = &mut chunk.sys;
         let len = c.diag.len();
         let (first, diag, rhs, upper) = (c.first, &mut *c.diag, &mut *c.rhs, &mut *c.upper);
+        // The blocks of `H_x theta` are sums from zero (their storage is reused).
+        chunk.cross.fill(CrossBlock::zeros());
         let mut pose_cost = pose.pose_terms(knots, first, &mut diag[0], &mut rhs[0]);
         let mut d = IntervalTerms::zeros();
         let mut t = PriorNormal::zeros();
@@ -493,11 +536,11 @@ pub fn state_update(
     let opts = GaussNewtonOptions {
         max_iterations,
         factor: false,
-        storage: jp.take_storage(),
+        storage: jp.take_system(),
     };
     let solved = gauss_newton(&problem, traj.knots().to_vec(), opts)?;
     if let Some(s) = solved.spare {
-        jp.keep_storage(s);
+        jp.keep_system(s);
     }
     let prior_cost = if jp.priors.any() {
         jp.priors.terms(p).cost
@@ -545,7 +588,7 @@ pub fn assemble_joint(
 ) -> Result<AssembledJoint> {
     let n = knots.len();
     let mut sys = jp
-        .take_storage()
+        .take_system()
         .map(|s| s.resized(n))
         .unwrap_or_else(|| BlockTridiagonal::zeros(n));
     let a = DvlFactors::new(jp, p)?.assemble(knots, &mut sys, true);
@@ -660,11 +703,12 @@ pub fn joint_covariance_of(
 ) -> Result<(ParamMat, f64)> {
     let js = finish(jp, aj, free)?;
     let (schur, _) = reduced(&js, free);
-    jp.keep_storage(js.factor.into_system());
+    let cost = js.cost;
+    jp.keep_joint(js);
     let cov = schur
         .try_inverse()
         .unwrap_or_else(|| ParamMat::from_diagonal_element(f64::INFINITY));
-    Ok((held_at_zero(cov, free), js.cost))
+    Ok((held_at_zero(cov, free), cost))
 }
 
 /// The linearised estimate of the calibration at `p` and its marginal covariance from the
@@ -678,7 +722,7 @@ fn linear_estimate_of(
     free: &[bool; NPARAM],
 ) -> Result<(CalibrationParams, ParamMat)> {
     let (schur, b) = reduced(&js, free);
-    jp.keep_storage(js.factor.into_system());
+    jp.keep_joint(js);
     Ok(estimate_from(p, &schur, &b, free))
 }
 
@@ -910,14 +954,15 @@ pub fn joint_step(
     // `H_xx dx = g_x - H_x theta dtheta`.
     let (schur, b) = reduced(&js, free);
     let Some(dtheta) = schur.cholesky().map(|c| c.solve(&b)) else {
-        jp.keep_storage(js.factor.into_system());
+        jp.keep_joint(js);
         return Ok(None);
     };
     let u = js.factor.solve();
     let correction = js
         .factor
         .solve_many(&js.cross.iter().map(|c| c * dtheta).collect::<Vec<V18>>());
-    jp.keep_storage(js.factor.into_system());
+    let start_cost = js.cost;
+    jp.keep_joint(js);
     let dx: Vec<V18> = u.iter().zip(&correction).map(|(u, c)| u - c).collect();
     let mut scale = 1.0;
     for _ in 0..8 {
@@ -929,7 +974,7 @@ pub fn joint_step(
             if jp.priors.any() {
                 cost += jp.priors.terms(&params).cost;
             }
-            if cost.is_finite() && cost <= js.cost {
+            if cost.is_finite() && cost <= start_cost {
                 return Ok(Some(JointStep {
                     trajectory: traj.with_knots(knots, None),
                     params,

@@ -427,7 +427,7 @@ fn joint_problem<'a>(
         meas,
         pose_info,
         qc_inv,
-        storage: Mutex::new(None),
+        storage: Mutex::new(JointStorage::default()),
     }
 }
 
