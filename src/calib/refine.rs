@@ -63,7 +63,7 @@ pub fn linearize(
         let mut cost = 0.0;
         for &i in &idx[r] {
             let o = &obs[i];
-            let s = traj.state(o.t + p.time_offset_s)?;
+            let s = traj.motion(o.t + p.time_offset_s)?;
             let r = o.v - predict(p, &s.twist);
             let j = d_predict_d_params(p, &s.twist, &s.rate);
             let w = o.cov.try_inverse().ok_or_else(|| {

@@ -328,8 +328,8 @@ impl<'a> DvlFactors<'a> {
         for &pos in self.samples(k) {
             let i = self.jp.idx[pos];
             let (o, w) = (&self.jp.obs[i], &self.jp.dvl_info[i]);
-            let s = view.state_in(k, o.t + p.time_offset_s, gamma2);
-            let r = o.v - predict(p, &s.twist);
+            let twist = view.twist_in(k, o.t + p.time_offset_s, gamma2);
+            let r = o.v - predict(p, &twist);
             cost += (r.transpose() * w * r)[0];
         }
         cost
@@ -350,7 +350,7 @@ impl<'a> DvlFactors<'a> {
                 for &pos in self.samples(k) {
                     let i = self.jp.idx[pos];
                     let (o, w) = (&self.jp.obs[i], &self.jp.dvl_info[i]);
-                    let state = view.state_in(k, o.t + p.time_offset_s, &gamma2);
+                    let state = view.motion_in(k, o.t + p.time_offset_s, &gamma2);
                     let r = o.v - predict(p, &state.twist);
                     let jt = d_predict_d_params(p, &state.twist, &state.rate);
                     let wjt = w * jt;

@@ -32,8 +32,8 @@ use nalgebra::{Matrix3, SMatrix, SVector, Vector3, Vector6};
 use super::*;
 use crate::lie::{curly, se3_right_jacobian, so3};
 use crate::trajectory::gp::{
-    apply_scalar, d_jr_times, first_local_state, interpolation_weights, kron_diag, local_gamma,
-    local_state, phi_scalar, q_scalar_inv,
+    Motion, apply_scalar, d_jr_times, first_local_state, interpolation_weights, kron_diag,
+    local_gamma, local_state, phi_scalar, q_scalar_inv,
 };
 
 /// Finite-difference step of the knot variables and of rotation, lever arm and scale.
@@ -234,7 +234,7 @@ fn analytic_sample(
     knots: &[Knot],
     p: &CalibrationParams,
     o: &DvlObs,
-) -> (usize, Knot, SMatrix<f64, 3, 36>, SMatrix<f64, 3, NPARAM>) {
+) -> (usize, Motion, SMatrix<f64, 3, 36>, SMatrix<f64, 3, NPARAM>) {
     let view = KnotView { times, knots };
     let t = o.t + p.time_offset_s;
     let k = view.interval(t).unwrap();

@@ -10,8 +10,9 @@ use nalgebra::{Matrix3, Matrix6, SMatrix, Vector6};
 
 use super::blocktri::{BandedInverse, BlockTridiagonal, Factored, V18};
 use super::gp::{
-    Knot, LocalState, apply_scalar, d_jr_times, first_local_state, interpolation_weights,
-    knot_from_local, kron_diag_mul, local_gamma, local_state, twist_from_local,
+    Knot, LocalState, Motion, apply_scalar, d_jr_times, first_local_state, interpolation_weights,
+    knot_from_local, kron_diag_mul, local_gamma, local_state, motion_from_local,
+    motion_from_local_with, twist_from_local,
 };
 use super::hyper;
 use super::solver::{
@@ -274,6 +275,12 @@ impl Trajectory {
         self.view().twist(t)
     }
 
+    /// The twist and the rate at `t`: the values [`Trajectory::state`] gives, without forming
+    /// the pose.
+    pub fn motion(&self, t: f64) -> Result<Motion> {
+        self.view().motion(t)
+    }
+
     /// The interpolated state at `t` with the twist's Jacobian with respect to the two knots.
     pub fn twist_jacobian(&self, t: f64) -> Result<TwistJacobian> {
         self.view().twist_jacobian(t)
@@ -355,11 +362,28 @@ impl KnotView<'_> {
         })
     }
 
+    /// The twist and the rate at `t` (the values of [`KnotView::state`], without the pose).
+    pub fn motion(&self, t: f64) -> Result<Motion> {
+        let k = self.locate(t)?;
+        Ok(self.motion_in(k, t, &local_gamma(&self.knots[k], &self.knots[k + 1])))
+    }
+
+    /// The twist and the rate at `t` in the interval `k`, given the local state `gamma_2` of
+    /// knot `k + 1` (as [`KnotView::state_in`] gives them).
+    pub(crate) fn motion_in(&self, k: usize, t: f64, gamma2: &V18) -> Motion {
+        motion_from_local(&self.local_at(k, t, gamma2))
+    }
+
+    /// The twist at `t` in the interval `k`, given the local state `gamma_2` of knot `k + 1`
+    /// (as [`KnotView::state_in`] gives it).
+    pub(crate) fn twist_in(&self, k: usize, t: f64, gamma2: &V18) -> Vector6<f64> {
+        twist_from_local(&self.local_at(k, t, gamma2))
+    }
+
     /// The twist at `t` alone (the value of [`KnotView::state`]).
     pub fn twist(&self, t: f64) -> Result<Vector6<f64>> {
         let k = self.locate(t)?;
-        let gamma2 = local_gamma(&self.knots[k], &self.knots[k + 1]);
-        Ok(twist_from_local(&self.local_at(k, t, &gamma2)))
+        Ok(self.twist_in(k, t, &local_gamma(&self.knots[k], &self.knots[k + 1])))
     }
 
     /// The time since knot `k` (clamped to the interval) and the interval's length.
@@ -389,7 +413,7 @@ impl KnotView<'_> {
         Ok(self.twist_jacobian_in(k, t, &ls))
     }
 
-    /// The interpolated state at `t` in the interval `k` and the Jacobians of `m twist` with
+    /// The interpolated twist and rate at `t` in the interval `k` and the Jacobians of `m twist` with
     /// respect to the variables of the two knots (3 x 18 each), for a fixed 3 x 6 map `m` (a DVL
     /// velocity's dependence on the twist). The same derivative as `m` times
     /// [`KnotView::twist_jacobian_in`], formed in the three rows from the 6 x 6 pieces of the
@@ -400,18 +424,19 @@ impl KnotView<'_> {
         t: f64,
         ls: &LocalState,
         m: &SMatrix<f64, 3, 6>,
-    ) -> (Knot, SMatrix<f64, 3, 18>, SMatrix<f64, 3, 18>) {
+    ) -> (Motion, SMatrix<f64, 3, 18>, SMatrix<f64, 3, 18>) {
         type M36 = SMatrix<f64, 3, 6>;
         let (s, dt) = self.offset_in(k, t);
         let k1 = &self.knots[k];
         let (lambda, omega, _) = interpolation_weights(s, dt);
         let gamma = apply_scalar(&lambda, &first_local_state(k1)) + apply_scalar(&omega, &ls.gamma);
-        let state = knot_from_local(&k1.pose, &gamma);
         let xi: Vector6<f64> = gamma.fixed_rows::<6>(0).into_owned();
         let xid: Vector6<f64> = gamma.fixed_rows::<6>(6).into_owned();
+        let jr = se3_right_jacobian(&xi);
+        let state = motion_from_local_with(&jr, &gamma);
         // m d twist / d gamma = [p0, p1, 0] (the twist does not depend on xi'').
         let p0: M36 = m * d_jr_times(&xi, [&xid])[0];
-        let p1: M36 = m * se3_right_jacobian(&xi);
+        let p1: M36 = m * jr;
         // Through Lambda (x) I6 and Omega (x) I6: block j is p0 s[0][j] + p1 s[1][j].
         let through = |s: &Matrix3<f64>, j: usize| -> M36 { p0 * s[(0, j)] + p1 * s[(1, j)] };
         let (a0, a1, a2) = (through(&omega, 0), through(&omega, 1), through(&omega, 2));

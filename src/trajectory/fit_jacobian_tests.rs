@@ -323,24 +323,34 @@ fn public_twist_jacobian_matches_central_differences_of_state() {
 
 #[test]
 fn the_twist_alone_is_the_states_twist() {
-    // `KnotView::twist` skips the pose and the rate, not any step of the twist: the same value
-    // to the last bit, in every interval (one with a 2.4 rad rotation) and outside the span.
+    // `KnotView::twist` skips the pose and the rate, and `KnotView::motion` and the DVL
+    // factors' `projected_twist_jacobian_in` the pose, not any step of what they give: the same
+    // values to the last bit, in every interval (one with a 2.4 rad rotation) and outside the
+    // span.
     for seed in 1..4 {
         let (times, knots) = test_knots(seed);
         let view = KnotView {
             times: &times,
             knots: &knots,
         };
+        let m = SMatrix::<f64, 3, 6>::from_fn(|r, c| (r * 6 + c) as f64 * 0.1 - 0.7);
         for k in 0..times.len() - 1 {
+            let ls = local_state(&knots[k], &knots[k + 1]);
             for t in times_in(&times, k) {
-                assert_eq!(
-                    view.twist(t).unwrap(),
-                    view.state(t).unwrap().twist,
-                    "t = {t}"
-                );
+                let state = view.state(t).unwrap();
+                assert_eq!(view.twist(t).unwrap(), state.twist, "t = {t}");
+                let motion = view.motion(t).unwrap();
+                assert_eq!((motion.twist, motion.rate), (state.twist, state.rate));
+                // With the local state as the DVL factors form it (with its Jacobians).
+                let (projected, _, _) = view.projected_twist_jacobian_in(k, t, &ls, &m);
+                let in_interval = view.state_in(k, t, &ls.gamma);
+                assert_eq!(projected.twist, in_interval.twist, "t = {t}");
+                assert_eq!(projected.rate, in_interval.rate, "t = {t}");
+                assert_eq!(view.motion_in(k, t, &ls.gamma), projected);
             }
         }
         let after = times[times.len() - 1] + 1.0;
         assert!(view.twist(after).is_err() && view.state(after).is_err());
+        assert!(view.motion(after).is_err());
     }
 }

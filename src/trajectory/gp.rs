@@ -607,15 +607,39 @@ pub fn twist_from_local(gamma: &V18) -> Vector6<f64> {
     se3_right_jacobian(&xi) * xid
 }
 
+/// The twist and the twist rate of an interpolated state: a [`Knot`] without its pose.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Motion {
+    /// Body twist `[v; w]` (m/s, rad/s).
+    pub twist: Vector6<f64>,
+    /// Its time derivative.
+    pub rate: Vector6<f64>,
+}
+
+/// The twist and the twist rate at an interpolated local state `gamma` (what
+/// [`knot_from_local`] gives, without the pose's exponential), with `jr = J_r(xi)` of its pose
+/// part (for callers that need `J_r` themselves).
+pub fn motion_from_local_with(jr: &Matrix6<f64>, gamma: &V18) -> Motion {
+    let xid: Vector6<f64> = gamma.fixed_rows::<6>(6).into_owned();
+    let xidd: Vector6<f64> = gamma.fixed_rows::<6>(12).into_owned();
+    let twist = jr * xid;
+    let rate = jr * (xidd - curly(&xid) * twist * 0.5);
+    Motion { twist, rate }
+}
+
+/// [`motion_from_local_with`], forming `J_r(xi)` itself.
+pub fn motion_from_local(gamma: &V18) -> Motion {
+    motion_from_local_with(
+        &se3_right_jacobian(&gamma.fixed_rows::<6>(0).into_owned()),
+        gamma,
+    )
+}
+
 /// Knot state at an interpolated local state `gamma` relative to `pose1`: inverts the mapping
 /// used for `gamma_2`.
 pub fn knot_from_local(pose1: &Se3, gamma: &V18) -> Knot {
     let xi: Vector6<f64> = gamma.fixed_rows::<6>(0).into_owned();
-    let xid: Vector6<f64> = gamma.fixed_rows::<6>(6).into_owned();
-    let xidd: Vector6<f64> = gamma.fixed_rows::<6>(12).into_owned();
-    let jr = se3_right_jacobian(&xi);
-    let twist = jr * xid;
-    let rate = jr * (xidd - curly(&xid) * twist * 0.5);
+    let Motion { twist, rate } = motion_from_local_with(&se3_right_jacobian(&xi), gamma);
     Knot {
         pose: *pose1 * Se3::exp(&xi),
         twist,

@@ -7,4 +7,4 @@ pub(crate) mod hyper;
 pub(crate) mod solver;
 
 pub use fit::{FitOptions, FitReport, KnotView, Trajectory, TrajectoryState};
-pub use gp::Knot;
+pub use gp::{Knot, Motion};
