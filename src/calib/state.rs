@@ -695,16 +695,22 @@ pub fn joint_covariance(
     joint_covariance_of(jp, assemble_joint(jp, traj.knots(), p)?, free)
 }
 
-/// [`joint_covariance`] of a system already assembled by [`assemble_joint`].
+/// [`joint_covariance`] of a system already assembled by [`assemble_joint`]. The Schur
+/// complement is summed as the system is eliminated ([`streamed_quadratic_forms`]): the
+/// factor is not stored, and the system's storage is kept unchanged for the next problem.
 pub fn joint_covariance_of(
     jp: &JointProblem,
-    aj: AssembledJoint,
+    mut aj: AssembledJoint,
     free: &[bool; NPARAM],
 ) -> Result<(ParamMat, f64)> {
-    let js = finish(jp, aj, free)?;
-    let (schur, _) = reduced(&js, free);
-    let cost = js.cost;
-    jp.keep_joint(js);
+    decouple(jp, &mut aj.a, &aj.params, free);
+    let forms = streamed_quadratic_forms(&SystemBlocks::whole(&aj, free));
+    let (schur, _) = reduced_from(&aj.a.theta, &aj.a.gradient, forms?, free);
+    let cost = aj.a.cost;
+    jp.keep_storage(JointStorage {
+        system: Some(aj.sys),
+        cross: aj.a.cross,
+    });
     let cov = schur
         .try_inverse()
         .unwrap_or_else(|| ParamMat::from_diagonal_element(f64::INFINITY));
@@ -799,7 +805,7 @@ pub fn part_linear_estimate(
         }
     }
     let factors = DvlFactors::new(part, &p)?;
-    let mut own = PartBlocks::new(whole, range.start, &redo, free);
+    let mut own = SystemBlocks::part(whole, range.start, &redo, n, free);
     let mut k = 0;
     while k < n {
         if !redo[k] {
@@ -825,26 +831,42 @@ pub fn part_linear_estimate(
     Ok(estimate_from(&p, &schur, &b, free))
 }
 
-/// A part's joint system as [`part_linear_estimate`] reads it: the whole's blocks, except at
-/// the knots assembled anew, whose blocks it holds (in the order of the knots), with the fixed
-/// parameters' columns of `H_x theta` read as zero.
-struct PartBlocks<'w> {
-    whole: &'w AssembledJoint,
-    /// The part's first knot in the whole.
+/// A joint system as the streamed elimination reads it ([`streamed_quadratic_forms`]): an
+/// assembled system's blocks from `first` on, except at the knots assembled anew (for a part of
+/// the data), whose blocks it holds in the order of the knots; the fixed parameters' columns of
+/// `H_x theta` read as zero.
+struct SystemBlocks<'w> {
+    sys: &'w BlockTridiagonal,
+    cross: &'w [CrossBlock],
+    /// The first knot read, and the number of knots.
     first: usize,
-    /// Per knot of the part, the position of its own blocks (`usize::MAX`: the whole's).
+    len: usize,
+    /// Per knot, the position of its own blocks (`usize::MAX`: the assembled system's); empty
+    /// when no knot has its own.
     slot: Vec<usize>,
     diag: Vec<M18>,
-    /// `A[k, k + 1]` of the knot in the slot (none for the part's last knot).
+    /// `A[k, k + 1]` of the knot in the slot (none for the last knot).
     upper: Vec<M18>,
     rhs: Vec<V18>,
-    cross: Vec<CrossBlock>,
+    own_cross: Vec<CrossBlock>,
     free: [bool; NPARAM],
 }
 
-impl<'w> PartBlocks<'w> {
-    /// Room for the knots marked in `redo` (a part of `redo.len()` knots from `first` on).
-    fn new(whole: &'w AssembledJoint, first: usize, redo: &[bool], free: &[bool; NPARAM]) -> Self {
+impl<'w> SystemBlocks<'w> {
+    /// The whole of an assembled system.
+    fn whole(a: &'w AssembledJoint, free: &[bool; NPARAM]) -> Self {
+        Self::part(a, 0, &[], a.sys.len(), free)
+    }
+
+    /// `len` knots of an assembled system from `first` on, with room for the knots marked in
+    /// `redo` (one flag per knot, or none) to be assembled anew.
+    fn part(
+        a: &'w AssembledJoint,
+        first: usize,
+        redo: &[bool],
+        len: usize,
+        free: &[bool; NPARAM],
+    ) -> Self {
         let mut count = 0;
         let slot = redo
             .iter()
@@ -857,21 +879,28 @@ impl<'w> PartBlocks<'w> {
                 }
             })
             .collect();
-        PartBlocks {
-            whole,
+        SystemBlocks {
+            sys: &a.sys,
+            cross: &a.a.cross,
             first,
+            len,
             slot,
             diag: vec![M18::zeros(); count],
             upper: vec![M18::zeros(); count],
             rhs: vec![V18::zeros(); count],
-            cross: vec![CrossBlock::zeros(); count],
+            own_cross: vec![CrossBlock::zeros(); count],
             free: *free,
         }
     }
 
-    /// Assembles the knots `range` of the part (all marked) into their slots.
+    /// The position of knot `k`'s own blocks, if it has them.
+    fn own(&self, k: usize) -> Option<usize> {
+        self.slot.get(k).copied().filter(|&s| s != usize::MAX)
+    }
+
+    /// Assembles the knots `range` (all marked) into their slots.
     fn assemble(&mut self, factors: &DvlFactors, knots: &[Knot], range: std::ops::Range<usize>) {
-        let n = self.slot.len();
+        let n = self.len;
         let s = self.slot[range.start];
         let len = range.len();
         // Knot `k` owns the coupling to `k + 1`; the last knot has none.
@@ -884,7 +913,7 @@ impl<'w> PartBlocks<'w> {
                 rhs: &mut self.rhs[s..s + len],
                 cost: 0.0,
             },
-            cross: &mut self.cross[s..s + len],
+            cross: &mut self.own_cross[s..s + len],
             theta: ParamMat::zeros(),
             gradient: ParamVec::zeros(),
         };
@@ -892,36 +921,36 @@ impl<'w> PartBlocks<'w> {
     }
 }
 
-impl BlockSource<NPARAM> for PartBlocks<'_> {
+impl BlockSource<NPARAM> for SystemBlocks<'_> {
     fn len(&self) -> usize {
-        self.slot.len()
+        self.len
     }
 
     fn diag(&self, k: usize) -> M18 {
-        match self.slot[k] {
-            usize::MAX => self.whole.sys.diag[self.first + k],
-            s => self.diag[s],
+        match self.own(k) {
+            None => self.sys.diag[self.first + k],
+            Some(s) => self.diag[s],
         }
     }
 
     fn upper(&self, k: usize) -> M18 {
-        match self.slot[k] {
-            usize::MAX => self.whole.sys.upper[self.first + k],
-            s => self.upper[s],
+        match self.own(k) {
+            None => self.sys.upper[self.first + k],
+            Some(s) => self.upper[s],
         }
     }
 
     fn rhs(&self, k: usize) -> V18 {
-        match self.slot[k] {
-            usize::MAX => self.whole.sys.rhs[self.first + k],
-            s => self.rhs[s],
+        match self.own(k) {
+            None => self.sys.rhs[self.first + k],
+            Some(s) => self.rhs[s],
         }
     }
 
     fn columns(&self, k: usize) -> CrossBlock {
-        let mut c = match self.slot[k] {
-            usize::MAX => self.whole.a.cross[self.first + k],
-            s => self.cross[s],
+        let mut c = match self.own(k) {
+            None => self.cross[self.first + k],
+            Some(s) => self.own_cross[s],
         };
         for (j, _) in self.free.iter().enumerate().filter(|(_, f)| !**f) {
             c.column_mut(j).fill(0.0);
