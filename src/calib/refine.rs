@@ -1,7 +1,7 @@
 //! Calibration update with the trajectory held fixed: Levenberg-Marquardt on rotation, lever arm,
 //! scale and clock offset (the offset's derivative comes from the GP's twist rate).
 
-use nalgebra::{SMatrix, SVector};
+use nalgebra::{Matrix3, SMatrix, SVector};
 
 use super::model::{NPARAM, d_predict_d_params, difference, predict};
 use super::offset::DvlObs;
@@ -57,37 +57,72 @@ pub fn linearize(
     idx: &[usize],
     p: &CalibrationParams,
 ) -> Result<Linearized> {
-    let pieces = crate::parallel::map_pieces(idx.len(), LINEARIZE_PIECE, |r| {
-        let mut hessian = ParamMat::zeros();
-        let mut gradient = ParamVec::zeros();
-        let mut cost = 0.0;
-        for &i in &idx[r] {
-            let o = &obs[i];
-            let s = traj.motion(o.t + p.time_offset_s)?;
-            let r = o.v - predict(p, &s.twist);
-            let j = d_predict_d_params(p, &s.twist, &s.rate);
-            let w = o.cov.try_inverse().ok_or_else(|| {
-                Error::Input(format!("DVL sample at t = {}: singular covariance", o.t))
-            })?;
-            let wj = w * j;
-            hessian += j.transpose() * wj;
-            gradient += wj.transpose() * r;
-            cost += (r.transpose() * w * r)[0];
-        }
-        Ok((hessian, gradient, cost))
-    });
-    let mut out = Linearized {
-        cost: 0.0,
-        hessian: ParamMat::zeros(),
-        gradient: ParamVec::zeros(),
-    };
-    for piece in pieces {
-        let (h, g, c): (ParamMat, ParamVec, f64) = piece?;
-        out.hessian += h;
-        out.gradient += g;
-        out.cost += c;
+    DvlTerm::new(traj, obs, idx)?.linearize(p)
+}
+
+/// The DVL term on a fixed trajectory, with each sample's information matrix formed once for
+/// every linearisation (a calibration update linearises at a dozen calibrations).
+struct DvlTerm<'a> {
+    traj: &'a Trajectory,
+    obs: &'a [DvlObs],
+    idx: &'a [usize],
+    /// Information matrix of `obs[idx[j]]`, at `j`.
+    info: Vec<Matrix3<f64>>,
+}
+
+impl<'a> DvlTerm<'a> {
+    fn new(traj: &'a Trajectory, obs: &'a [DvlObs], idx: &'a [usize]) -> Result<Self> {
+        let info = idx
+            .iter()
+            .map(|&i| {
+                obs[i].cov.try_inverse().ok_or_else(|| {
+                    Error::Input(format!(
+                        "DVL sample at t = {}: singular covariance",
+                        obs[i].t
+                    ))
+                })
+            })
+            .collect::<Result<_>>()?;
+        Ok(DvlTerm {
+            traj,
+            obs,
+            idx,
+            info,
+        })
     }
-    Ok(out)
+
+    /// The cost and normal equations at `p`.
+    fn linearize(&self, p: &CalibrationParams) -> Result<Linearized> {
+        let pieces = crate::parallel::map_pieces(self.idx.len(), LINEARIZE_PIECE, |r| {
+            let mut hessian = ParamMat::zeros();
+            let mut gradient = ParamVec::zeros();
+            let mut cost = 0.0;
+            for j in r {
+                let o = &self.obs[self.idx[j]];
+                let s = self.traj.motion(o.t + p.time_offset_s)?;
+                let r = o.v - predict(p, &s.twist);
+                let jac = d_predict_d_params(p, &s.twist, &s.rate);
+                let w = &self.info[j];
+                let wj = w * jac;
+                hessian += jac.transpose() * wj;
+                gradient += wj.transpose() * r;
+                cost += (r.transpose() * w * r)[0];
+            }
+            Ok((hessian, gradient, cost))
+        });
+        let mut out = Linearized {
+            cost: 0.0,
+            hessian: ParamMat::zeros(),
+            gradient: ParamVec::zeros(),
+        };
+        for piece in pieces {
+            let (h, g, c): (ParamMat, ParamVec, f64) = piece?;
+            out.hessian += h;
+            out.gradient += g;
+            out.cost += c;
+        }
+        Ok(out)
+    }
 }
 
 /// Outcome of a calibration update.
@@ -111,9 +146,10 @@ pub fn calibration_update(
 ) -> Result<UpdateResult> {
     let mask = free.mask();
     let mut p = *start;
+    let term = DvlTerm::new(traj, obs, idx)?;
     // The DVL term with the priors' factors added.
     let linearize = |p: &CalibrationParams| -> Result<Linearized> {
-        let mut lin = linearize(traj, obs, idx, p)?;
+        let mut lin = term.linearize(p)?;
         if priors.any() {
             let t = priors.terms(p);
             lin.cost += t.cost;

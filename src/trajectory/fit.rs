@@ -6,6 +6,8 @@
 //! block-tridiagonal system, so a fit takes O(N) time and memory. The problem and the solver are
 //! in `trajectory::solver`; the hyperparameters are chosen in `trajectory::hyper`.
 
+use std::sync::OnceLock;
+
 use nalgebra::{Matrix3, Matrix6, SMatrix, Vector6};
 
 use super::blocktri::{BandedInverse, BlockTridiagonal, Factored, V18};
@@ -83,6 +85,10 @@ pub struct Trajectory {
     qc: Vector6<f64>,
     cov: Option<BandedInverse>,
     report: FitReport,
+    /// Each interval's local state `gamma_2` (knot `k + 1` relative to knot `k`), formed on
+    /// the first query that needs it: a pass over many samples would otherwise form it again
+    /// for every sample, and the calibration makes dozens of such passes over one trajectory.
+    local: OnceLock<Vec<V18>>,
 }
 
 /// The trajectory at one time.
@@ -148,6 +154,7 @@ impl Trajectory {
             qc: self.qc,
             cov,
             report: self.report.clone(),
+            local: OnceLock::new(),
         }
     }
 
@@ -213,6 +220,7 @@ impl Trajectory {
             qc: hyp.qc,
             cov,
             report,
+            local: OnceLock::new(),
         })
     }
 
@@ -264,21 +272,44 @@ impl Trajectory {
         self.view().interval(t)
     }
 
+    /// The interval holding `t` and its local state `gamma_2` (the values [`KnotView`]'s
+    /// queries form for each call).
+    fn located(&self, t: f64) -> Result<(usize, &V18)> {
+        let k = self.view().locate(t)?;
+        let local = self.local.get_or_init(|| {
+            let knots = &self.knots;
+            crate::parallel::map_indices(knots.len().saturating_sub(1), 4096, |k| {
+                local_gamma(&knots[k], &knots[k + 1])
+            })
+        });
+        Ok((k, &local[k]))
+    }
+
     /// Pose, twist and twist rate at `t`, without covariance or Jacobians (the cheap query).
     pub fn state(&self, t: f64) -> Result<TrajectoryState> {
-        self.view().state(t)
+        let (k, gamma2) = self.located(t)?;
+        let s = self.view().state_in(k, t, gamma2);
+        Ok(TrajectoryState {
+            t,
+            pose: s.pose,
+            twist: s.twist,
+            rate: s.rate,
+            twist_cov: None,
+        })
     }
 
     /// The twist at `t` alone: the value [`Trajectory::state`] gives, without forming the pose
     /// and the rate.
     pub fn twist(&self, t: f64) -> Result<Vector6<f64>> {
-        self.view().twist(t)
+        let (k, gamma2) = self.located(t)?;
+        Ok(self.view().twist_in(k, t, gamma2))
     }
 
     /// The twist and the rate at `t`: the values [`Trajectory::state`] gives, without forming
     /// the pose.
     pub fn motion(&self, t: f64) -> Result<Motion> {
-        self.view().motion(t)
+        let (k, gamma2) = self.located(t)?;
+        Ok(self.view().motion_in(k, t, gamma2))
     }
 
     /// The interpolated state at `t` with the twist's Jacobian with respect to the two knots.

@@ -274,6 +274,7 @@ fn trajectory(times: Vec<f64>, knots: Vec<Knot>) -> Trajectory {
             residual_rms_pos: 0.0,
             residual_rms_rot: 0.0,
         },
+        local: std::sync::OnceLock::new(),
     }
 }
 
@@ -352,5 +353,21 @@ fn the_twist_alone_is_the_states_twist() {
         let after = times[times.len() - 1] + 1.0;
         assert!(view.twist(after).is_err() && view.state(after).is_err());
         assert!(view.motion(after).is_err());
+        // A trajectory forms each interval's local state once and keeps it: the same values
+        // as the view's, which forms it for every query, on the first query and later ones.
+        let traj = trajectory(times.clone(), knots.clone());
+        for k in 0..times.len() - 1 {
+            for t in times_in(&times, k) {
+                let (state, own) = (traj.state(t).unwrap(), view.state(t).unwrap());
+                assert_eq!((state.twist, state.rate), (own.twist, own.rate), "t = {t}");
+                assert_eq!(
+                    (state.pose.rot, state.pose.trans),
+                    (own.pose.rot, own.pose.trans)
+                );
+                assert_eq!(traj.twist(t).unwrap(), own.twist);
+                assert_eq!(traj.motion(t).unwrap(), view.motion(t).unwrap());
+            }
+        }
+        assert!(traj.twist(after).is_err() && traj.motion(after).is_err());
     }
 }
