@@ -211,9 +211,21 @@ impl IntervalTerms {
         }
     }
 
-    /// Every sum back to zero, in place.
-    fn clear(&mut self) {
-        *self = IntervalTerms::zeros();
+    /// Every sum the next interval forms back to zero, in place (the calibration's blocks
+    /// only `with_params`, the only time they are formed and read).
+    fn clear(&mut self, with_params: bool) {
+        self.d1 = M18::zeros();
+        self.upper = M18::zeros();
+        self.d2 = M18::zeros();
+        self.r1 = V18::zeros();
+        self.r2 = V18::zeros();
+        self.cost = 0.0;
+        if with_params {
+            self.c1 = CrossBlock::zeros();
+            self.c2 = CrossBlock::zeros();
+            self.theta = ParamMat::zeros();
+            self.gradient = ParamVec::zeros();
+        }
     }
 }
 
@@ -233,6 +245,31 @@ struct JointChunk<'s> {
     cross: &'s mut [CrossBlock],
     theta: ParamMat,
     gradient: ParamVec,
+}
+
+/// `out += a^T b` on the lower triangle of `out` alone, for the symmetric `a^T W a` of a
+/// factor with three rows (`b = W a`): half the products of the full sum. Each element is
+/// summed as nalgebra's product sums it (the three rows in order, the first product alone),
+/// so it equals `out += a.transpose() * b` there to the bit.
+#[inline]
+fn add_lower_atb(out: &mut M18, a: &SMatrix<f64, 3, 18>, b: &SMatrix<f64, 3, 18>) {
+    for j in 0..18 {
+        let bj = b.column(j);
+        for i in j..18 {
+            let ai = a.column(i);
+            let s = ai[0] * bj[0] + ai[1] * bj[1] + ai[2] * bj[2];
+            out[(i, j)] += s;
+        }
+    }
+}
+
+/// Copies the lower triangle of `m` onto its upper triangle.
+fn mirror_lower(m: &mut M18) {
+    for j in 0..18 {
+        for i in j + 1..18 {
+            m[(j, i)] = m[(i, j)];
+        }
+    }
 }
 
 impl<'a> DvlFactors<'a> {
@@ -294,7 +331,7 @@ impl<'a> DvlFactors<'a> {
             return false;
         }
         let p = &self.params;
-        out.clear();
+        out.clear(with_params);
         for &pos in samples {
             let i = self.jp.idx[pos];
             let (o, w) = (&self.jp.obs[i], &self.jp.dvl_info[i]);
@@ -302,8 +339,8 @@ impl<'a> DvlFactors<'a> {
                 view.projected_twist_jacobian_in(k, o.t + p.time_offset_s, ls, &self.dh);
             let r = o.v - predict(p, &state.twist);
             let (wj1, wj2) = (w * j1, w * j2);
-            out.d1 += j1.transpose() * wj1;
-            out.d2 += j2.transpose() * wj2;
+            add_lower_atb(&mut out.d1, &j1, &wj1);
+            add_lower_atb(&mut out.d2, &j2, &wj2);
             out.upper += j1.transpose() * wj2;
             out.r1 += wj1.transpose() * r;
             out.r2 += wj2.transpose() * r;
@@ -317,6 +354,8 @@ impl<'a> DvlFactors<'a> {
                 out.gradient += wjt.transpose() * r;
             }
         }
+        mirror_lower(&mut out.d1);
+        mirror_lower(&mut out.d2);
         true
     }
 

@@ -635,3 +635,27 @@ fn halves_from_the_whole_system_equal_their_own_assembly() {
     }
     assert_eq!(checked, 4);
 }
+
+#[test]
+fn lower_triangle_products_equal_nalgebras_to_the_bit() {
+    // The DVL factors add `J^T W J` to the diagonal blocks on the lower triangle alone; there
+    // it must be nalgebra's full product to the last bit, so that the factorisation (which
+    // reads only the lower triangle) sees the same numbers.
+    let mut rng = Rng::new(0x6A09_E667_F3BC_C908);
+    for _ in 0..50 {
+        let a = SMatrix::<f64, 3, 18>::from_fn(|_, _| rng.next() * 3.0);
+        let w = rng.spd::<3>(2.0);
+        let b = w * a;
+        let start = M18::from_fn(|_, _| rng.next());
+        let mut lower = start;
+        add_lower_atb(&mut lower, &a, &b);
+        let full = start + a.transpose() * b;
+        for j in 0..18 {
+            for i in j..18 {
+                assert_eq!(lower[(i, j)], full[(i, j)], "({i}, {j})");
+            }
+        }
+        mirror_lower(&mut lower);
+        assert!(lower == lower.transpose());
+    }
+}
