@@ -41,8 +41,8 @@ use prior::Priors;
 use refine::{FreeParams, calibration_update};
 use robust::{Loss, RobustSummary};
 use state::{
-    AssembledJoint, JointProblem, assemble_joint, joint_covariance, joint_covariance_of,
-    joint_step, part_linear_estimate, state_update,
+    AssembledJoint, JointProblem, assemble_joint, joint_cost, joint_covariance,
+    joint_covariance_of, joint_step, part_linear_estimate, state_update,
 };
 use whiteness::Whiteness;
 
@@ -727,7 +727,7 @@ pub fn calibrate(
         &idx,
         start,
         free,
-        opts.max_outer_iterations,
+        (opts.max_outer_iterations, LastRound::EndAtUpdate),
     )?;
     if refined.params.velocity_scale < 0.0 && free.rotation {
         refined = mirror_if_better(poses, &jp, refined, &obs, &idx, free, opts, &mut warnings)?;
@@ -768,7 +768,7 @@ pub fn calibrate(
             &idx,
             refined.params,
             free,
-            opts.max_outer_iterations,
+            (opts.max_outer_iterations, LastRound::EndAtUpdate),
         )?;
         jp.keep_storage(jw.take_storage());
     }
@@ -1205,18 +1205,32 @@ fn refine_jointly(
     idx: &[usize],
     start: CalibrationParams,
     free: FreeParams,
-    rounds: usize,
+    (rounds, last): (usize, LastRound),
 ) -> Result<Refined> {
     let mask = free.mask();
     let mut params = start;
     let mut iterations = Vec::new();
     let mut last_cost = f64::INFINITY;
+    let mut after_joint_step = false;
     let rounds = rounds.max(1);
     for round in 1..=rounds {
         // Calibration update with the trajectory fixed, then state update with it fixed.
         let up = calibration_update(&traj, obs, idx, &params, free, &jp.priors, 50)?;
         let change = refine::change_in_std(&params, &up.params, &up.hessian, &mask);
         params = up.params;
+        // Right after a joint step, a calibration update that moves no parameter by a
+        // twentieth of its standard deviation confirms the fixed point the step reached: the
+        // state update that would follow moves the trajectory by as little, and the rounds
+        // would stop after it. The trajectory is then the joint step's.
+        if last == LastRound::EndAtUpdate
+            && after_joint_step
+            && change < 0.05
+            && params.velocity_scale > 0.0
+        {
+            let cost = joint_cost(jp, &traj, &params)?;
+            iterations.push(IterationRecord { cost, params });
+            break;
+        }
         // Warm-started from the previous state, one Gauss-Newton step per round: the rounds
         // themselves iterate it.
         let (refit, cost) = state_update(jp, &traj, &params, 1)?;
@@ -1233,11 +1247,13 @@ fn refine_jointly(
         // error when the clock offset and the trajectory are coupled). A Gauss-Newton step on
         // the joint problem takes both close to the fixed point the rounds are heading for; the
         // next round then starts there and confirms it.
+        after_joint_step = false;
         if round < rounds
             && let Some(js) = joint_step(jp, &traj, &params, &mask)?
         {
             traj = js.trajectory;
             params = js.params;
+            after_joint_step = true;
         }
     }
     Ok(Refined {
@@ -1245,6 +1261,16 @@ fn refine_jointly(
         params,
         iterations,
     })
+}
+
+/// How the refinement's last round ends.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum LastRound {
+    /// With the calibration update when it confirms a joint step (see [`refine_jointly`]).
+    EndAtUpdate,
+    /// Always with a state update: the trajectory refitted to the final calibration. The
+    /// mirror check compares the DVL costs of two refinements on their refitted trajectories.
+    Refit,
 }
 
 /// A negative scale is the rotation 180 deg off in disguise: when the motion stays near a plane,
@@ -1292,7 +1318,7 @@ fn mirror_if_better(
         idx,
         mirrored,
         free,
-        opts.max_outer_iterations,
+        (opts.max_outer_iterations, LastRound::Refit),
     )?;
     let cost = |r: &Refined| -> Result<f64> {
         Ok(refine::linearize(&r.trajectory, obs, idx, &r.params)?.cost)

@@ -592,6 +592,17 @@ pub fn state_update(
     ))
 }
 
+/// The joint cost at the trajectory `traj` and the calibration `p`: pose, GP prior, DVL and
+/// calibration prior terms (what [`state_update`] returns for its own result).
+pub fn joint_cost(jp: &JointProblem, traj: &Trajectory, p: &CalibrationParams) -> Result<f64> {
+    let prior_cost = if jp.priors.any() {
+        jp.priors.terms(p).cost
+    } else {
+        0.0
+    };
+    Ok(DvlFactors::new(jp, p)?.cost(traj.knots()) + prior_cost)
+}
+
 /// The joint system at `(traj, p)` with the fixed parameters decoupled, factorised: the
 /// factor of `H_xx`, `H_x theta` per knot, `H_theta theta` and the calibration's right-hand side.
 struct JointSystem {
