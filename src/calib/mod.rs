@@ -1535,9 +1535,7 @@ fn whitened_residuals(
         let o = &obs[idx[j]];
         let twist = traj.twist(o.t + params.time_offset_s)?;
         let r = o.v - predict(params, &twist);
-        let w = o.cov.try_inverse().ok_or_else(|| {
-            Error::Input(format!("DVL sample at t = {}: singular covariance", o.t))
-        })?;
+        let w = o.information()?;
         Ok((r.transpose() * w * r)[0])
     })
     .into_iter()

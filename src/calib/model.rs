@@ -5,6 +5,7 @@
 
 use nalgebra::{Matrix3, SMatrix, Vector3, Vector6};
 
+use crate::error::{Error, Result};
 use crate::lie::{hat, so3};
 use crate::types::CalibrationParams;
 
@@ -17,6 +18,16 @@ pub struct DvlObs {
     pub v: Vector3<f64>,
     /// Noise covariance `Q_d`.
     pub cov: Matrix3<f64>,
+}
+
+impl DvlObs {
+    /// The information matrix `Q_d^-1`; an error naming the report's time when `Q_d` is
+    /// singular.
+    pub fn information(&self) -> Result<Matrix3<f64>> {
+        self.cov.try_inverse().ok_or_else(|| {
+            Error::Input(format!("DVL sample at t = {}: singular covariance", self.t))
+        })
+    }
 }
 
 /// Number of estimated parameters: rotation (3), lever arm (3), scale, time offset.
@@ -103,6 +114,25 @@ pub fn d_predict_d_params(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_singular_dvl_covariance_is_an_error_naming_the_report() {
+        let mut o = DvlObs {
+            t: 12.5,
+            v: Vector3::new(0.1, 0.0, 0.0),
+            cov: Matrix3::from_diagonal_element(4e-4),
+        };
+        assert_eq!(
+            o.information().unwrap(),
+            Matrix3::from_diagonal_element(2500.0)
+        );
+        o.cov[(2, 2)] = 0.0;
+        let e = o.information().unwrap_err().to_string();
+        assert!(
+            e.contains("t = 12.5") && e.contains("singular covariance"),
+            "{e}"
+        );
+    }
 
     #[test]
     fn parameter_jacobian_matches_numeric_differentiation() {

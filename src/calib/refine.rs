@@ -6,7 +6,7 @@ use nalgebra::{Matrix3, SMatrix, SVector};
 use super::model::{NPARAM, d_predict_d_params, difference, predict};
 use super::offset::DvlObs;
 use super::prior::Priors;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::trajectory::Trajectory;
 use crate::types::CalibrationParams;
 
@@ -74,14 +74,7 @@ impl<'a> DvlTerm<'a> {
     fn new(traj: &'a Trajectory, obs: &'a [DvlObs], idx: &'a [usize]) -> Result<Self> {
         let info = idx
             .iter()
-            .map(|&i| {
-                obs[i].cov.try_inverse().ok_or_else(|| {
-                    Error::Input(format!(
-                        "DVL sample at t = {}: singular covariance",
-                        obs[i].t
-                    ))
-                })
-            })
+            .map(|&i| obs[i].information())
             .collect::<Result<_>>()?;
         Ok(DvlTerm {
             traj,

@@ -63,14 +63,7 @@ impl<'a> JointProblem<'a> {
         obs: &'a [DvlObs],
         idx: &'a [usize],
     ) -> Result<Self> {
-        let dvl_info = obs
-            .iter()
-            .map(|o| {
-                o.cov.try_inverse().ok_or_else(|| {
-                    Error::Input(format!("DVL sample at t = {}: singular covariance", o.t))
-                })
-            })
-            .collect::<Result<_>>()?;
+        let dvl_info = obs.iter().map(DvlObs::information).collect::<Result<_>>()?;
         Ok(JointProblem {
             obs,
             idx,
