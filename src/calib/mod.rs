@@ -727,7 +727,8 @@ pub fn calibrate(
         &idx,
         start,
         free,
-        (opts.max_outer_iterations, LastRound::EndAtUpdate),
+        opts.max_outer_iterations,
+        LastRound::EndAtUpdate,
     )?;
     if refined.params.velocity_scale < 0.0 && free.rotation {
         refined = mirror_if_better(poses, &jp, refined, &obs, &idx, free, opts, &mut warnings)?;
@@ -768,7 +769,8 @@ pub fn calibrate(
             &idx,
             refined.params,
             free,
-            (opts.max_outer_iterations, LastRound::EndAtUpdate),
+            opts.max_outer_iterations,
+            LastRound::EndAtUpdate,
         )?;
         jp.keep_storage(jw.take_storage());
     }
@@ -1198,6 +1200,7 @@ struct Refined {
 /// Stage 4: rounds of a calibration update with the trajectory fixed and a state update with the
 /// calibration fixed, until nothing changes (at most `rounds`); a Gauss-Newton step on the joint
 /// problem after each unsettled round.
+#[allow(clippy::too_many_arguments)]
 fn refine_jointly(
     jp: &JointProblem,
     mut traj: Trajectory,
@@ -1205,7 +1208,8 @@ fn refine_jointly(
     idx: &[usize],
     start: CalibrationParams,
     free: FreeParams,
-    (rounds, last): (usize, LastRound),
+    rounds: usize,
+    last: LastRound,
 ) -> Result<Refined> {
     let mask = free.mask();
     let mut params = start;
@@ -1318,7 +1322,8 @@ fn mirror_if_better(
         idx,
         mirrored,
         free,
-        (opts.max_outer_iterations, LastRound::Refit),
+        opts.max_outer_iterations,
+        LastRound::Refit,
     )?;
     let cost = |r: &Refined| -> Result<f64> {
         Ok(refine::linearize(&r.trajectory, obs, idx, &r.params)?.cost)

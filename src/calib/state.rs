@@ -651,9 +651,7 @@ fn joint_system(
 /// factorised.
 fn finish(jp: &JointProblem, aj: AssembledJoint, free: &[bool; NPARAM]) -> Result<JointSystem> {
     let AssembledJoint { sys, mut a, params } = aj;
-    for (c, _) in free.iter().enumerate().filter(|(_, f)| !**f) {
-        a.cross.iter_mut().for_each(|m| m.column_mut(c).fill(0.0));
-    }
+    a.cross.iter_mut().for_each(|m| decouple_columns(m, free));
     decouple(jp, &mut a, &params, free);
     Ok(JointSystem {
         factor: sys.factor()?,
@@ -662,6 +660,14 @@ fn finish(jp: &JointProblem, aj: AssembledJoint, free: &[bool; NPARAM]) -> Resul
         gradient: a.gradient,
         cost: a.cost,
     })
+}
+
+/// A block of `H_x theta` with the fixed parameters' columns zero: the trajectory does not
+/// couple to a parameter that is held.
+fn decouple_columns(m: &mut CrossBlock, free: &[bool; NPARAM]) {
+    for (c, _) in free.iter().enumerate().filter(|(_, f)| !**f) {
+        m.column_mut(c).fill(0.0);
+    }
 }
 
 /// The calibration's own blocks of `a` with the fixed parameters decoupled (their gradient
@@ -848,7 +854,7 @@ pub fn part_linear_estimate(
         }
     }
     let factors = DvlFactors::new(part, &p)?;
-    let mut own = SystemBlocks::part(whole, range.start, &redo, n, free);
+    let mut own = SystemBlocks::part(whole, range.start, &redo, free);
     let mut k = 0;
     while k < n {
         if !redo[k] {
@@ -898,18 +904,12 @@ struct SystemBlocks<'w> {
 impl<'w> SystemBlocks<'w> {
     /// The whole of an assembled system.
     fn whole(a: &'w AssembledJoint, free: &[bool; NPARAM]) -> Self {
-        Self::part(a, 0, &[], a.sys.len(), free)
+        Self::with_slots(a, 0, a.sys.len(), Vec::new(), 0, free)
     }
 
-    /// `len` knots of an assembled system from `first` on, with room for the knots marked in
-    /// `redo` (one flag per knot, or none) to be assembled anew.
-    fn part(
-        a: &'w AssembledJoint,
-        first: usize,
-        redo: &[bool],
-        len: usize,
-        free: &[bool; NPARAM],
-    ) -> Self {
+    /// The knots of an assembled system from `first` on, one per flag of `redo`, with room for
+    /// the knots flagged to be assembled anew.
+    fn part(a: &'w AssembledJoint, first: usize, redo: &[bool], free: &[bool; NPARAM]) -> Self {
         let mut count = 0;
         let slot = redo
             .iter()
@@ -922,6 +922,17 @@ impl<'w> SystemBlocks<'w> {
                 }
             })
             .collect();
+        Self::with_slots(a, first, redo.len(), slot, count, free)
+    }
+
+    fn with_slots(
+        a: &'w AssembledJoint,
+        first: usize,
+        len: usize,
+        slot: Vec<usize>,
+        count: usize,
+        free: &[bool; NPARAM],
+    ) -> Self {
         SystemBlocks {
             sys: &a.sys,
             cross: &a.a.cross,
@@ -995,9 +1006,7 @@ impl BlockSource<NPARAM> for SystemBlocks<'_> {
             None => self.cross[self.first + k],
             Some(s) => self.own_cross[s],
         };
-        for (j, _) in self.free.iter().enumerate().filter(|(_, f)| !**f) {
-            c.column_mut(j).fill(0.0);
-        }
+        decouple_columns(&mut c, &self.free);
         c
     }
 }
