@@ -106,6 +106,19 @@ pub struct TrajectoryState {
     pub twist_cov: Option<Matrix6<f64>>,
 }
 
+impl TrajectoryState {
+    /// The interpolated knot state `s` at `t`, without a covariance.
+    fn of_knot(t: f64, s: Knot) -> TrajectoryState {
+        TrajectoryState {
+            t,
+            pose: s.pose,
+            twist: s.twist,
+            rate: s.rate,
+            twist_cov: None,
+        }
+    }
+}
+
 /// Interpolated twist with its Jacobian with respect to the variables of the two knots that
 /// bracket the query time (for factors that involve the twist, e.g. DVL velocities).
 pub struct TwistJacobian {
@@ -288,14 +301,10 @@ impl Trajectory {
     /// Pose, twist and twist rate at `t`, without covariance or Jacobians (the cheap query).
     pub fn state(&self, t: f64) -> Result<TrajectoryState> {
         let (k, gamma2) = self.located(t)?;
-        let s = self.view().state_in(k, t, gamma2);
-        Ok(TrajectoryState {
+        Ok(TrajectoryState::of_knot(
             t,
-            pose: s.pose,
-            twist: s.twist,
-            rate: s.rate,
-            twist_cov: None,
-        })
+            self.view().state_in(k, t, gamma2),
+        ))
     }
 
     /// The twist at `t` alone: the value [`Trajectory::state`] gives, without forming the pose
@@ -384,13 +393,7 @@ impl KnotView<'_> {
     pub fn state(&self, t: f64) -> Result<TrajectoryState> {
         let k = self.locate(t)?;
         let s = self.state_in(k, t, &local_gamma(&self.knots[k], &self.knots[k + 1]));
-        Ok(TrajectoryState {
-            t,
-            pose: s.pose,
-            twist: s.twist,
-            rate: s.rate,
-            twist_cov: None,
-        })
+        Ok(TrajectoryState::of_knot(t, s))
     }
 
     /// The twist and the rate at `t` (the values of [`KnotView::state`], without the pose).
