@@ -539,6 +539,41 @@ fn qc_override_is_honoured() {
 }
 
 #[test]
+fn a_looser_stop_saves_a_pass_and_moves_the_twists_by_a_fraction_of_their_spread() {
+    // The calibration's fit stops at a decrement of 0.01 per knot. On 5 min of lively motion
+    // that ends the fit one factorisation earlier, and the twists it gives differ from the fully
+    // converged fit's by well under a tenth of their posterior standard deviation.
+    let m = lively(300.0);
+    let poses = noisy_poses(&m, 300.0, 4, (0.002, 0.002), false);
+    let tight = Trajectory::fit(&poses, &FitOptions::default()).expect("fit");
+    let loose = Trajectory::fit(
+        &poses,
+        &FitOptions {
+            decrement_per_knot: 0.01,
+            ..FitOptions::default()
+        },
+    )
+    .expect("fit");
+    let (it, il) = (tight.report().iterations, loose.report().iterations);
+    assert!(il < it, "loose stop took {il} steps, the tight one {it}");
+    assert!(loose.report().converged);
+    let mut worst: f64 = 0.0;
+    for &t in tight.times().iter().step_by(7) {
+        let q = tight.query(t).expect("query");
+        let cov = q.twist_cov.expect("covariance");
+        let d = loose.twist(t).expect("twist") - q.twist;
+        for a in 0..6 {
+            worst = worst.max(d[a].abs() / cov[(a, a)].sqrt());
+        }
+    }
+    assert!(worst < 0.1, "twists moved by {worst} standard deviations");
+    assert!(
+        worst > 0.0,
+        "the two stops gave the same fit: the test shows nothing"
+    );
+}
+
+#[test]
 fn ml_qc_estimate_is_near_the_truth() {
     // WNOJ draws with the simulator's prior Qc, 20 s at 10 Hz (201 poses), 2 mm / 2 mrad noise,
     // seeds 1..=12, Qc and noise estimated. The geometric mean over the seeds of the estimated /

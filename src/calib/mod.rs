@@ -191,7 +191,12 @@ impl Default for CalibOptions {
             offset: OffsetOptions::default(),
             bias_corrected: true,
             max_outer_iterations: 10,
-            fit: FitOptions::default(),
+            // The pose-only fit starts the joint refinement, whose state update moves every knot
+            // again; a tenth of a standard deviation per knot is close enough to start from.
+            fit: FitOptions {
+                decrement_per_knot: 0.01,
+                ..FitOptions::default()
+            },
             weak: WeakThresholds::default(),
             sanity: SanityLimits::default(),
             priors: prior::Priors::default(),

@@ -20,8 +20,8 @@ use crate::trajectory::blocktri::{
 };
 use crate::trajectory::gp::{LocalState, PriorNormal};
 use crate::trajectory::solver::{
-    ASSEMBLY_CHUNK, AssemblyChunk, GaussNewtonOptions, NormalEquations, Problem, assembly_chunks,
-    gauss_newton, measurement_information, step,
+    ASSEMBLY_CHUNK, AssemblyChunk, GaussNewtonOptions, NormalEquations, Problem, STEP_DECREMENT,
+    assembly_chunks, gauss_newton, measurement_information, step,
 };
 use crate::trajectory::{Knot, KnotView, Trajectory};
 use crate::types::CalibrationParams;
@@ -567,6 +567,7 @@ pub fn state_update(
     let problem = DvlFactors::new(jp, p)?;
     let opts = GaussNewtonOptions {
         max_iterations,
+        stop_decrement: STEP_DECREMENT,
         factor: false,
         storage: jp.take_system(),
     };

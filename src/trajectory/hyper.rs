@@ -18,7 +18,8 @@ use nalgebra::Vector6;
 use super::blocktri::BlockTridiagonal;
 use super::gp::Knot;
 use super::solver::{
-    GaussNewtonOptions, Problem, gauss_newton, initial_knots, measurement_information, step,
+    GaussNewtonOptions, Problem, STEP_DECREMENT, gauss_newton, initial_knots,
+    measurement_information, step,
 };
 use crate::error::Result;
 use crate::lie::{Se3, so3};
@@ -121,6 +122,7 @@ fn window_log_likelihood(w: &mut Window, qc: &Vector6<f64>, sigma: (f64, f64)) -
     if !w.converged_once {
         let opts = GaussNewtonOptions {
             max_iterations: 5,
+            stop_decrement: STEP_DECREMENT,
             factor: false,
             storage: w.spare.take(),
         };

@@ -299,6 +299,9 @@ impl NormalEquations for Problem<'_> {
 /// How a Gauss-Newton run ends and what storage it may use.
 pub(crate) struct GaussNewtonOptions {
     pub max_iterations: usize,
+    /// The run stops when the step's decrement is below this ([`STEP_DECREMENT`] unless the
+    /// caller needs less).
+    pub stop_decrement: f64,
     /// Factorise the information matrix at the solution (for the log-determinant or the
     /// covariance). Without it the last step is checked with the cost alone.
     pub factor: bool,
@@ -342,7 +345,7 @@ pub(crate) fn gauss_newton(
         // A step that would move every quantity by less than a hundredth of its posterior
         // standard deviation is not worth taking, nor the system at its end worth forming: the
         // current point is the solution, and this factorisation the one at it.
-        converged = converged || factor.decrement() < STEP_DECREMENT;
+        converged = converged || factor.decrement() < opts.stop_decrement;
         if converged || iterations >= opts.max_iterations {
             let (factor, spare) = if opts.factor {
                 (Some(factor), None)
