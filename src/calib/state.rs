@@ -468,7 +468,8 @@ impl<'a> DvlFactors<'a> {
         let mut d = IntervalTerms::zeros();
         let mut t = PriorNormal::zeros();
         if first > 0 {
-            let ls = pose.prior_terms(knots, first - 1, &mut t);
+            // The off-diagonal block of this interval is the previous chunk's.
+            let ls = pose.prior_terms(knots, first - 1, &mut t, &mut M18::zeros());
             diag[0] += t.d2;
             rhs[0] += t.r2;
             if self.interval_terms(view, first - 1, &ls, with_params, &mut d) {
@@ -488,10 +489,9 @@ impl<'a> DvlFactors<'a> {
                 pose_cost = pose.pose_terms(knots, k + 1, &mut diag[i + 1], &mut rhs[i + 1]);
             }
             if k + 1 < n {
-                let ls = pose.prior_terms(knots, k, &mut t);
+                let ls = pose.prior_terms(knots, k, &mut t, &mut upper[i]);
                 diag[i] += t.d1;
                 rhs[i] += t.r1;
-                upper[i] = t.upper;
                 cost += t.cost;
                 if next {
                     diag[i + 1] += t.d2;

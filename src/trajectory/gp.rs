@@ -442,15 +442,14 @@ pub fn prior_factor(k1: &Knot, k2: &Knot, dt: f64) -> PriorFactor {
 }
 
 /// The contribution of a prior factor to the normal equations: with the weight
-/// `W = Q(dt)^-1 (x) diag(qc_inv)`, `d1 = J1^T W J1`, `d2 = J2^T W J2`, `upper = J1^T W J2`,
-/// `r1 = -J1^T W e`, `r2 = -J2^T W e` and `cost = e^T W e`.
+/// `W = Q(dt)^-1 (x) diag(qc_inv)`, `d1 = J1^T W J1`, `d2 = J2^T W J2`, `r1 = -J1^T W e`,
+/// `r2 = -J2^T W e` and `cost = e^T W e`. The off-diagonal block `J1^T W J2` is written by
+/// [`prior_normal`] straight into the slot the caller gives (the system's own, in an assembly).
 pub struct PriorNormal {
     /// `J1^T W J1`: the first knot's diagonal block.
     pub d1: M18,
     /// `J2^T W J2`: the second knot's diagonal block.
     pub d2: M18,
-    /// `J1^T W J2`: the off-diagonal block.
-    pub upper: M18,
     /// `-J1^T W e`: the first knot's right-hand side.
     pub r1: V18,
     /// `-J2^T W e`: the second knot's right-hand side.
@@ -465,7 +464,6 @@ impl PriorNormal {
         PriorNormal {
             d1: M18::zeros(),
             d2: M18::zeros(),
-            upper: M18::zeros(),
             r1: V18::zeros(),
             r2: V18::zeros(),
             cost: 0.0,
@@ -502,9 +500,15 @@ fn put(out: &mut M18, a: usize, b: usize, m: &Matrix6<f64>, mirror: bool) {
 /// [`PriorNormal`] of a prior factor. The Jacobians are mostly structure: the last two block
 /// columns of `J1` are scalar multiples of the identity, and `J2` is block lower triangular with
 /// `J_r^-1` on its diagonal, so the products are formed block by block from the 6x6 pieces
-/// (about a third of the flops of dense 18x18 products). Every block of `out` is written, so
-/// a scratch value can be reused without clearing it.
-pub fn prior_normal(f: &PriorFactor, qi: &Matrix3<f64>, d: &Vector6<f64>, out: &mut PriorNormal) {
+/// (about a third of the flops of dense 18x18 products). Every block of `out` and of `upper`
+/// (`J1^T W J2`) is written, so neither needs clearing first.
+pub fn prior_normal(
+    f: &PriorFactor,
+    qi: &Matrix3<f64>,
+    d: &Vector6<f64>,
+    out: &mut PriorNormal,
+    upper: &mut M18,
+) {
     let ls = &f.local;
     let (jri, dw) = (&ls.jri, &ls.da_dw2);
     let zero = Matrix6::zeros();
@@ -542,7 +546,6 @@ pub fn prior_normal(f: &PriorFactor, qi: &Matrix3<f64>, d: &Vector6<f64>, out: &
         true,
     );
 
-    let upper = &mut out.upper;
     put(
         upper,
         0,
@@ -771,11 +774,12 @@ mod tests {
         let w = kron_diag(&qi, &qc_inv);
         let (j1, j2) = (f.j1(), f.j2());
         let mut p = PriorNormal::zeros();
-        prior_normal(&f, &qi, &qc_inv, &mut p);
+        let mut upper = M18::zeros();
+        prior_normal(&f, &qi, &qc_inv, &mut p, &mut upper);
         let close = |a: &M18, b: &M18| (a - b).abs().max() <= 1e-12 * b.abs().max();
         assert!(close(&p.d1, &(j1.transpose() * w * j1)));
         assert!(close(&p.d2, &(j2.transpose() * w * j2)));
-        assert!(close(&p.upper, &(j1.transpose() * w * j2)));
+        assert!(close(&upper, &(j1.transpose() * w * j2)));
         let (r1, r2) = (-(j1.transpose() * w * f.e), -(j2.transpose() * w * f.e));
         assert!((p.r1 - r1).abs().max() <= 1e-12 * r1.abs().max());
         assert!((p.r2 - r2).abs().max() <= 1e-12 * r2.abs().max());

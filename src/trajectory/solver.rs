@@ -169,7 +169,8 @@ impl Problem<'_> {
         let mut pose_cost = self.pose_terms(knots, first, &mut diag[0], &mut rhs[0]);
         let mut t = PriorNormal::zeros();
         if first > 0 {
-            self.prior_terms(knots, first - 1, &mut t);
+            // The off-diagonal block of this factor is the previous chunk's.
+            self.prior_terms(knots, first - 1, &mut t, &mut M18::zeros());
             diag[0] += t.d2;
             rhs[0] += t.r2;
         }
@@ -181,10 +182,9 @@ impl Problem<'_> {
                 pose_cost = self.pose_terms(knots, k + 1, &mut diag[i + 1], &mut rhs[i + 1]);
             }
             if k + 1 < n {
-                self.prior_terms(knots, k, &mut t);
+                self.prior_terms(knots, k, &mut t, &mut upper[i]);
                 diag[i] += t.d1;
                 rhs[i] += t.r1;
-                upper[i] = t.upper;
                 chunk.cost += t.cost;
                 if i + 1 < len {
                     diag[i + 1] += t.d2;
@@ -220,17 +220,18 @@ impl Problem<'_> {
     }
 
     /// The normal-equation blocks of the prior factor between knots `k` and `k + 1`, written
-    /// into `out`; returns the local state of knot `k + 1` relative to knot `k` with its
-    /// Jacobians.
+    /// into `out` and (the off-diagonal block) into `upper`; returns the local state of knot
+    /// `k + 1` relative to knot `k` with its Jacobians.
     pub(crate) fn prior_terms(
         &self,
         knots: &[Knot],
         k: usize,
         out: &mut PriorNormal,
+        upper: &mut M18,
     ) -> LocalState {
         let dt = self.times[k + 1] - self.times[k];
         let f = prior_factor(&knots[k], &knots[k + 1], dt);
-        prior_normal(&f, &q_scalar_inv(dt), &self.qc_inv, out);
+        prior_normal(&f, &q_scalar_inv(dt), &self.qc_inv, out, upper);
         f.local
     }
 
