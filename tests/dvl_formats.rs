@@ -353,6 +353,46 @@ fn corrupted_json_copy_counts_are_exact() {
 }
 
 #[test]
+fn a_log_longer_than_a_parse_block_reads_as_line_by_line() {
+    // The reader parses blocks of 65536 lines side by side and hands them on in order. The real
+    // circle log repeated 200 times (75k+ lines) crosses that boundary: every copy after the
+    // first is a duplicate, wherever it falls, and one damaged line past the first block is
+    // rejected under its own line number (and is strict mode's error).
+    let lines: Vec<String> = std::fs::read_to_string(real("dvl_circle", "jsonl"))
+        .unwrap()
+        .lines()
+        .map(String::from)
+        .collect();
+    let clean = read(&real("dvl_circle", "jsonl"));
+    let copies = 200;
+    let mut out: Vec<String> = Vec::new();
+    for _ in 0..copies {
+        out.extend(lines.iter().cloned());
+    }
+    assert!(out.len() > 70_000, "{}", out.len());
+    let bad = 70_001; // 1-based line number of the damaged line
+    out[bad - 1] = out[bad - 1][..20].to_string();
+    let text = out.join("\n");
+    let log = read_bytes("long.jsonl", text.as_bytes(), &lenient());
+    let s = &log.stats;
+    assert_eq!(s.rejected_lines, 1);
+    assert_eq!(s.rejected[0].line, bad);
+    assert_eq!(s.rejected[0].reason, "truncated JSON");
+    // The damaged line is a later copy of a report whose first copy was read.
+    assert_eq!(s.velocity_reports, 378 * copies - 1);
+    assert_eq!(s.duplicates, 378 * (copies - 1) - 1);
+    assert_same_samples(&log, &clean, "200 copies");
+    let strict = DvlReadOptions {
+        strict: true,
+        ..lenient()
+    };
+    let err = read_dvl_text(Path::new("long.jsonl"), text.as_bytes(), &strict)
+        .unwrap_err()
+        .to_string();
+    assert!(err.starts_with("long.jsonl:70001: truncated JSON"), "{err}");
+}
+
+#[test]
 fn corrupted_serial_copy_counts_are_exact() {
     let reports = real_reports("dvl_slow_rectangle");
     let mut out = String::new();
