@@ -23,6 +23,26 @@ fn read_bytes(name: &str, bytes: &[u8], opts: &DvlReadOptions) -> DvlLog {
     read_dvl_text(Path::new(name), bytes, opts).unwrap_or_else(|e| panic!("{e}"))
 }
 
+/// The lines of a real JSON-lines log, as text.
+fn real_lines(name: &str) -> Vec<String> {
+    std::fs::read_to_string(real(name, "jsonl"))
+        .unwrap()
+        .lines()
+        .map(String::from)
+        .collect()
+}
+
+/// The error of a strict read of `bytes` (which must fail), as the user sees it.
+fn strict_error(name: &str, bytes: &[u8]) -> String {
+    let strict = DvlReadOptions {
+        strict: true,
+        ..lenient()
+    };
+    read_dvl_text(Path::new(name), bytes, &strict)
+        .unwrap_err()
+        .to_string()
+}
+
 /// Samples equal bit for bit (time, velocity, covariance).
 fn assert_same_samples(a: &DvlLog, b: &DvlLog, what: &str) {
     assert_eq!(a.epoch, b.epoch, "{what}: epoch");
@@ -209,11 +229,7 @@ fn json_v1_and_wrx_rebuild_the_same_time_line() {
 #[test]
 fn crlf_lf_and_mixed_report_types() {
     let reports = real_reports("dvl_circle");
-    let lines: Vec<String> = std::fs::read_to_string(real("dvl_circle", "jsonl"))
-        .unwrap()
-        .lines()
-        .map(String::from)
-        .collect();
+    let lines = real_lines("dvl_circle");
     let lf = lines.join("\n");
     let crlf = lines.join("\r\n") + "\r\n";
     let a = read_bytes("lf", lf.as_bytes(), &lenient());
@@ -264,11 +280,7 @@ fn crlf_lf_and_mixed_report_types() {
 /// Real JSON lines with known damage: every count is exact.
 #[test]
 fn corrupted_json_copy_counts_are_exact() {
-    let lines: Vec<String> = std::fs::read_to_string(real("dvl_circle", "jsonl"))
-        .unwrap()
-        .lines()
-        .map(String::from)
-        .collect();
+    let lines = real_lines("dvl_circle");
     let clean = read(&real("dvl_circle", "jsonl"));
     let mut out: Vec<String> = Vec::new();
     let mut damaged = 0usize; // velocity reports destroyed
@@ -342,13 +354,7 @@ fn corrupted_json_copy_counts_are_exact() {
     );
 
     // Strict: the first damaged line is an error naming file:line.
-    let strict = DvlReadOptions {
-        strict: true,
-        ..lenient()
-    };
-    let err = read_dvl_text(Path::new("bad.jsonl"), text.as_bytes(), &strict)
-        .unwrap_err()
-        .to_string();
+    let err = strict_error("bad.jsonl", text.as_bytes());
     assert!(err.starts_with("bad.jsonl:6: truncated JSON"), "{err}");
 }
 
@@ -358,11 +364,7 @@ fn a_log_longer_than_a_parse_block_reads_as_line_by_line() {
     // circle log repeated 200 times (75k+ lines) crosses that boundary: every copy after the
     // first is a duplicate, wherever it falls, and one damaged line past the first block is
     // rejected under its own line number (and is strict mode's error).
-    let lines: Vec<String> = std::fs::read_to_string(real("dvl_circle", "jsonl"))
-        .unwrap()
-        .lines()
-        .map(String::from)
-        .collect();
+    let lines = real_lines("dvl_circle");
     let clean = read(&real("dvl_circle", "jsonl"));
     let copies = 200;
     let mut out: Vec<String> = Vec::new();
@@ -382,13 +384,7 @@ fn a_log_longer_than_a_parse_block_reads_as_line_by_line() {
     assert_eq!(s.velocity_reports, 378 * copies - 1);
     assert_eq!(s.duplicates, 378 * (copies - 1) - 1);
     assert_same_samples(&log, &clean, "200 copies");
-    let strict = DvlReadOptions {
-        strict: true,
-        ..lenient()
-    };
-    let err = read_dvl_text(Path::new("long.jsonl"), text.as_bytes(), &strict)
-        .unwrap_err()
-        .to_string();
+    let err = strict_error("long.jsonl", text.as_bytes());
     assert!(err.starts_with("long.jsonl:70001: truncated JSON"), "{err}");
 }
 
@@ -450,13 +446,7 @@ fn corrupted_serial_copy_counts_are_exact() {
     assert_eq!(n("wrong field count"), 18);
     assert_eq!(n("not a DVL sentence"), 18);
     assert_eq!(log.samples.len(), 407 - lost_valid);
-    let strict = DvlReadOptions {
-        strict: true,
-        ..lenient()
-    };
-    let err = read_dvl_text(Path::new("bad.txt"), out.as_bytes(), &strict)
-        .unwrap_err()
-        .to_string();
+    let err = strict_error("bad.txt", out.as_bytes());
     assert!(
         err.starts_with(&format!("bad.txt:{}: bad checksum", first_bad.unwrap())),
         "{err}"
@@ -465,11 +455,7 @@ fn corrupted_serial_copy_counts_are_exact() {
 
 #[test]
 fn time_going_backwards_is_reported_and_sorted() {
-    let mut lines: Vec<String> = std::fs::read_to_string(real("dvl_circle", "jsonl"))
-        .unwrap()
-        .lines()
-        .map(String::from)
-        .collect();
+    let mut lines = real_lines("dvl_circle");
     // Find two consecutive valid reports and swap them.
     let k = (0..lines.len() - 1)
         .find(|&k| {
