@@ -24,7 +24,7 @@ use dvlcal::sim::image_dataset::{
     DEFAULT_BOARD_DISTANCE_M, FrameSpec, ImageSimSettings, board_facing, default_board,
     default_stereo_camchain,
 };
-use dvlcal::sim::rng::Rng;
+use dvlcal::rng::Rng;
 
 const NAMES: [&str; NPARAM] = [
     "rot x (deg)",

@@ -25,7 +25,7 @@ use common::{par_map, threads};
 use dvlcal::calib::closed_form::{ClosedFormRow, closed_form};
 use dvlcal::calib::{CalibOptions, Method, calibrate};
 use dvlcal::lie::so3;
-use dvlcal::sim::rng::Rng;
+use dvlcal::rng::Rng;
 use dvlcal::sim::{MotionKind, SimConfig, SimDataset, simulate};
 use dvlcal::trajectory::Knot;
 use dvlcal::types::CalibrationParams;

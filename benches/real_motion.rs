@@ -23,7 +23,7 @@ use dvlcal::calib::model::difference;
 use dvlcal::calib::{CalibOptions, calibrate, jerk_density_evidence};
 use dvlcal::eval::spline_baseline::{BaselineOptions, spline_baseline};
 use dvlcal::io::tum::read_tum;
-use dvlcal::sim::rng::Rng;
+use dvlcal::rng::Rng;
 use dvlcal::sim::{
     Corruption, SimConfig, TrackMotion, TrackOptions, corrupt, replay_track, simulate_with,
 };

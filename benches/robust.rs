@@ -18,7 +18,7 @@ use common::par_map;
 use dvlcal::calib::model::difference;
 use dvlcal::calib::robust::Loss;
 use dvlcal::calib::{CalibOptions, calibrate};
-use dvlcal::sim::rng::Rng;
+use dvlcal::rng::Rng;
 use dvlcal::sim::{Corruption, MotionKind, SimConfig, corrupt, simulate};
 
 const DVL_SIGMA: f64 = 0.01;

@@ -112,6 +112,7 @@ pub mod lie;
 mod parallel;
 pub mod pipeline;
 pub mod report;
+pub mod rng;
 pub mod sim;
 pub mod time;
 pub mod trajectory;

@@ -76,15 +76,15 @@ pub(crate) fn map_indices<R: Send>(
 }
 
 /// A pool of `threads` worker threads (`None`: one per core).
-pub fn worker_pool(threads: Option<usize>) -> crate::Result<rayon::ThreadPool> {
+pub fn worker_pool(threads: Option<usize>) -> crate::error::Result<rayon::ThreadPool> {
     let n = threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
     if n == 0 {
-        return Err(crate::Error::option("--threads", "must be at least 1"));
+        return Err(crate::error::Error::option("--threads", "must be at least 1"));
     }
     rayon::ThreadPoolBuilder::new()
         .num_threads(n)
         .build()
-        .map_err(|e| crate::Error::Input(format!("starting the worker threads: {e}")))
+        .map_err(|e| crate::error::Error::Input(format!("starting the worker threads: {e}")))
 }
 
 #[cfg(test)]

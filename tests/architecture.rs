@@ -325,7 +325,7 @@ fn no_import_circles_between_files() {
 fn the_checker_sees_imports_and_circles() {
     // The parsing above is what the two tests rely on: check it on known text.
     let code = "use crate::io::dvl::{DvlLog, read_dvl_log};\nuse super::model::{self, NPARAM};\n\
-                let x = crate::lie::so3::exp(&v);\n#[cfg(test)]\nmod tests {\n use crate::sim::rng::Rng;\n}\n";
+                let x = crate::lie::so3::exp(&v);\n#[cfg(test)]\nmod tests {\n use crate::rng::Rng;\n}\n";
     let stripped = code_without_tests(code);
     assert!(!stripped.contains("sim::rng"));
     let p = paths_after(&stripped, "crate::");

@@ -25,7 +25,7 @@ use std::time::Instant;
 use dvlcal::calib::closed_form::{ClosedFormRow, closed_form};
 use dvlcal::calib::model::predict;
 use dvlcal::lie::{Se3, so3};
-use dvlcal::sim::rng::Rng;
+use dvlcal::rng::Rng;
 use dvlcal::trajectory::gp::{phi_scalar, q_scalar};
 use dvlcal::trajectory::{FitOptions, Trajectory};
 use dvlcal::types::CalibrationParams;

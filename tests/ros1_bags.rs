@@ -12,7 +12,7 @@ use std::time::Duration;
 use dvl_common::*;
 use dvlcal::io::bag::ros1::Ros1Bag;
 use dvlcal::io::dvl::{DvlLog, DvlReadOptions, read_dvl_log, read_dvl_text};
-use dvlcal::sim::rng::Rng;
+use dvlcal::rng::Rng;
 use dvlcal::time::RawTime;
 
 const FIXTURES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/fixtures/ros1");

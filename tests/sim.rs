@@ -5,7 +5,7 @@ use dvlcal::lie::Se3;
 use dvlcal::sim::motion::{
     MeanReversion, Motion, SampledConfig, SampledMotion, ScrewMotion, SinusoidMotion,
 };
-use dvlcal::sim::rng::{Rng, splitmix64};
+use dvlcal::rng::{Rng, splitmix64};
 use dvlcal::sim::{MotionKind, SimConfig, build_motion, dvl_model, simulate};
 use nalgebra::{Vector3, Vector6};
 

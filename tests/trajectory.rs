@@ -7,7 +7,7 @@
 
 use dvlcal::lie::{Se3, curly, se3_right_jacobian_inv, so3};
 use dvlcal::sim::motion::{Motion, SampledMotion, ScrewMotion, SinusoidMotion};
-use dvlcal::sim::rng::Rng;
+use dvlcal::rng::Rng;
 use dvlcal::sim::{SimConfig, simulate_with};
 use dvlcal::trajectory::{FitOptions, Trajectory};
 use dvlcal::types::PoseMeasurement;

@@ -305,7 +305,7 @@ fn calibrate_takes_images_or_poses_not_both() {
 #[test]
 fn pose_covariance_is_consistent_on_rendered_frames() {
     use dvlcal::sim::render::render;
-    use dvlcal::sim::rng::Rng;
+    use dvlcal::rng::Rng;
     use dvlcal::vision::detect::Detector;
     use dvlcal::vision::pnp::stereo_pose;
     let chain = chain();

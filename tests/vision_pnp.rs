@@ -5,7 +5,7 @@ use nalgebra::{Matrix3, Vector2, Vector3, Vector6};
 
 use dvlcal::lie::{Se3, so3};
 use dvlcal::sim::camcal_views::synthetic_detections;
-use dvlcal::sim::rng::Rng;
+use dvlcal::rng::Rng;
 use dvlcal::vision::board::{Board, TagFamily};
 use dvlcal::vision::camera::{Camchain, Camera, Distortion};
 use dvlcal::vision::detect::TagDetection;

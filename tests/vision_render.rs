@@ -7,7 +7,7 @@ mod vision_seq;
 
 use dvlcal::lie::Se3;
 use dvlcal::sim::render::{RenderSettings, render, render_exhaustive};
-use dvlcal::sim::rng::Rng;
+use dvlcal::rng::Rng;
 use dvlcal::vision::board::{Board, TagFamily};
 use dvlcal::vision::camera::{Camera, Distortion};
 use dvlcal::vision::detect::{Detector, DetectorSettings};

@@ -159,7 +159,7 @@ mod tests {
     use super::*;
     use crate::calib::model::predict;
     use crate::lie::so3;
-    use crate::sim::rng::Rng;
+    use crate::rng::Rng;
 
     #[test]
     fn exact_data_gives_exact_parameters() {

@@ -320,7 +320,7 @@ mod tests {
     fn clean_residuals_are_left_alone_and_outliers_are_caught() {
         // A chi-squared(3) sample.
         let n = 3000;
-        let mut rng = crate::sim::rng::Rng::stream(7, 1);
+        let mut rng = crate::rng::Rng::stream(7, 1);
         let mut s: Vec<f64> = (0..n).map(|_| rng.normal_vec3().norm_squared()).collect();
         let t: Vec<f64> = (0..n).map(|i| i as f64 * 0.1).collect();
         let (w, sum) = weigh(Loss::Cauchy, &s, &t, 3, 1.0);

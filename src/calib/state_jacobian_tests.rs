@@ -44,11 +44,11 @@ const H_TIME: f64 = 1e-6;
 const TOL: f64 = 1e-6;
 
 /// The project's deterministic generator, drawing uniformly in [-1, 1) for these tests.
-struct Rng(crate::sim::rng::Rng);
+struct Rng(crate::rng::Rng);
 
 impl Rng {
     fn new(seed: u64) -> Rng {
-        Rng(crate::sim::rng::Rng::new(seed))
+        Rng(crate::rng::Rng::new(seed))
     }
 
     /// Uniform in [-1, 1).

@@ -127,7 +127,7 @@ pub fn whiteness(t: &[f64], r: &[Vector3<f64>]) -> Whiteness {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sim::rng::Rng;
+    use crate::rng::Rng;
 
     fn ar1(n: usize, a: f64, seed: u64) -> (Vec<f64>, Vec<Vector3<f64>>) {
         let mut rng = Rng::stream(seed, 1);

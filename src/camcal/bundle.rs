@@ -26,7 +26,7 @@ use crate::camcal::views::match_views;
 use crate::lie::{Se3, hat};
 use crate::vision::board::Board;
 use crate::vision::camera::{Camchain, Camera};
-use crate::{Error, Result};
+use crate::error::{Error, Result};
 
 /// Intrinsic unknowns per camera: `fu, fv, pu, pv` and four distortion coefficients.
 const NI: usize = 8;
@@ -787,7 +787,7 @@ mod tests {
     use crate::lie::so3;
     use crate::sim::camcal_views::synthetic_detections;
     use crate::sim::image_dataset::{default_board, default_stereo_camchain};
-    use crate::sim::rng::Rng;
+    use crate::rng::Rng;
 
     /// Board poses in front of cam0 spread over the image, with tilts.
     fn views(n: usize, rng: &mut Rng) -> Vec<Se3> {

@@ -18,7 +18,7 @@ use crate::camcal::types::{CameraModel, CornerObs};
 use crate::lie::{Se3, so3};
 use crate::vision::camera::{Camchain, Camera, Distortion};
 use crate::vision::pnp::mat3;
-use crate::{Error, Result};
+use crate::error::{Error, Result};
 
 /// Views per camera given to OpenCV's calibrateCamera.
 pub const INIT_VIEWS: usize = 30;

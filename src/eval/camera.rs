@@ -15,7 +15,7 @@ use crate::camcal::FrameTags;
 use crate::lie::{Se3, so3};
 use crate::vision::board::Board;
 use crate::vision::camera::{Camchain, Camera, Distortion};
-use crate::{Error, Result};
+use crate::error::{Error, Result};
 
 /// The pixel distance between where a true and an estimated camera model send the same rays.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -412,7 +412,7 @@ mod tests {
     use super::*;
     use crate::sim::camcal_views::synthetic_detections;
     use crate::sim::image_dataset::{default_board, default_stereo_camchain};
-    use crate::sim::rng::Rng;
+    use crate::rng::Rng;
 
     #[test]
     fn ray_error_of_a_camera_against_itself_is_zero() {

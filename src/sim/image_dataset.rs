@@ -27,10 +27,10 @@ use nalgebra::{Matrix3, Vector3};
 
 use crate::lie::{Se3, so3};
 use crate::sim::render::{RenderSettings, render};
-use crate::sim::rng::Rng;
+use crate::rng::Rng;
 use crate::vision::board::{Board, TagFamily};
 use crate::vision::camera::{Camchain, Camera, Distortion};
-use crate::{Error, Result};
+use crate::error::{Error, Result};
 
 /// First stream number of the per-frame image streams (frame `k` uses `IMAGE_STREAM_BASE + k`);
 /// far from the motion and dataset noise streams.

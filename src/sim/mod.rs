@@ -1,6 +1,7 @@
 //! Synthetic datasets with known truth.
 //!
-//! - [`rng`]: a deterministic random number generator of our own (streams never change).
+//! Random draws come from [`crate::rng`], the crate's own seeded generator.
+//!
 //! - [`motion`]: continuous camera motions with exact poses, twists and twist rates.
 //! - [`dataset`]: noisy camera poses and DVL velocities simulated from a motion and a known
 //!   calibration.
@@ -20,7 +21,6 @@ pub mod dataset;
 pub mod image_dataset;
 pub mod motion;
 pub mod render;
-pub mod rng;
 pub mod track;
 
 pub use corrupt::{Corruption, CorruptionLog, corrupt};
@@ -31,5 +31,4 @@ pub use motion::{
     MeanReversion, Motion, MotionState, SampledConfig, SampledMotion, ScrewMotion, SinusoidMotion,
     SinusoidTerm,
 };
-pub use rng::Rng;
 pub use track::{TrackMotion, TrackOptions, replay_track};

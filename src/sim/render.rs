@@ -18,7 +18,7 @@ use image::GrayImage;
 use nalgebra::{Matrix2, Vector2, Vector3};
 
 use crate::lie::Se3;
-use crate::sim::rng::Rng;
+use crate::rng::Rng;
 use crate::vision::board::{Board, TagPrint, grid_paper};
 use crate::vision::camera::Camera;
 use crate::vision::family::tags_cells;

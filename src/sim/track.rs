@@ -13,7 +13,7 @@ use nalgebra::Vector6;
 
 use super::motion::SampledMotion;
 use crate::types::PoseMeasurement;
-use crate::{Error, Result};
+use crate::error::{Error, Result};
 
 /// How a recorded track is replayed.
 #[derive(Clone, Copy, Debug, PartialEq)]

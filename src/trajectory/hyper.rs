@@ -331,7 +331,7 @@ pub fn choose(
     let best_value = objective(&best);
     if !best_value.is_finite() {
         return Err(first_error.unwrap_or_else(|| {
-            crate::Error::Numerical("marginal likelihood search found no usable Qc".into())
+            crate::error::Error::Numerical("marginal likelihood search found no usable Qc".into())
         }));
     }
     let (qc, sigma) = unpack(&best, sigma_known);

@@ -58,7 +58,7 @@ use std::path::Path;
 
 use crate::lie::Se3;
 pub use crate::vision::family::TagFamily;
-use crate::{Error, Result};
+use crate::error::{Error, Result};
 
 /// One tag of a board.
 #[derive(Clone, Debug, PartialEq)]

@@ -20,7 +20,7 @@ use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
 
 use crate::lie::Se3;
-use crate::{Error, Result};
+use crate::error::{Error, Result};
 
 /// Lens distortion model and coefficients.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -41,7 +41,7 @@ use crate::vision::kalibr::{
     max_decimate, max3_decimate, quads, saddle_point, widen_border,
 };
 use crate::vision::refine::{quad_centre, refine_corners};
-use crate::{Error, Result};
+use crate::error::{Error, Result};
 
 /// Settings of the AprilTag detector. `Default` gives the library's defaults and at most one
 /// corrected bit.

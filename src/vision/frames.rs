@@ -73,7 +73,7 @@ fn for_each_frame<R: Send>(
                 let load = |c: usize| {
                     f.images.get(c).cloned().flatten().map(|r| match r {
                         ImageRef::File(p) => load_gray(&p),
-                        other => Err(crate::Error::Input(format!("{other}: not a file"))),
+                        other => Err(crate::error::Error::Input(format!("{other}: not a file"))),
                     })
                 };
                 let r = work(f, &load);
@@ -91,7 +91,7 @@ fn for_each_frame<R: Send>(
                 let producer = scope.spawn(move || {
                     produce(&mut |i, bytes| {
                         tx.send((i, bytes)).map_err(|_| {
-                            crate::Error::Input("the image workers stopped early".into())
+                            crate::error::Error::Input("the image workers stopped early".into())
                         })
                     })
                 });
@@ -106,8 +106,8 @@ fn for_each_frame<R: Send>(
                             let b = bytes.get(c).and_then(|b| b.as_deref());
                             Some(match b {
                                 Some(b) => decode(c, b)
-                                    .map_err(|e| crate::Error::Input(format!("{name}: {e}"))),
-                                None => Err(crate::Error::Input(format!(
+                                    .map_err(|e| crate::error::Error::Input(format!("{name}: {e}"))),
+                                None => Err(crate::error::Error::Input(format!(
                                     "{name}: not delivered by the stream"
                                 ))),
                             })
@@ -119,7 +119,7 @@ fn for_each_frame<R: Send>(
                     .collect();
                 let produced = producer
                     .join()
-                    .unwrap_or_else(|_| Err(crate::Error::Input("the image reader failed".into())));
+                    .unwrap_or_else(|_| Err(crate::error::Error::Input("the image reader failed".into())));
                 (done, produced)
             });
             produced?;
@@ -136,7 +136,7 @@ fn for_each_frame<R: Send>(
                     let f = &frames[i];
                     let load = |c: usize| {
                         let name = f.images.get(c).cloned().flatten()?;
-                        Some(Err(crate::Error::Input(format!(
+                        Some(Err(crate::error::Error::Input(format!(
                             "{name}: not delivered by the stream"
                         ))))
                     };
@@ -156,7 +156,7 @@ use std::sync::mpsc::sync_channel;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
 
-use crate::Result;
+use crate::error::Result;
 use crate::vision::board::Board;
 use crate::vision::camera::{Camchain, Camera};
 use crate::vision::detect::{Detector, DetectorSettings, TagDetection, load_gray};
@@ -294,7 +294,7 @@ pub fn detect_source(
     let frames = src.frames();
     let n_frames = frames.len();
     if let Some(f) = frames.iter().find(|f| f.images.len() > chain.cams.len()) {
-        return Err(crate::Error::Input(format!(
+        return Err(crate::error::Error::Input(format!(
             "frame at {} ns has {} images, the camera chain {} cameras",
             f.t_ns,
             f.images.len(),

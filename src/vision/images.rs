@@ -20,7 +20,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::{Error, Result};
+use crate::error::{Error, Result};
 
 /// Where one image is: a file, or a message of a bag.
 #[derive(Clone, Debug, PartialEq, Eq)]

@@ -26,7 +26,7 @@ use crate::lie::{Se3, hat, so3};
 use crate::vision::board::Board;
 use crate::vision::camera::Camchain;
 use crate::vision::detect::TagDetection;
-use crate::{Error, Result};
+use crate::error::{Error, Result};
 
 /// Settings of [`stereo_pose`].
 #[derive(Clone, Debug, PartialEq)]

@@ -11,7 +11,7 @@ use nalgebra::{Matrix3, Vector3, Vector6};
 
 use dvlcal::lie::{Se3, so3};
 use dvlcal::sim::render::{RenderSettings, render};
-use dvlcal::sim::rng::Rng;
+use dvlcal::rng::Rng;
 use dvlcal::vision::board::{Board, TagFamily};
 use dvlcal::vision::camera::{Camchain, Camera, Distortion};
 
