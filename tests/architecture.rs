@@ -16,7 +16,7 @@ fn layer(top: &str) -> Option<u32> {
     Some(match top {
         "error" | "time" => 0,
         "files" => 1,
-        "lie" | "parallel" => 1,
+        "lie" | "parallel" | "rng" => 1,
         "types" => 2,
         "io" | "vision" | "trajectory" => 3,
         "calib" | "camcal" | "sim" => 4,
