@@ -19,12 +19,12 @@ use dvlcal::calib::{CalibOptions, calibrate};
 use dvlcal::pipeline::{
     ImageRequest, SimulateRequest, VisionOptions, poses_from_images, write_simulated_dataset,
 };
+use dvlcal::rng::Rng;
 use dvlcal::sim::dataset::{MotionKind, SimConfig, simulate};
 use dvlcal::sim::image_dataset::{
     DEFAULT_BOARD_DISTANCE_M, FrameSpec, ImageSimSettings, board_facing, default_board,
     default_stereo_camchain,
 };
-use dvlcal::rng::Rng;
 
 const NAMES: [&str; NPARAM] = [
     "rot x (deg)",

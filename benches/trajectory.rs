@@ -7,8 +7,8 @@
 
 use std::time::Instant;
 
-use dvlcal::sim::motion::SinusoidMotion;
 use dvlcal::rng::Rng;
+use dvlcal::sim::motion::SinusoidMotion;
 use dvlcal::sim::{SimConfig, simulate_with};
 use dvlcal::trajectory::{FitOptions, Trajectory};
 use nalgebra::Vector6;

@@ -26,11 +26,12 @@ pub enum Error {
         /// What the operating system said.
         err: std::io::Error,
     },
-    /// An option value that cannot be used. `option` is the option's command-line name (the
-    /// option structs document which field it is).
+    /// An option value that cannot be used. `option` names it as its caller knows it: the
+    /// estimator's settings by their field (`offset.range`) unless the caller gave other words
+    /// (`calib::CalibOptions::names`; the program's flags), the stages' options by their flag.
     #[error("{option} {msg}")]
     InvalidOption {
-        /// The option, as the command line spells it (`--offset-range`).
+        /// The option (`offset.range`, `--offset-range`).
         option: &'static str,
         /// What is wrong with the value.
         msg: String,

@@ -79,7 +79,10 @@ pub(crate) fn map_indices<R: Send>(
 pub fn worker_pool(threads: Option<usize>) -> crate::error::Result<rayon::ThreadPool> {
     let n = threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
     if n == 0 {
-        return Err(crate::error::Error::option("--threads", "must be at least 1"));
+        return Err(crate::error::Error::option(
+            "--threads",
+            "must be at least 1",
+        ));
     }
     rayon::ThreadPoolBuilder::new()
         .num_threads(n)

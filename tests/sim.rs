@@ -2,10 +2,10 @@
 
 use dvlcal::Error;
 use dvlcal::lie::Se3;
+use dvlcal::rng::{Rng, splitmix64};
 use dvlcal::sim::motion::{
     MeanReversion, Motion, SampledConfig, SampledMotion, ScrewMotion, SinusoidMotion,
 };
-use dvlcal::rng::{Rng, splitmix64};
 use dvlcal::sim::{MotionKind, SimConfig, build_motion, dvl_model, simulate};
 use nalgebra::{Vector3, Vector6};
 

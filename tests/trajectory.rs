@@ -6,8 +6,8 @@
 //! per-seed mean NEES gives the standard error of the across-seed mean.
 
 use dvlcal::lie::{Se3, curly, se3_right_jacobian_inv, so3};
-use dvlcal::sim::motion::{Motion, SampledMotion, ScrewMotion, SinusoidMotion};
 use dvlcal::rng::Rng;
+use dvlcal::sim::motion::{Motion, SampledMotion, ScrewMotion, SinusoidMotion};
 use dvlcal::sim::{SimConfig, simulate_with};
 use dvlcal::trajectory::{FitOptions, Trajectory};
 use dvlcal::types::PoseMeasurement;

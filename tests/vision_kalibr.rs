@@ -11,8 +11,8 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use dvlcal::lie::Se3;
-use dvlcal::sim::render::{RenderSettings, render};
 use dvlcal::rng::Rng;
+use dvlcal::sim::render::{RenderSettings, render};
 use dvlcal::vision::board::{Board, TagFamily, TagPrint};
 use dvlcal::vision::camera::{Camera, Distortion};
 use dvlcal::vision::detect::{Detector, DetectorSettings, TagDetection, load_gray};

@@ -304,8 +304,8 @@ fn calibrate_takes_images_or_poses_not_both() {
 /// changes the apparent size of the tags, which the covariance from the residuals cannot cover.
 #[test]
 fn pose_covariance_is_consistent_on_rendered_frames() {
-    use dvlcal::sim::render::render;
     use dvlcal::rng::Rng;
+    use dvlcal::sim::render::render;
     use dvlcal::vision::detect::Detector;
     use dvlcal::vision::pnp::stereo_pose;
     let chain = chain();

@@ -6,8 +6,8 @@
 mod vision_seq;
 
 use dvlcal::lie::Se3;
-use dvlcal::sim::render::{RenderSettings, render, render_exhaustive};
 use dvlcal::rng::Rng;
+use dvlcal::sim::render::{RenderSettings, render, render_exhaustive};
 use dvlcal::vision::board::{Board, TagFamily};
 use dvlcal::vision::camera::{Camera, Distortion};
 use dvlcal::vision::detect::{Detector, DetectorSettings};

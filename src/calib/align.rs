@@ -23,6 +23,7 @@ use rustfft::FftPlanner;
 use rustfft::num_complex::Complex;
 
 use super::model::DvlObs;
+use super::setting::Setting;
 use crate::error::{Error, Result};
 use crate::trajectory::Trajectory;
 
@@ -184,7 +185,7 @@ pub fn align_clocks(
         Some(s) if s.is_finite() && s > 0.0 => s,
         Some(s) => {
             return Err(Error::option(
-                "clock alignment step",
+                Setting::AlignStep.field(),
                 format!("must be a positive number of seconds, got {s}"),
             ));
         }

@@ -111,6 +111,19 @@ pub fn d_predict_d_params(
     j
 }
 
+/// Names of the parameters in the covariance's order, with the factor to their display unit
+/// and the unit (empty for the scale).
+pub const PARAM_NAMES: [(&str, f64, &str); NPARAM] = [
+    ("rotation about x", 57.295_779_513_082_32, "deg"),
+    ("rotation about y", 57.295_779_513_082_32, "deg"),
+    ("rotation about z", 57.295_779_513_082_32, "deg"),
+    ("lever arm x", 1e3, "mm"),
+    ("lever arm y", 1e3, "mm"),
+    ("lever arm z", 1e3, "mm"),
+    ("velocity scale", 1.0, ""),
+    ("clock offset", 1e3, "ms"),
+];
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -16,6 +16,7 @@
 
 use super::align::{AlignOptions, ClockAlignment, align_clocks};
 pub use super::model::DvlObs;
+use super::setting::{Setting, SettingNames};
 use crate::error::{Error, Result};
 use crate::trajectory::Trajectory;
 
@@ -57,25 +58,25 @@ impl Default for OffsetOptions {
 }
 
 impl OffsetOptions {
-    /// Checks the search settings; the error names the option.
-    pub fn validate(&self) -> Result<()> {
+    /// Checks the search settings; the error names the setting in `names`' words.
+    pub fn validate(&self, names: SettingNames) -> Result<()> {
         if let Some((lo, hi)) = self.range
             && !(lo.is_finite() && hi.is_finite() && lo < hi)
         {
             return Err(Error::option(
-                "--offset-range",
+                names(Setting::OffsetRange),
                 "takes two increasing values: min,max",
             ));
         }
         if !(self.window_s.is_finite() && self.window_s > 0.0) {
             return Err(Error::option(
-                "offset window_s",
+                names(Setting::OffsetWindow),
                 "must be a positive number of seconds",
             ));
         }
         if !(self.coarse_step.is_finite() && self.coarse_step > 0.0) {
             return Err(Error::option(
-                "offset coarse_step",
+                names(Setting::OffsetCoarseStep),
                 "must be a positive number of seconds",
             ));
         }
@@ -226,13 +227,14 @@ fn inside(traj: &Trajectory, obs: &[DvlObs], lo: f64, hi: f64) -> Vec<usize> {
         .collect()
 }
 
-/// Estimates the clock offset and velocity scale.
+/// Estimates the clock offset and velocity scale, with settings that
+/// [`OffsetOptions::validate`] accepts; its notes name the settings in `names`' words.
 pub fn estimate_offset(
     traj: &Trajectory,
     obs: &[DvlObs],
     opts: &OffsetOptions,
+    names: SettingNames,
 ) -> Result<OffsetResult> {
-    opts.validate()?;
     let alignment = align_clocks(traj, obs, opts.range, &opts.align)?;
     let (mut lo, mut hi) = (
         alignment.lag_s - opts.window_s,
@@ -282,11 +284,12 @@ pub fn estimate_offset(
         notes.push(format!(
             "the clock offset is ambiguous: the speeds match almost as well ({:.3} against {:.3}) \
              at a clock offset of {:.3} s as at {:.3} s; periodic motion repeats itself, so vary \
-             the speed irregularly (or give --offset-range around the right offset)",
+             the speed irregularly (or give {} around the right offset)",
             alignment.second_correlation.unwrap_or(f64::NAN),
             alignment.correlation,
             alignment.second_lag_s.unwrap_or(f64::NAN),
-            alignment.lag_s
+            alignment.lag_s,
+            names(Setting::OffsetRange)
         ));
     }
     if alignment.is_poor() {

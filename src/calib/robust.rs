@@ -18,6 +18,7 @@
 //! only when there is at least one, so a clean recording is calibrated exactly as under least
 //! squares.
 
+use super::setting::Setting;
 use crate::error::{Error, Result};
 
 /// The loss applied to the DVL and pose residuals.
@@ -33,20 +34,20 @@ pub enum Loss {
 }
 
 impl Loss {
-    /// The loss named on the command line (`l2`, `huber`, `cauchy`).
+    /// The loss of a name (`l2`, `huber`, `cauchy`); the error names the setting `loss`.
     pub fn parse(name: &str) -> Result<Loss> {
         match name.trim().to_ascii_lowercase().as_str() {
             "l2" | "least-squares" => Ok(Loss::L2),
             "huber" => Ok(Loss::Huber),
             "cauchy" => Ok(Loss::Cauchy),
             other => Err(Error::option(
-                "--loss",
+                Setting::Loss.field(),
                 format!("unknown loss '{other}' (expected l2, huber or cauchy)"),
             )),
         }
     }
 
-    /// Its name, as the command line takes it.
+    /// Its name, as [`Loss::parse`] takes it.
     pub fn name(&self) -> &'static str {
         match self {
             Loss::L2 => "l2",

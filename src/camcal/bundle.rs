@@ -23,10 +23,10 @@ use crate::camcal::types::{
     CamCalOptions, CamCalResult, CameraModel, CameraStd, CornerObs, FrameFit, FrameTags, Residual,
 };
 use crate::camcal::views::match_views;
+use crate::error::{Error, Result};
 use crate::lie::{Se3, hat};
 use crate::vision::board::Board;
 use crate::vision::camera::{Camchain, Camera};
-use crate::error::{Error, Result};
 
 /// Intrinsic unknowns per camera: `fu, fv, pu, pv` and four distortion coefficients.
 const NI: usize = 8;
@@ -785,9 +785,9 @@ mod tests {
     use super::*;
     use crate::camcal::CameraModel;
     use crate::lie::so3;
+    use crate::rng::Rng;
     use crate::sim::camcal_views::synthetic_detections;
     use crate::sim::image_dataset::{default_board, default_stereo_camchain};
-    use crate::rng::Rng;
 
     /// Board poses in front of cam0 spread over the image, with tilts.
     fn views(n: usize, rng: &mut Rng) -> Vec<Se3> {

@@ -18,8 +18,8 @@
 use nalgebra::{Matrix3, Vector2, Vector3};
 
 use crate::lie::{Se3, so3};
-use crate::sim::image_dataset::{board_centre, board_in_cameras};
 use crate::rng::Rng;
+use crate::sim::image_dataset::{board_centre, board_in_cameras};
 use crate::vision::board::Board;
 use crate::vision::camera::{Camchain, Camera};
 use crate::vision::detect::TagDetection;

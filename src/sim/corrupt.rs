@@ -16,9 +16,9 @@
 use nalgebra::{Vector3, Vector6};
 
 use super::dataset::{SimDataset, dvl_model};
-use crate::rng::Rng;
-use crate::lie::so3;
 use crate::error::{Error, Result};
+use crate::lie::so3;
+use crate::rng::Rng;
 
 /// Stream numbers of [`Rng::stream`] used here (apart from the motion's and the dataset's).
 const STREAM_DVL_AR1: u64 = 21;

@@ -14,11 +14,11 @@ use nalgebra::{Matrix3, Matrix6, Vector3, Vector6};
 use super::motion::{
     BoardViewMotion, Motion, MotionState, SampledMotion, SinusoidMotion, check_rotation,
 };
-use crate::rng::Rng;
+use crate::error::{Error, Result};
 use crate::lie::{Se3, so3};
+use crate::rng::Rng;
 use crate::time::Epoch;
 use crate::types::{CalibrationParams, DvlSample, PoseMeasurement};
-use crate::error::{Error, Result};
 
 const STREAM_POSE_NOISE: u64 = 11;
 const STREAM_DVL_JITTER: u64 = 12;

@@ -25,12 +25,12 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use image::GrayImage;
 use nalgebra::{Matrix3, Vector3};
 
+use crate::error::{Error, Result};
 use crate::lie::{Se3, so3};
-use crate::sim::render::{RenderSettings, render};
 use crate::rng::Rng;
+use crate::sim::render::{RenderSettings, render};
 use crate::vision::board::{Board, TagFamily};
 use crate::vision::camera::{Camchain, Camera, Distortion};
-use crate::error::{Error, Result};
 
 /// First stream number of the per-frame image streams (frame `k` uses `IMAGE_STREAM_BASE + k`);
 /// far from the motion and dataset noise streams.

@@ -11,9 +11,9 @@ const SQRT_3: f64 = 1.732_050_807_568_877_2;
 
 use nalgebra::{Matrix2, Matrix3, Vector2, Vector3, Vector6};
 
-use crate::rng::Rng;
-use crate::lie::{Se3, curly, so3};
 use crate::error::{Error, Result};
+use crate::lie::{Se3, curly, so3};
+use crate::rng::Rng;
 
 /// Stream numbers of [`Rng::stream`] used by the motions (kept apart from the dataset noise).
 const STREAM_MOTION_STEPS: u64 = 1;

@@ -12,8 +12,8 @@
 use nalgebra::Vector6;
 
 use super::motion::SampledMotion;
-use crate::types::PoseMeasurement;
 use crate::error::{Error, Result};
+use crate::types::PoseMeasurement;
 
 /// How a recorded track is replayed.
 #[derive(Clone, Copy, Debug, PartialEq)]

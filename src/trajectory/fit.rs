@@ -11,6 +11,7 @@ use std::sync::OnceLock;
 use nalgebra::{Matrix3, Matrix6, SMatrix, Vector6};
 
 use super::blocktri::{BandedInverse, BlockTridiagonal, Factored, V18};
+use super::factors::PoseFactors;
 use super::gp::{
     Knot, LocalState, Motion, apply_scalar, d_jr_times, first_local_state, interpolation_weights,
     knot_from_local, kron_diag_mul, local_gamma, local_state, motion_from_local,
@@ -201,11 +202,10 @@ impl Trajectory {
         let hyp = hyper::choose(poses, opts.qc, opts.pose_sigma, opts.hyper_knots)?;
         let times: Vec<f64> = poses.iter().map(|p| p.t).collect();
         let meas: Vec<Se3> = poses.iter().map(|p| p.pose).collect();
-        let info = measurement_information(poses, hyp.pose_sigma)?;
+        let factors = PoseFactors::new(meas, measurement_information(poses, hyp.pose_sigma)?);
         let problem = Problem {
             times: &times,
-            meas: &meas,
-            info: &info,
+            cosensor: &factors,
             qc_inv: hyp.qc.map(|q| 1.0 / q),
         };
         let solved = gauss_newton(
@@ -220,7 +220,7 @@ impl Trajectory {
         )?;
         let cov = solved.factor.map(Factored::banded_inverse);
         let (mut sp, mut sr) = (0.0, 0.0);
-        for (k, m) in solved.knots.iter().zip(&meas) {
+        for (k, m) in solved.knots.iter().zip(factors.measurements()) {
             let e = (m.inverse() * k.pose).log();
             sp += e.fixed_rows::<3>(0).norm_squared();
             sr += e.fixed_rows::<3>(3).norm_squared();

@@ -16,13 +16,14 @@
 use nalgebra::Vector6;
 
 use super::blocktri::BlockTridiagonal;
+use super::factors::PoseFactors;
 use super::gp::Knot;
 use super::solver::{
     GaussNewtonOptions, Problem, STEP_DECREMENT, gauss_newton, initial_knots,
     measurement_information, step,
 };
 use crate::error::Result;
-use crate::lie::{Se3, so3};
+use crate::lie::so3;
 use crate::types::PoseMeasurement;
 
 /// Search bounds of the jerk power spectral density.
@@ -90,7 +91,8 @@ fn windows(n: usize, budget: usize) -> Vec<(usize, usize)> {
 struct Window<'a> {
     poses: &'a [PoseMeasurement],
     times: Vec<f64>,
-    meas: Vec<Se3>,
+    /// The window's poses as factors (their information set for each candidate).
+    factors: PoseFactors,
     knots: Vec<Knot>,
     converged_once: bool,
     /// The storage of the window's last system (the first fit's, then each candidate's),
@@ -112,11 +114,11 @@ fn unpack(p: &[f64], fixed_sigma: Option<(f64, f64)>) -> (Vector6<f64>, (f64, f6
 /// candidate's MAP; one Gauss-Newton step reaches it, and the cost there is the minimum of the
 /// quadratic model, `cost - rhs^T A^-1 rhs` (exact for a linear problem).
 fn window_log_likelihood(w: &mut Window, qc: &Vector6<f64>, sigma: (f64, f64)) -> Result<f64> {
-    let info = measurement_information(w.poses, sigma)?;
+    w.factors
+        .set_information(measurement_information(w.poses, sigma)?);
     let problem = Problem {
         times: &w.times,
-        meas: &w.meas,
-        info: &info,
+        cosensor: &w.factors,
         qc_inv: qc.map(|q| 1.0 / q),
     };
     if !w.converged_once {
@@ -144,7 +146,12 @@ fn window_log_likelihood(w: &mut Window, qc: &Vector6<f64>, sigma: (f64, f64)) -
     let decrease: f64 = dx.iter().zip(&rhs).map(|(d, r)| d.dot(r)).sum();
     let n = w.times.len() as f64;
     let log_det_q = (n - 1.0) * 3.0 * qc.iter().map(|q| q.ln()).sum::<f64>();
-    let log_det_r: f64 = info.iter().map(|i| -i.determinant().max(1e-300).ln()).sum();
+    let log_det_r: f64 = w
+        .factors
+        .information()
+        .iter()
+        .map(|i| -i.determinant().max(1e-300).ln())
+        .sum();
     let ll = -0.5 * ((cost - decrease) + factor.log_det() + log_det_q + log_det_r);
     w.spare = Some(factor.into_system());
     w.knots = step(&w.knots, &dx, 1.0);
@@ -272,7 +279,7 @@ pub fn choose(
             Window {
                 poses: ps,
                 times: ps.iter().map(|p| p.t).collect(),
-                meas: ps.iter().map(|p| p.pose).collect(),
+                factors: PoseFactors::new(ps.iter().map(|p| p.pose).collect(), Vec::new()),
                 knots: initial_knots(ps),
                 converged_once: false,
                 spare: None,

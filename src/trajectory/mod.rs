@@ -1,6 +1,7 @@
 //! Continuous-time camera trajectory: Lie groups and the white-noise-on-jerk Gaussian process.
 
 pub(crate) mod blocktri;
+pub mod factors;
 pub mod fit;
 pub mod gp;
 pub(crate) mod hyper;

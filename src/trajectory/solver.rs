@@ -5,9 +5,10 @@
 //! consecutive knots. [`NormalEquations`] is the interface: anything that can linearise its cost
 //! at a set of knots into a [`BlockTridiagonal`] system can be solved by [`gauss_newton`].
 //!
-//! - [`Problem`] is the pose-only fit: one pose factor per knot and the GP prior between knots.
+//! - [`Problem`] is the fit to the co-sensor alone: the GP prior between knots and the
+//!   co-sensor's factors ([`super::factors::CoSensorFactors`]; camera poses: one per knot).
 //!   `Trajectory::fit` and the hyperparameter search solve it.
-//! - The calibration's joint problem (`calib::state`) adds the DVL velocity factors to the same
+//! - The calibration's joint problem (`calib::joint`) adds the DVL velocity factors to the same
 //!   system by implementing [`NormalEquations`] with [`Problem`]'s blocks plus its own; it
 //!   assembles in the same chunks ([`assembly_chunks`]) so that sums never depend on the
 //!   number of threads.
@@ -18,12 +19,13 @@
 use nalgebra::{Matrix6, Vector6};
 
 use super::blocktri::{BlockTridiagonal, Factored, M18, V18};
+use super::factors::{CoSensorFactors, IntervalNormal};
+use super::fit::KnotView;
 use super::gp::{
     Knot, LocalState, PriorNormal, apply_scalar, first_local_state, kron_diag_mul, local_gamma,
     phi_scalar, prior_factor, prior_normal, q_scalar_inv,
 };
 use crate::error::{Error, Result};
-use crate::lie::{Se3, se3_right_jacobian_inv};
 use crate::types::PoseMeasurement;
 
 /// Information matrices of the pose measurements.
@@ -74,11 +76,11 @@ pub(crate) fn initial_knots(poses: &[PoseMeasurement]) -> Vec<Knot> {
         .collect()
 }
 
-/// The Gauss-Newton problem of a pose-only fit.
+/// The Gauss-Newton problem of a fit to the co-sensor alone: the GP prior and the co-sensor's
+/// factors.
 pub(crate) struct Problem<'a> {
     pub times: &'a [f64],
-    pub meas: &'a [Se3],
-    pub info: &'a [Matrix6<f64>],
+    pub cosensor: &'a dyn CoSensorFactors,
     pub qc_inv: Vector6<f64>,
 }
 
@@ -142,9 +144,13 @@ impl Problem<'_> {
         crate::parallel::map_pieces(n, ASSEMBLY_CHUNK, |r| {
             let mut cost = 0.0;
             for k in r {
-                cost += self.pose_cost(knots, k);
+                cost += self.knot_cost(knots, k);
                 if k + 1 < n {
-                    cost += self.prior_cost(knots, k).0;
+                    let (c, gamma2) = self.prior_cost(knots, k);
+                    cost += c;
+                    if self.cosensor.has_interval_terms() {
+                        cost += self.cosensor.interval_cost(self.view(knots), k, &gamma2);
+                    }
                 }
             }
             cost
@@ -153,10 +159,19 @@ impl Problem<'_> {
         .sum()
     }
 
-    /// Fills one chunk: for each knot the pose term, then the prior terms of the intervals
-    /// before and after it (the interval before the chunk is recomputed here). Each prior term
-    /// is added to both of its knots as soon as it is formed (the next knot's pose term is
-    /// written first), so no term is kept or copied from one knot to the next.
+    /// The knot times with the states `knots`.
+    pub(crate) fn view<'k>(&'k self, knots: &'k [Knot]) -> KnotView<'k> {
+        KnotView {
+            times: self.times,
+            knots,
+        }
+    }
+
+    /// Fills one chunk: for each knot its co-sensor term, then the terms of the intervals
+    /// before and after it (prior, then co-sensor; the interval before the chunk is recomputed
+    /// here). Each interval's terms are added to both of its knots as soon as they are formed
+    /// (the next knot's own term is written first), so no term is kept or copied from one knot
+    /// to the next.
     fn assemble_chunk(&self, knots: &[Knot], chunk: &mut AssemblyChunk) {
         let n = knots.len();
         let len = chunk.diag.len();
@@ -166,23 +181,28 @@ impl Problem<'_> {
             &mut *chunk.rhs,
             &mut *chunk.upper,
         );
-        let mut pose_cost = self.pose_terms(knots, first, &mut diag[0], &mut rhs[0]);
+        let mut knot_cost = self.knot_terms(knots, first, &mut diag[0], &mut rhs[0]);
         let mut t = PriorNormal::zeros();
+        let mut c = IntervalNormal::zeros();
         if first > 0 {
-            // The off-diagonal block of this factor is the previous chunk's.
-            self.prior_terms(knots, first - 1, &mut t, &mut M18::zeros());
+            // The off-diagonal block of this interval is the previous chunk's.
+            let ls = self.prior_terms(knots, first - 1, &mut t, &mut M18::zeros());
             diag[0] += t.d2;
             rhs[0] += t.r2;
+            if self.cosensor_interval(knots, first - 1, &ls, &mut c) {
+                diag[0] += c.d2;
+                rhs[0] += c.r2;
+            }
         }
         chunk.cost = 0.0;
         for i in 0..len {
             let k = first + i;
-            chunk.cost += pose_cost;
+            chunk.cost += knot_cost;
             if i + 1 < len {
-                pose_cost = self.pose_terms(knots, k + 1, &mut diag[i + 1], &mut rhs[i + 1]);
+                knot_cost = self.knot_terms(knots, k + 1, &mut diag[i + 1], &mut rhs[i + 1]);
             }
             if k + 1 < n {
-                self.prior_terms(knots, k, &mut t, &mut upper[i]);
+                let ls = self.prior_terms(knots, k, &mut t, &mut upper[i]);
                 diag[i] += t.d1;
                 rhs[i] += t.r1;
                 chunk.cost += t.cost;
@@ -190,33 +210,47 @@ impl Problem<'_> {
                     diag[i + 1] += t.d2;
                     rhs[i + 1] += t.r2;
                 }
+                if self.cosensor_interval(knots, k, &ls, &mut c) {
+                    diag[i] += c.d1;
+                    rhs[i] += c.r1;
+                    upper[i] += c.upper;
+                    chunk.cost += c.cost;
+                    if i + 1 < len {
+                        diag[i + 1] += c.d2;
+                        rhs[i + 1] += c.r2;
+                    }
+                }
             }
         }
     }
 
-    /// Overwrites `diag` and `rhs` with the pose term of knot `k`; returns its cost.
-    pub(crate) fn pose_terms(
+    /// Overwrites `diag` and `rhs` with the co-sensor's terms on knot `k`; returns their cost.
+    pub(crate) fn knot_terms(
         &self,
         knots: &[Knot],
         k: usize,
         diag: &mut M18,
         rhs: &mut V18,
     ) -> f64 {
-        *diag = M18::zeros();
-        *rhs = V18::zeros();
-        let e = (self.meas[k].inverse() * knots[k].pose).log();
-        let j = se3_right_jacobian_inv(&e);
-        let wj = self.info[k] * j;
-        diag.fixed_view_mut::<6, 6>(0, 0)
-            .copy_from(&(j.transpose() * wj));
-        rhs.fixed_rows_mut::<6>(0).copy_from(&-(wj.transpose() * e));
-        (e.transpose() * self.info[k] * e)[0]
+        self.cosensor.knot_terms(knots, k, diag, rhs)
     }
 
-    /// The cost of the pose term of knot `k` (as [`Problem::pose_terms`] returns it).
-    pub(crate) fn pose_cost(&self, knots: &[Knot], k: usize) -> f64 {
-        let e = (self.meas[k].inverse() * knots[k].pose).log();
-        (e.transpose() * self.info[k] * e)[0]
+    /// The cost of the co-sensor's terms on knot `k` (as [`Problem::knot_terms`] returns it).
+    pub(crate) fn knot_cost(&self, knots: &[Knot], k: usize) -> f64 {
+        self.cosensor.knot_cost(knots, k)
+    }
+
+    /// The co-sensor's terms on the interval after knot `k` into `out` (`ls`: the local state
+    /// of knot `k + 1`); `false` when it has none there.
+    pub(crate) fn cosensor_interval(
+        &self,
+        knots: &[Knot],
+        k: usize,
+        ls: &LocalState,
+        out: &mut IntervalNormal,
+    ) -> bool {
+        self.cosensor.has_interval_terms()
+            && self.cosensor.interval_terms(self.view(knots), k, ls, out)
     }
 
     /// The normal-equation blocks of the prior factor between knots `k` and `k + 1`, written

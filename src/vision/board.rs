@@ -56,9 +56,9 @@ use nalgebra::{Matrix4, Vector2, Vector3};
 use serde::Deserialize;
 use std::path::Path;
 
+use crate::error::{Error, Result};
 use crate::lie::Se3;
 pub use crate::vision::family::TagFamily;
-use crate::error::{Error, Result};
 
 /// One tag of a board.
 #[derive(Clone, Debug, PartialEq)]

@@ -14,10 +14,10 @@
 
 use std::fmt::Write as _;
 
+use crate::error::{Error, Result};
 use crate::vision::board::{Board, TagPrint, grid_paper};
 use crate::vision::family::tags_cells;
 use crate::vision::kalibr::{KALIBR_CELLS_ACROSS, kalibr_tag_cells};
-use crate::error::{Error, Result};
 
 /// Lines of the board definition printed under the board.
 fn legend(board: &Board, source: &str) -> Vec<String> {

@@ -19,8 +19,8 @@ use serde::Deserialize;
 use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
 
-use crate::lie::Se3;
 use crate::error::{Error, Result};
+use crate::lie::Se3;
 
 /// Lens distortion model and coefficients.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -34,6 +34,7 @@ use std::path::Path;
 use apriltag_sys as sys;
 use nalgebra::Vector2;
 
+use crate::error::{Error, Result};
 use crate::vision::camera::Camera;
 use crate::vision::family::{Destroy, FamilyCodes, TagFamily, family_codes};
 use crate::vision::kalibr::{
@@ -41,7 +42,6 @@ use crate::vision::kalibr::{
     max_decimate, max3_decimate, quads, saddle_point, widen_border,
 };
 use crate::vision::refine::{quad_centre, refine_corners};
-use crate::error::{Error, Result};
 
 /// Settings of the AprilTag detector. `Default` gives the library's defaults and at most one
 /// corrected bit.

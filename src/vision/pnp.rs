@@ -22,11 +22,11 @@ use nalgebra::{Matrix2x3, Matrix6, Vector2, Vector3, Vector6};
 use opencv::core::{Mat, Point2d, Point3d, Vector};
 use opencv::prelude::*;
 
+use crate::error::{Error, Result};
 use crate::lie::{Se3, hat, so3};
 use crate::vision::board::Board;
 use crate::vision::camera::Camchain;
 use crate::vision::detect::TagDetection;
-use crate::error::{Error, Result};
 
 /// Settings of [`stereo_pose`].
 #[derive(Clone, Debug, PartialEq)]

@@ -10,8 +10,8 @@ use std::path::{Path, PathBuf};
 use nalgebra::{Matrix3, Vector3, Vector6};
 
 use dvlcal::lie::{Se3, so3};
-use dvlcal::sim::render::{RenderSettings, render};
 use dvlcal::rng::Rng;
+use dvlcal::sim::render::{RenderSettings, render};
 use dvlcal::vision::board::{Board, TagFamily};
 use dvlcal::vision::camera::{Camchain, Camera, Distortion};
 

@@ -9,7 +9,8 @@ use crate::dvl_info::DvlInputArgs;
 
 use dvlcal::calib::prior::{LeverArmPrior, Priors, RotationPrior, SigmaOrNone, VectorSigma};
 use dvlcal::calib::robust::Loss;
-use dvlcal::calib::{CalibOptions, Method, Status};
+use dvlcal::calib::{CalibOptions, Method, Setting, Status};
+use dvlcal::error::Error;
 use dvlcal::files::prepare_output;
 use dvlcal::io::calib_yaml::{read_calibration_guess, rotation_from_rpy_deg};
 use dvlcal::io::exports::FrameNames;
@@ -148,7 +149,7 @@ pub fn options(
     let range = match est.offset_range.as_deref() {
         None => None,
         Some([lo, hi]) => Some((*lo, *hi)),
-        Some(_) => bail!("--offset-range takes two increasing values: min,max"),
+        Some(_) => bail!("--offset-range takes two values: min,max"),
     };
     let method = match (method, guess) {
         (MethodArg::Uic, _) => Method::Uic,
@@ -164,14 +165,48 @@ pub fn options(
         dvl_sigma: est.dvl_sigma,
         bias_corrected: !biased,
         priors: est.priors(),
-        loss: Loss::parse(&est.loss)?,
+        loss: Loss::parse(&est.loss).map_err(flagged)?,
         default_lever_arm_sigma_m: est.default_lever_arm_sigma.0,
         honest_covariance: !est.model_covariance,
+        names: flag,
         ..CalibOptions::default()
     };
     opts.offset.range = range;
     opts.validate()?;
     Ok(opts)
+}
+
+/// The command line's words for the estimator's settings, in its messages and errors.
+fn flag(s: Setting) -> &'static str {
+    match s {
+        Setting::DvlSigma => "--dvl-sigma",
+        Setting::DefaultLeverArmSigma => "--default-lever-arm-sigma",
+        Setting::LeverArmPrior => "--lever-arm-prior",
+        Setting::RotationPrior => "--rotation-prior",
+        Setting::OffsetRange => "--offset-range",
+        Setting::Loss => "--loss",
+        Setting::LeastSquares => "--loss l2",
+        Setting::Uic => "--method uic",
+        Setting::RefineGuess => "--method bcd --init",
+        Setting::EstimateOffset => "--estimate-offset",
+        Setting::Guess => "--init",
+        // Settings without a flag keep their field names.
+        Setting::DefaultDvlSigma
+        | Setting::OffsetWindow
+        | Setting::OffsetCoarseStep
+        | Setting::AlignStep => s.field(),
+    }
+}
+
+/// A library error about a setting, naming the setting's flag instead of its field.
+fn flagged(e: Error) -> Error {
+    match e {
+        Error::InvalidOption { option, msg } => Error::InvalidOption {
+            option: Setting::from_field(option).map_or(option, flag),
+            msg,
+        },
+        other => other,
+    }
 }
 
 pub fn run(a: CalibrateArgs) -> Result<()> {

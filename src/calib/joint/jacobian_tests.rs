@@ -30,11 +30,18 @@
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3, Vector6};
 
 use super::*;
-use crate::lie::{curly, se3_right_jacobian, so3};
+use crate::calib::joint::covariance::{
+    assemble_joint, finish, linear_estimate_of, part_linear_estimate,
+};
+use crate::calib::model::{DvlObs, NPARAM};
+use crate::lie::{Se3, curly, se3_right_jacobian, so3};
+use crate::trajectory::factors::PoseFactors;
 use crate::trajectory::gp::{
     Motion, apply_scalar, d_jr_times, first_local_state, interpolation_weights, kron_diag,
     local_gamma, local_state, phi_scalar, q_scalar_inv,
 };
+use crate::trajectory::solver::step;
+use nalgebra::Matrix6;
 
 /// Finite-difference step of the knot variables and of rotation, lever arm and scale.
 const H: f64 = 1e-5;
@@ -418,17 +425,14 @@ fn joint_problem<'a>(
     obs: &'a [DvlObs],
     idx: &'a [usize],
 ) -> JointProblem<'a> {
-    JointProblem {
-        priors: Default::default(),
+    JointProblem::from_parts(
         obs,
         idx,
-        dvl_info: obs.iter().map(|o| o.cov.try_inverse().unwrap()).collect(),
-        times: times.to_vec(),
-        meas,
-        pose_info,
+        obs.iter().map(|o| o.cov.try_inverse().unwrap()).collect(),
+        times.to_vec(),
+        Box::new(PoseFactors::new(meas, pose_info)),
         qc_inv,
-        storage: Mutex::new(JointStorage::default()),
-    }
+    )
 }
 
 /// The joint normal equations from numeric Jacobians of the documented residuals: pose terms
@@ -448,7 +452,12 @@ struct Reference {
     scale: [f64; 3],
 }
 
-fn reference(jp: &JointProblem, knots: &[Knot], p: &CalibrationParams) -> Reference {
+fn reference(
+    jp: &JointProblem,
+    (meas, pose_info): (&[Se3], &[Matrix6<f64>]),
+    knots: &[Knot],
+    p: &CalibrationParams,
+) -> Reference {
     let n = knots.len();
     let mut out = Reference {
         diag: vec![M18::zeros(); n],
@@ -461,9 +470,9 @@ fn reference(jp: &JointProblem, knots: &[Knot], p: &CalibrationParams) -> Refere
         scale: [0.0; 3],
     };
     for k in 0..n {
-        let e_of = |kn: &[Knot]| (jp.meas[k].inverse() * kn[k].pose).log();
+        let e_of = |kn: &[Knot]| (meas[k].inverse() * kn[k].pose).log();
         let j: SMatrix<f64, 6, 18> = numeric_knot_jacobian(knots, k, e_of);
-        let (w, e) = (&jp.pose_info[k], e_of(knots));
+        let (w, e) = (&pose_info[k], e_of(knots));
         let d = j.transpose() * w * j;
         out.scale[0] = out.scale[0].max(d.amax());
         out.diag[k] += d;
@@ -536,12 +545,12 @@ fn assembled_normal_equations_match_numeric_jacobian() {
         .filter(|i| i % 7 != 3 && !(40..44).contains(i))
         .collect();
     let (meas, pose_info, qc_inv) = pose_terms(&mut rng, &knots);
-    let jp = joint_problem(&times, meas, pose_info, qc_inv, &obs, &idx);
+    let jp = joint_problem(&times, meas.clone(), pose_info.clone(), qc_inv, &obs, &idx);
 
     let factors = DvlFactors::new(&jp, &p).unwrap();
     let mut sys = BlockTridiagonal::zeros(n);
     let a = factors.assemble(&knots, &mut sys, true);
-    let reference = reference(&jp, &knots, &p);
+    let reference = reference(&jp, (&meas, &pose_info), &knots, &p);
     eprintln!(
         "largest diagonal contributions: pose {:e}, prior {:e}, DVL {:e}",
         reference.scale[0], reference.scale[1], reference.scale[2]

@@ -1,0 +1,768 @@
+//! Stage 5: what the result is worth. The residuals against the stated noise and their
+//! whiteness ([`noise`]), the covariance ([`uncertainty`]), what the priors rather than the data
+//! determined ([`prior_roles`]), the motion's excitation, a verdict per parameter ([`judge`]),
+//! the sanity checks ([`status`]) and the clock's drift ([`drift`]). Each check's warning is
+//! written where the check is made.
+
+use nalgebra::Vector3;
+
+use super::joint::covariance::{AssembledJoint, joint_covariance, joint_covariance_of};
+use super::joint::problem::JointProblem;
+use super::model::{DvlObs, NPARAM, predict};
+use super::offset::OffsetMethod;
+use super::options::CalibOptions;
+use super::outcome::{
+    DeterminedBy, DriftCheck, Excitation, InitReport, ParamStd, Status, Verdict, Verdicts,
+};
+use super::prior::{LeverArmPrior, Priors};
+use super::refine::{FreeParams, ParamMat, calibration_update};
+use super::refinement::{unobserved_why, whitened_residuals};
+use super::robust::RobustSummary;
+use super::setting::Setting;
+use super::whiteness::{self, Whiteness};
+use crate::error::Result;
+use crate::trajectory::Trajectory;
+use crate::types::CalibrationParams;
+
+/// The DVL cost per degree of freedom over the inliers, and the residuals' whiteness. When the
+/// residuals are correlated in time (and `opts` asks for honest standard deviations), the
+/// information of each used observation in `weighted` is divided by the integrated
+/// autocorrelation time, with a warning.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn noise(
+    traj: &Trajectory,
+    obs: &[DvlObs],
+    idx: &[usize],
+    params: &CalibrationParams,
+    robust: &RobustSummary,
+    weights: &[f64],
+    weighted: &mut [DvlObs],
+    opts: &CalibOptions,
+    warnings: &mut Vec<String>,
+) -> Result<(f64, Whiteness)> {
+    let normalized_cost = inlier_normalized_cost(traj, obs, idx, params, robust)?;
+    let whiteness = residual_whiteness(traj, obs, idx, params, weights)?;
+    if opts.honest_covariance && whiteness.correlated {
+        // Correlated residuals carry the information of fewer independent ones: the DVL
+        // factors' information divided by the integrated autocorrelation time.
+        for i in idx.iter().copied() {
+            weighted[i].cov *= whiteness.inflation;
+        }
+        warnings.push(format!(
+            "the DVL residuals are correlated in time (integrated autocorrelation time {:.1} \
+             samples, {:.2} s; white noise would give 1 +- {:.2}): they carry the information of \
+             {:.0} independent reports, not {}, and the standard deviations account for that",
+            whiteness.inflation,
+            whiteness.inflation * whiteness.sample_interval_s,
+            whiteness.tau_noise,
+            idx.len() as f64 / whiteness.inflation,
+            idx.len()
+        ));
+    }
+    Ok((normalized_cost, whiteness))
+}
+
+/// Which parameters a prior rather than the data determined.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct PriorRoles {
+    /// The rotation comes mainly from the user's rotation prior.
+    pub rotation_from_user_prior: bool,
+    /// The lever arm comes mainly from the user's lever-arm prior.
+    pub lever_arm_from_user_prior: bool,
+    /// The lever arm comes from the broad default prior (held at it, or not observed).
+    pub lever_arm_from_default_prior: bool,
+}
+
+/// What the data alone would say, to tell which parameters the priors determined, with the
+/// notes on the user's priors (and on a lever arm left to the default prior) as warnings.
+/// `lever_held`: the lever arm was held at the default prior before the refinement.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn prior_roles(
+    jp: &mut JointProblem,
+    traj: &Trajectory,
+    params: &CalibrationParams,
+    free: FreeParams,
+    std: &ParamStd,
+    priors: &Priors,
+    lever_held: bool,
+    opts: &CalibOptions,
+    warnings: &mut Vec<String>,
+) -> Result<PriorRoles> {
+    let mut roles = PriorRoles {
+        lever_arm_from_default_prior: lever_held,
+        ..PriorRoles::default()
+    };
+    if !(opts.priors.any() || (priors.any() && free.lever_arm && std.lever_arm_m.max() > 0.05)) {
+        return Ok(roles);
+    }
+    let taken = std::mem::take(&mut jp.priors);
+    let (data_only, _) = joint_covariance(jp, traj, params, &free.mask())?;
+    jp.priors = taken;
+    if opts.priors.any() {
+        warnings.extend(prior_notes(&opts.priors, &data_only, params));
+        let data_worst = |first: usize| {
+            (first..first + 3)
+                .map(|k| data_only[(k, k)].max(0.0).sqrt())
+                .fold(0.0, f64::max)
+        };
+        // The prior determined a parameter when the data alone know it less well than the
+        // prior does (the posterior standard deviation is then above 0.7 times the prior's):
+        // the same test as the notes of prior_notes.
+        if let Some(r) = &opts.priors.rotation {
+            let d = data_worst(0);
+            roles.rotation_from_user_prior =
+                free.rotation && (d.is_nan() || d > r.sigma_deg.to_radians());
+        }
+        if let Some(l) = &opts.priors.lever_arm {
+            let d = data_worst(3);
+            roles.lever_arm_from_user_prior = free.lever_arm && (d.is_nan() || d > l.sigma_m);
+        }
+    }
+    if let (None, Some(l)) = (opts.priors.lever_arm, priors.lever_arm) {
+        let data = (3..6)
+            .map(|k| data_only[(k, k)].max(0.0).sqrt())
+            .fold(0.0, f64::max);
+        if data.is_nan() || data >= 0.5 * l.sigma_m {
+            roles.lever_arm_from_default_prior = true;
+            warnings.push(format!(
+                "the motion did not observe the lever arm (the data alone determine it only \
+                 to {:.2} m): it comes from the broad default prior (zero, {:.1} m), which \
+                 keeps it from corrupting the other parameters; measure it and give {}",
+                data,
+                l.sigma_m,
+                opts.name(Setting::LeverArmPrior)
+            ));
+        }
+    }
+    Ok(roles)
+}
+
+/// A verdict per parameter: its standard deviation against the thresholds of `opts`, then what
+/// held or determined it (`lever_held`: held at the default prior, with the data's standard
+/// deviation of it; `roles`: what the priors determined).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn judge(
+    std: &ParamStd,
+    excitation: &Excitation,
+    init: Option<&InitReport>,
+    free: FreeParams,
+    lever_held: Option<(f64, LeverArmPrior)>,
+    roles: PriorRoles,
+    opts: &CalibOptions,
+) -> Verdicts {
+    let mut verdicts = verdicts(std, opts, excitation, init, &free.mask());
+    let lever_prior = opts.name(Setting::LeverArmPrior);
+    if let Some((worst, _)) = lever_held {
+        verdicts.lever_arm = Verdict {
+            ok: false,
+            reason: format!(
+                "not observed by the motion ({}): held at the broad default prior's value, zero; \
+                 measure the lever arm and give {lever_prior}",
+                unobserved_why(worst)
+            ),
+            by: DeterminedBy::Prior,
+        };
+    } else if roles.lever_arm_from_default_prior {
+        verdicts.lever_arm = Verdict {
+            ok: false,
+            reason: format!(
+                "not observed by the motion: the value is the broad default prior's (zero); \
+                 measure the lever arm and give {lever_prior}"
+            ),
+            by: DeterminedBy::Prior,
+        };
+    }
+    if roles.rotation_from_user_prior {
+        verdicts.rotation.by = DeterminedBy::Prior;
+        push_reason(
+            &mut verdicts.rotation,
+            &format!(
+                "the value comes mainly from {}: the data alone determine it less well",
+                opts.name(Setting::RotationPrior)
+            ),
+        );
+    }
+    if roles.lever_arm_from_user_prior {
+        verdicts.lever_arm.by = DeterminedBy::Prior;
+        push_reason(
+            &mut verdicts.lever_arm,
+            &format!(
+                "the value comes mainly from {lever_prior}: the data alone determine it less well"
+            ),
+        );
+    }
+    verdicts
+}
+
+/// Whether the result can be trusted: the sanity checks of [`sanity`], and a share of outliers
+/// among the DVL reports that a few bad reports can explain.
+pub(crate) fn status(
+    p: &CalibrationParams,
+    normalized_cost: f64,
+    init: Option<&InitReport>,
+    free: FreeParams,
+    robust: &RobustSummary,
+    opts: &CalibOptions,
+) -> Status {
+    let mut status = sanity(p, normalized_cost, init, free, opts);
+    let share = robust.outliers as f64 / robust.factors.max(1) as f64;
+    if share > opts.sanity.max_outlier_fraction {
+        let reason = format!(
+            "{} of {} DVL reports are outliers to the fit ({:.0} %; at most {:.0} % are \
+             credible as outliers): the camera and the DVL disagree throughout, not in a few \
+             reports. Likely causes: a drifting clock, camera poses of another body or in the \
+             wrong frame, or a DVL log of another recording",
+            robust.outliers,
+            robust.factors,
+            100.0 * share,
+            100.0 * opts.sanity.max_outlier_fraction
+        );
+        status = match status {
+            Status::Ok => Status::Failed(vec![reason]),
+            Status::Failed(mut r) => {
+                r.push(reason);
+                Status::Failed(r)
+            }
+        };
+    }
+    status
+}
+
+/// The drift check at the stated weights, against the trajectory fitted to the co-sensor alone
+/// (`None`: the offset was not estimated): a drifting clock makes the ends of the recording
+/// look like outliers to a constant offset, and down-weighting them would hide the drift. A
+/// significant drift is a warning.
+pub(crate) fn drift(
+    pose_only: Option<&Trajectory>,
+    obs: &[DvlObs],
+    idx: &[usize],
+    params: &CalibrationParams,
+    offset_std: f64,
+    warnings: &mut Vec<String>,
+) -> Result<Option<DriftCheck>> {
+    let drift = match pose_only {
+        Some(t) => drift_check(t, obs, idx, params, offset_std)?,
+        None => None,
+    };
+    if let Some(d) = &drift
+        && d.significant
+    {
+        warnings.push(format!(
+            "the clock offset drifts: {:.4} s in the first third of the recording and {:.4} s in \
+             the last ({:+.1} ms, {:.1} standard deviations), about {:+.0} ppm; the result assumes \
+             a constant offset (synchronise the clocks, or calibrate shorter recordings)",
+            d.first_third_s,
+            d.last_third_s,
+            1e3 * (d.last_third_s - d.first_third_s),
+            (d.last_third_s - d.first_third_s).abs() / d.difference_std_s,
+            d.drift_ppm
+        ));
+    }
+    Ok(drift)
+}
+
+/// Stage 5: the covariance of the free parameters from the joint problem's information. When
+/// the DVL residuals exceed the stated noise by half or more (`normalized_cost`), the covariance
+/// is inflated by that factor and a warning says so (with a held guess, that the guess is the
+/// likely cause).
+pub(crate) fn uncertainty(
+    jp: &JointProblem,
+    assembled: AssembledJoint,
+    free: FreeParams,
+    normalized_cost: f64,
+    opts: &CalibOptions,
+    warnings: &mut Vec<String>,
+) -> Result<ParamMat> {
+    let (mut covariance, _) = joint_covariance_of(jp, assembled, &free.mask())?;
+    if normalized_cost > 1.5 {
+        warnings.push(if free.rotation {
+            format!(
+                "DVL residuals are {:.1} times the stated DVL variance; the standard deviations \
+                 are inflated by that factor (set {} to the real noise)",
+                normalized_cost,
+                opts.name(Setting::DvlSigma)
+            )
+        } else {
+            format!(
+                "DVL residuals are {:.1} times the stated DVL variance with the extrinsics held \
+                 at the given values: {}",
+                normalized_cost,
+                fixed_guess_advice(free, opts)
+            )
+        });
+        covariance *= normalized_cost;
+    }
+    Ok(covariance)
+}
+
+/// The sanity checks of a result: residuals near the stated DVL noise, a physical velocity
+/// scale, and a clock offset inside the offsets searched. Each failure names its likely cause.
+fn sanity(
+    p: &CalibrationParams,
+    normalized_cost: f64,
+    init: Option<&InitReport>,
+    free: FreeParams,
+    opts: &CalibOptions,
+) -> Status {
+    let lim = &opts.sanity;
+    let mut reasons = Vec::new();
+    let poor_match = init.is_some_and(|i| i.offset.alignment.is_poor());
+    if normalized_cost.is_nan() || normalized_cost > lim.max_normalized_cost {
+        reasons.push(format!(
+            "the DVL residuals are {normalized_cost:.1} times the stated DVL noise after the \
+             refinement (at most {} is credible): the camera and the DVL do not describe the same \
+             motion. Likely causes: {}",
+            lim.max_normalized_cost,
+            if poor_match {
+                "a DVL log of another recording, or clocks that do not overlap (the speeds \
+                 correlate poorly at every clock offset)"
+                    .to_owned()
+            } else if !free.rotation {
+                fixed_guess_advice(free, opts)
+            } else {
+                format!(
+                    "camera poses in the wrong frame (T_cam_world given for T_world_cam, or poses \
+                     of another body), or a DVL covariance far below the real noise (set {})",
+                    opts.name(Setting::DvlSigma)
+                )
+            }
+        ));
+    }
+    let (lo, hi) = lim.scale_range;
+    if free.scale && !(p.velocity_scale >= lo && p.velocity_scale <= hi) {
+        reasons.push(if p.velocity_scale < 0.0 {
+            format!(
+                "the velocity scale is negative ({:.4}): the rotation came out half a turn off and \
+                 the mirrored solution does not fit; the motion did not excite the rotation",
+                p.velocity_scale
+            )
+        } else {
+            format!(
+                "the velocity scale {:.4} is outside the physical range [{lo}, {hi}] (the ratio of \
+                 sound speeds): camera poses in other units than metres (a board or baseline size \
+                 in mm?), or a DVL log of another recording",
+                p.velocity_scale
+            )
+        });
+    }
+    if free.time_offset
+        && let Some(i) = init
+    {
+        let (a, b) = i.offset.searched;
+        let edge = 0.01 * (b - a);
+        if !(p.time_offset_s > a + edge && p.time_offset_s < b - edge) {
+            reasons.push(format!(
+                "the clock offset {:.4} s ended at the edge of the offsets searched [{a:.4}, \
+                 {b:.4}] s: the clocks could not be aligned (logs that overlap little, or an \
+                 {} that excludes the right offset)",
+                p.time_offset_s,
+                opts.name(Setting::OffsetRange)
+            ));
+        }
+    }
+    if reasons.is_empty() {
+        Status::Ok
+    } else {
+        Status::Failed(reasons)
+    }
+}
+
+/// What a held guess that does not fit the data most likely means, and what to run instead.
+fn fixed_guess_advice(free: FreeParams, opts: &CalibOptions) -> String {
+    if free.time_offset {
+        format!(
+            "the given extrinsics most likely do not fit this rig (a rotation or lever arm of \
+             another mounting, or in another frame); estimate them with {}, or refine them with \
+             {}",
+            opts.name(Setting::Uic),
+            opts.name(Setting::RefineGuess)
+        )
+    } else {
+        format!(
+            "the given calibration most likely does not fit this recording (a clock offset of \
+             another recording, or extrinsics of another mounting); estimate the clock offset too \
+             with {}, or everything with {}",
+            opts.name(Setting::EstimateOffset),
+            opts.name(Setting::Uic)
+        )
+    }
+}
+
+fn verdicts(
+    std: &ParamStd,
+    opts: &CalibOptions,
+    ex: &Excitation,
+    init: Option<&InitReport>,
+    free: &[bool; NPARAM],
+) -> Verdicts {
+    let th = &opts.weak;
+    let judge = |free: bool, worst: f64, limit: f64, what: &str, unit: &str, why: &str| {
+        if !free {
+            Verdict {
+                ok: true,
+                reason: format!(
+                    "held fixed at the value given with {}",
+                    opts.name(Setting::Guess)
+                ),
+                by: DeterminedBy::Fixed,
+            }
+        } else if worst.is_finite() && worst <= limit {
+            Verdict {
+                ok: true,
+                reason: String::new(),
+                by: DeterminedBy::Data,
+            }
+        } else {
+            Verdict {
+                ok: false,
+                reason: format!(
+                    "{what} standard deviation {worst:.3e} {unit} exceeds {limit} {unit}: {why}"
+                ),
+                by: DeterminedBy::Data,
+            }
+        }
+    };
+    let lever_why = format!(
+        "the camera rotated too little (RMS {:.3} rad/s, lever-arm velocity {:.1}% of the speed); \
+         record strong rotations about several axes",
+        ex.rms_angular_speed,
+        100.0 * ex.lever_arm_ratio
+    );
+    let mut lever = judge(
+        free[3],
+        std.lever_arm_m.max(),
+        th.lever_arm_m,
+        "lever arm",
+        "m",
+        &lever_why,
+    );
+    if let Some(i) = init
+        && !i.closed_form.lever_arm_solved
+        && lever.ok
+        && free[3]
+    {
+        lever = Verdict {
+            ok: false,
+            reason: "angular velocity too small to solve the lever arm in closed form".into(),
+            by: DeterminedBy::Data,
+        };
+    }
+    let offset_why = match init.map(|i| i.offset.method) {
+        Some(OffsetMethod::SpeedCorrelation) => {
+            "no calm segment and little change of speed; start the recording with a calm stretch \
+             of varying speed"
+        }
+        _ => "the speed changed too little; vary the speed during the recording",
+    };
+    Verdicts {
+        rotation: judge(
+            free[0],
+            std.rotation_deg.max(),
+            th.rotation_deg,
+            "rotation",
+            "deg",
+            "the camera moved along too few directions",
+        ),
+        lever_arm: lever,
+        time_offset: judge(
+            free[7],
+            std.time_offset_s,
+            th.time_offset_s,
+            "clock offset",
+            "s",
+            offset_why,
+        ),
+        velocity_scale: judge(
+            free[6],
+            std.velocity_scale,
+            th.velocity_scale,
+            "velocity scale",
+            "",
+            "the camera moved too little",
+        ),
+    }
+}
+
+/// The DVL cost per degree of freedom under the stated noise, over the samples that are not
+/// outliers: about 1 when the noise is right, whatever the outliers.
+fn inlier_normalized_cost(
+    traj: &Trajectory,
+    obs: &[DvlObs],
+    idx: &[usize],
+    params: &CalibrationParams,
+    robust: &RobustSummary,
+) -> Result<f64> {
+    let s = whitened_residuals(traj, obs, idx, params)?;
+    let limit = robust.threshold * robust.noise_scale;
+    let (sum, n) = s
+        .iter()
+        .filter(|&&x| robust.applied.is_none() || x <= limit)
+        .fold((0.0, 0usize), |(a, n), &x| (a + x, n + 1));
+    let dof = (3 * n).saturating_sub(NPARAM).max(1) as f64;
+    Ok(sum / dof)
+}
+
+/// The autocorrelation of the DVL residuals of the samples `idx` that kept at least half their
+/// weight, each axis divided by its stated standard deviation.
+fn residual_whiteness(
+    traj: &Trajectory,
+    obs: &[DvlObs],
+    idx: &[usize],
+    params: &CalibrationParams,
+    weights: &[f64],
+) -> Result<Whiteness> {
+    let mut kept: Vec<usize> = idx.iter().copied().filter(|&i| weights[i] >= 0.5).collect();
+    kept.sort_by(|&a, &b| obs[a].t.total_cmp(&obs[b].t));
+    let r: Vec<Vector3<f64>> = crate::parallel::map_indices(kept.len(), 2048, |j| {
+        let o = &obs[kept[j]];
+        let twist = traj.twist(o.t + params.time_offset_s)?;
+        let r = o.v - predict(params, &twist);
+        Ok(Vector3::new(
+            r.x / o.cov[(0, 0)].max(1e-300).sqrt(),
+            r.y / o.cov[(1, 1)].max(1e-300).sqrt(),
+            r.z / o.cov[(2, 2)].max(1e-300).sqrt(),
+        ))
+    })
+    .into_iter()
+    .collect::<Result<_>>()?;
+    let t: Vec<f64> = kept.iter().map(|&i| obs[i].t).collect();
+    Ok(whiteness::whiteness(&t, &r))
+}
+
+/// The clock offset of the first and the last third of the samples `idx` (by DVL time), each
+/// estimated with every other parameter held at the result, against `traj` (the pose-only fit). `None` when a
+/// third has too few samples.
+fn drift_check(
+    traj: &Trajectory,
+    obs: &[DvlObs],
+    idx: &[usize],
+    params: &CalibrationParams,
+    offset_std: f64,
+) -> Result<Option<DriftCheck>> {
+    let mut by_time: Vec<usize> = idx.to_vec();
+    by_time.sort_by(|&a, &b| obs[a].t.total_cmp(&obs[b].t));
+    let n = by_time.len() / 3;
+    if n < 30 || !(offset_std.is_finite() && offset_std > 0.0) {
+        return Ok(None);
+    }
+    let only_offset = FreeParams {
+        rotation: false,
+        lever_arm: false,
+        scale: false,
+        time_offset: true,
+    };
+    let third = |part: &[usize]| -> Result<(f64, f64)> {
+        let up = calibration_update(traj, obs, part, params, only_offset, &Priors::default(), 20)?;
+        let mid = 0.5 * (obs[part[0]].t + obs[part[part.len() - 1]].t);
+        Ok((up.params.time_offset_s, mid))
+    };
+    let (o1, t1) = third(&by_time[..n])?;
+    let (o3, t3) = third(&by_time[by_time.len() - n..])?;
+    let difference_std_s = offset_std * 6f64.sqrt();
+    Ok(Some(DriftCheck {
+        first_third_s: o1,
+        last_third_s: o3,
+        difference_std_s,
+        drift_ppm: 1e6 * (o3 - o1) / (t3 - t1).max(1e-9),
+        significant: (o3 - o1).abs() > 3.0 * difference_std_s,
+    }))
+}
+
+/// Appends `reason` to a verdict's reason.
+fn push_reason(v: &mut Verdict, reason: &str) {
+    v.reason = if v.reason.is_empty() {
+        reason.to_owned()
+    } else {
+        format!("{}; {reason}", v.reason)
+    };
+}
+
+/// For each prior, whether it or the data determined its parameter: the prior did when its
+/// variance is below the data's alone on some axis.
+///
+/// A prior that disagrees with the data is named too: for a linear Gaussian problem the
+/// estimate is the data's own estimate pulled toward the prior, `estimate - prior = (data -
+/// prior) s_p^2 / (s_d^2 + s_p^2)` on each axis, so the data's estimate lies at `prior +
+/// (estimate - prior) (s_d^2 + s_p^2) / s_p^2`, and its distance from the prior in units of
+/// `sqrt(s_d^2 + s_p^2)` is the disagreement.
+fn prior_notes(priors: &Priors, data_only: &ParamMat, params: &CalibrationParams) -> Vec<String> {
+    let worst = |first: usize| {
+        (first..first + 3)
+            .map(|k| data_only[(k, k)].max(0.0).sqrt())
+            .fold(0.0, f64::max)
+    };
+    let residual = priors.terms(params);
+    let disagreement = |first: usize, sigma: f64| {
+        (first..first + 3)
+            .map(|k| {
+                let sd2 = data_only[(k, k)].max(0.0);
+                let sp2 = sigma * sigma;
+                // The gradient is r / sigma^2, so r = gradient * sigma^2.
+                let r = residual.gradient[k] * sp2;
+                r.abs() * (sd2 + sp2).sqrt() / sp2
+            })
+            .fold(0.0, f64::max)
+    };
+    let mut notes = Vec::new();
+    let conflict = |what: &str, z: f64| {
+        if z > 3.0 {
+            Some(format!(
+                "the {what} prior and the data disagree by {z:.1} standard deviations: check the \
+                 measured value and its frame (the lever arm is the DVL origin in the camera \
+                 frame; the rotation is R_cam_dvl)"
+            ))
+        } else {
+            None
+        }
+    };
+    let mut conflicts = Vec::new();
+    if let Some(l) = &priors.lever_arm {
+        conflicts.extend(conflict("lever-arm", disagreement(3, l.sigma_m)));
+    }
+    if let Some(r) = &priors.rotation {
+        conflicts.extend(conflict(
+            "rotation",
+            disagreement(0, r.sigma_deg.to_radians()),
+        ));
+    }
+    if let Some(l) = &priors.lever_arm {
+        let data = worst(3);
+        notes.push(if data > l.sigma_m {
+            format!(
+                "the lever arm comes mainly from its prior ({:.1} mm per axis): the data alone \
+                 determine it only to {:.1} mm on its weakest axis",
+                1e3 * l.sigma_m,
+                1e3 * data
+            )
+        } else {
+            format!(
+                "the lever arm comes mainly from the data ({:.1} mm on its weakest axis alone; \
+                 prior {:.1} mm)",
+                1e3 * data,
+                1e3 * l.sigma_m
+            )
+        });
+    }
+    if let Some(r) = &priors.rotation {
+        let data = worst(0).to_degrees();
+        notes.push(if data > r.sigma_deg {
+            format!(
+                "the rotation comes mainly from its prior ({:.2} deg): the data alone determine \
+                 it only to {data:.2} deg about its weakest axis",
+                r.sigma_deg
+            )
+        } else {
+            format!(
+                "the rotation comes mainly from the data ({data:.3} deg about its weakest axis \
+                 alone; prior {:.2} deg)",
+                r.sigma_deg
+            )
+        });
+    }
+    notes.extend(conflicts);
+    notes
+}
+
+/// The RMS DVL residual per axis and the motion's excitation over the samples used. Sums are
+/// formed per piece of samples and then over the pieces in order (thread-count independent).
+pub(crate) fn residuals_and_excitation(
+    traj: &Trajectory,
+    obs: &[DvlObs],
+    idx: &[usize],
+    params: &CalibrationParams,
+) -> Result<(Vector3<f64>, Excitation)> {
+    let pieces = crate::parallel::map_pieces(idx.len(), 2048, |r| {
+        let mut sq = Vector3::zeros();
+        let (mut sv, mut sw, mut sl) = (0.0, 0.0, 0.0);
+        for &i in &idx[r] {
+            let twist = traj.twist(obs[i].t + params.time_offset_s)?;
+            let r = obs[i].v - predict(params, &twist);
+            sq += r.component_mul(&r);
+            let v = twist.fixed_rows::<3>(0).into_owned();
+            let w = twist.fixed_rows::<3>(3).into_owned();
+            sv += v.norm_squared();
+            sw += w.norm_squared();
+            sl += w.cross(&params.lever_arm_cam_m()).norm_squared();
+        }
+        Ok((sq, sv, sw, sl))
+    });
+    let mut sq = Vector3::zeros();
+    let (mut sv, mut sw, mut sl) = (0.0, 0.0, 0.0);
+    for piece in pieces {
+        let (q, v, w, l): (Vector3<f64>, f64, f64, f64) = piece?;
+        sq += q;
+        sv += v;
+        sw += w;
+        sl += l;
+    }
+    let n = idx.len() as f64;
+    let excitation = Excitation {
+        rms_speed: (sv / n).sqrt(),
+        rms_angular_speed: (sw / n).sqrt(),
+        lever_arm_ratio: (sl / sv.max(1e-300)).sqrt(),
+    };
+    Ok(((sq / n).map(f64::sqrt), excitation))
+}
+
+pub(crate) fn param_std(c: &ParamMat) -> ParamStd {
+    let s = |k: usize| c[(k, k)].max(0.0).sqrt();
+    ParamStd {
+        rotation_deg: Vector3::new(s(0), s(1), s(2)).map(f64::to_degrees),
+        lever_arm_m: Vector3::new(s(3), s(4), s(5)),
+        velocity_scale: s(6),
+        time_offset_s: s(7),
+    }
+}
+
+#[cfg(test)]
+mod prior_note_tests {
+    use super::*;
+    use crate::lie::Se3;
+    use nalgebra::Matrix3;
+
+    /// A lever arm estimated at 0.1 m on x with the data alone knowing it to `sd` m, and a prior
+    /// at 0 with `sp` m: the notes of `prior_notes`.
+    fn notes(sd: f64, sp: f64, estimate_x: f64) -> Vec<String> {
+        let priors = Priors {
+            lever_arm: Some(LeverArmPrior {
+                lever_arm_cam_m: Vector3::zeros(),
+                sigma_m: sp,
+            }),
+            rotation: None,
+        };
+        let mut data_only = ParamMat::identity() * 1e-6;
+        for k in 3..6 {
+            data_only[(k, k)] = sd * sd;
+        }
+        let params = CalibrationParams {
+            t_cam_dvl: Se3::new(Matrix3::identity(), Vector3::new(estimate_x, 0.0, 0.0)),
+            time_offset_s: 0.0,
+            velocity_scale: 1.0,
+        };
+        prior_notes(&priors, &data_only, &params)
+    }
+
+    #[test]
+    fn a_broad_prior_the_data_overrule_is_no_conflict() {
+        // The data alone say 0.1 m to 1 mm; a 0.5 m prior at 0 is 0.2 of its sigma away.
+        let n = notes(1e-3, 0.5, 0.1);
+        assert!(!n.iter().any(|m| m.contains("disagree")), "{n:?}");
+    }
+
+    #[test]
+    fn a_tight_prior_far_from_the_data_is_named_with_its_distance() {
+        // sd = sp = 1 mm: the estimate sits half way, so the data said 0.1 m when the estimate
+        // is 0.05 m: 0.1 / sqrt(2) mm = 70.7 standard deviations.
+        let n = notes(1e-3, 1e-3, 0.05);
+        assert!(
+            n.iter()
+                .any(|m| m.contains("disagree by 70.7 standard deviations")),
+            "{n:?}"
+        );
+        // The same data and a prior ten times broader: the estimate moves to 0.1 * 100/101 and
+        // the data's 0.1 m is 0.1 / sqrt(1.01e-4) = 9.95 standard deviations from the prior
+        // (printed with one decimal).
+        let n = notes(1e-3, 1e-2, 0.1 * 100.0 / 101.0);
+        assert!(n.iter().any(|m| m.contains("disagree by 10.0")), "{n:?}");
+    }
+}
