@@ -15,10 +15,10 @@ use super::outcome::{
     DeterminedBy, DriftCheck, Excitation, InitReport, ParamStd, Status, Verdict, Verdicts,
 };
 use super::prior::{LeverArmPrior, Priors};
-use super::refine::{FreeParams, ParamMat, calibration_update};
 use super::refinement::{unobserved_why, whitened_residuals};
 use super::robust::RobustSummary;
 use super::setting::Setting;
+use super::update::{FreeParams, ParamMat, calibration_update};
 use super::whiteness::{self, Whiteness};
 use crate::error::Result;
 use crate::trajectory::Trajectory;

@@ -8,7 +8,7 @@ use super::joint::problem::JointProblem;
 use super::model::{self, DvlObs, NPARAM, PARAM_NAMES};
 use super::options::CalibOptions;
 use super::outcome::{HalvesCheck, Verdict, Verdicts};
-use super::refine::{FreeParams, ParamMat};
+use super::update::{FreeParams, ParamMat};
 use crate::error::Result;
 use crate::trajectory::Trajectory;
 use crate::types::CalibrationParams;

@@ -7,7 +7,7 @@
 //! 3. Rotation, lever arm and scale in closed form with bias elimination ([`mod@closed_form`]);
 //!    2 and 3 are [`initialise`] ([`init`]).
 //! 4. Block-coordinate refinement ([`refinement`]): calibration update with the trajectory fixed
-//!    ([`refine`]), state update with the calibration fixed (the trajectory's solver with the
+//!    ([`update`]), state update with the calibration fixed (the trajectory's solver with the
 //!    DVL factors added, [`joint`]), until nothing changes, sped up by joint Gauss-Newton steps;
 //!    then the DVL reports reweighted by the robust loss ([`robust`]).
 //! 5. What the result is worth ([`diagnostics`]): the covariance from the joint problem's
@@ -31,18 +31,18 @@ pub mod offset;
 pub mod options;
 pub mod outcome;
 pub mod prior;
-pub(crate) mod refine;
 pub mod refinement;
 pub mod robust;
 pub mod samples;
 pub mod setting;
+pub(crate) mod update;
 pub mod whiteness;
 
 /// Covariance or information of the parameters, in [`ParamVec`]'s order.
-pub use refine::ParamMat;
+pub use update::ParamMat;
 /// The estimator's parameter vector: `[dphi; dp; dkappa; ddelta]` (rad about the DVL axes, m,
 /// scale, s), the coordinates of [`model::difference`] and of the covariance.
-pub use refine::ParamVec;
+pub use update::ParamVec;
 
 pub use analysis::{cramer_rao, jerk_density_evidence};
 pub use cosensor::CoSensor;

@@ -7,9 +7,9 @@ use nalgebra::Vector3;
 
 use super::offset::OffsetOptions;
 use super::prior::{self, Priors};
-use super::refine::FreeParams;
 use super::robust::Loss;
 use super::setting::{Setting, SettingNames};
+use super::update::FreeParams;
 use crate::error::{Error, Result};
 use crate::trajectory::FitOptions;
 use crate::types::CalibrationParams;

@@ -14,9 +14,9 @@ use super::model::{DvlObs, predict};
 use super::options::CalibOptions;
 use super::outcome::{InitReport, IterationRecord};
 use super::prior::{LeverArmPrior, Priors};
-use super::refine::{self, FreeParams, calibration_update};
 use super::robust::{self, RobustSummary};
 use super::setting::Setting;
+use super::update::{self, FreeParams, calibration_update};
 use crate::error::Result;
 use crate::trajectory::Trajectory;
 use crate::types::CalibrationParams;
@@ -298,7 +298,7 @@ fn refine_jointly(
         // Calibration update with the trajectory fixed, then state update with it fixed.
         let up = calibration_update(&traj, obs, idx, &params, free, &jp.priors, 50)?;
         let updated = within(up.params, range);
-        let change = refine::change_in_std(&params, &updated, &up.hessian, &mask);
+        let change = update::change_in_std(&params, &updated, &up.hessian, &mask);
         params = updated;
         // Right after a joint step, a calibration update that moves no parameter by a
         // twentieth of its standard deviation confirms the fixed point the step reached: the
@@ -405,7 +405,7 @@ fn mirror_if_better(
         opts.offset.range,
     )?;
     let cost = |r: &Refined| -> Result<f64> {
-        Ok(refine::linearize(&r.trajectory, obs, idx, &r.params)?.cost)
+        Ok(update::linearize(&r.trajectory, obs, idx, &r.params)?.cost)
     };
     let (c0, c1) = (cost(&refined)?, cost(&other)?);
     if other.params.velocity_scale > 0.0 && c1 <= c0 {

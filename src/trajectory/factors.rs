@@ -19,8 +19,8 @@ use std::ops::Range;
 use nalgebra::Matrix6;
 
 use super::blocktri::{M18, V18};
-use super::fit::KnotView;
 use super::gp::{Knot, LocalState};
+use super::view::KnotView;
 use crate::lie::{Se3, se3_right_jacobian_inv};
 
 /// The normal-equation blocks of the factors on one interval between knots `k` and `k + 1`.

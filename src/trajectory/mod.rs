@@ -6,6 +6,8 @@ pub mod fit;
 pub mod gp;
 pub(crate) mod hyper;
 pub(crate) mod solver;
+pub mod view;
 
-pub use fit::{FitOptions, FitReport, KnotView, Trajectory, TrajectoryState};
+pub use fit::{FitOptions, FitReport, Trajectory};
 pub use gp::{Knot, Motion};
+pub use view::{KnotView, TrajectoryState, TwistJacobian};

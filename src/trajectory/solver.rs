@@ -20,11 +20,11 @@ use nalgebra::{Matrix6, Vector6};
 
 use super::blocktri::{BlockTridiagonal, Factored, M18, V18};
 use super::factors::{CoSensorFactors, IntervalNormal};
-use super::fit::KnotView;
 use super::gp::{
     Knot, LocalState, PriorNormal, apply_scalar, first_local_state, kron_diag_mul, local_gamma,
     phi_scalar, prior_factor, prior_normal, q_scalar_inv,
 };
+use super::view::KnotView;
 use crate::error::{Error, Result};
 use crate::types::PoseMeasurement;
 

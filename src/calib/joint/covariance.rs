@@ -6,7 +6,7 @@
 use super::factors::{Assembled, DvlFactors, JointChunk};
 use super::problem::{CrossBlock, JointProblem, JointStorage};
 use crate::calib::model::NPARAM;
-use crate::calib::refine::{ParamMat, ParamVec, pin_fixed};
+use crate::calib::update::{ParamMat, ParamVec, pin_fixed};
 use crate::error::{Error, Result};
 use crate::trajectory::blocktri::{
     BlockSource, BlockTridiagonal, M18, V18, streamed_quadratic_forms,

@@ -11,7 +11,7 @@ use nalgebra::SMatrix;
 
 use super::problem::{CrossBlock, JointProblem};
 use crate::calib::model::{d_predict_d_params, d_predict_d_twist, predict};
-use crate::calib::refine::{ParamMat, ParamVec};
+use crate::calib::update::{ParamMat, ParamVec};
 use crate::error::Result;
 use crate::trajectory::blocktri::{BlockTridiagonal, M18, V18};
 use crate::trajectory::factors::IntervalNormal;
