@@ -511,7 +511,10 @@ fn the_checker_sees_the_crate_roots_reexports() {
     let p = paths_after(code, "crate::");
     assert!(p.contains(&vec!["Error".to_string()]), "{p:?}");
     assert!(p.contains(&vec!["Result".to_string()]), "{p:?}");
-    assert!(p.contains(&vec!["Error".to_string(), "Input".to_string()]), "{p:?}");
+    assert!(
+        p.contains(&vec!["Error".to_string(), "Input".to_string()]),
+        "{p:?}"
+    );
     // No library file reaches the root that way (imports_point_down_the_layers would name it).
     let g = library_graph();
     let via_root: Vec<&String> = g

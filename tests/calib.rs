@@ -176,3 +176,134 @@ fn a_still_camera_gives_an_error_or_weak_verdicts() {
         }
     }
 }
+
+/// Every message of an outcome: warnings, verdict reasons and failure reasons.
+fn messages(o: &CalibrationOutcome) -> Vec<String> {
+    let mut m = o.warnings.clone();
+    let v = &o.verdicts;
+    for r in [&v.rotation, &v.lever_arm, &v.time_offset, &v.velocity_scale] {
+        m.push(r.reason.clone());
+    }
+    if let dvlcal::calib::Status::Failed(r) = &o.status {
+        m.extend(r.iter().cloned());
+    }
+    m
+}
+
+#[test]
+fn the_estimator_names_its_settings_in_its_own_words_or_the_callers() {
+    use dvlcal::calib::Setting;
+    // Extrinsics held at a guess whose lever arm is 30 cm off: the messages say what to run
+    // instead and how the held parameters were given.
+    let data = dataset(4, MotionKind::CalmThenRotate, 60.0);
+    let t = &data.truth;
+    let wrong = CalibrationParams::from_r_dvl_cam(
+        t.r_dvl_cam(),
+        t.lever_arm_cam_m() + Vector3::new(0.3, 0.0, 0.0),
+        t.velocity_scale,
+        t.time_offset_s,
+    );
+    let held = CalibOptions {
+        method: Method::Fixed {
+            guess: wrong,
+            estimate_offset: true,
+        },
+        ..CalibOptions::default()
+    };
+    let o = calibrate(&data.poses, &data.dvl, &held).expect("calibration");
+    let all = messages(&o);
+    assert!(
+        all.iter().any(|m| m.contains("method Method::Uic")),
+        "{all:#?}"
+    );
+    assert!(
+        all.iter().any(|m| m.contains("the method's guess")),
+        "{all:#?}"
+    );
+    assert!(
+        all.iter().all(|m| !m.contains("--")),
+        "a flag in a library message: {all:#?}"
+    );
+    // A caller's words replace the field names.
+    fn words(s: Setting) -> &'static str {
+        match s {
+            Setting::Uic => "UIC-WORDS",
+            Setting::Guess => "GUESS-WORDS",
+            other => other.field(),
+        }
+    }
+    let o = calibrate(
+        &data.poses,
+        &data.dvl,
+        &CalibOptions {
+            names: words,
+            ..held
+        },
+    )
+    .expect("calibration");
+    let all = messages(&o);
+    assert!(all.iter().any(|m| m.contains("UIC-WORDS")), "{all:#?}");
+    assert!(all.iter().any(|m| m.contains("GUESS-WORDS")), "{all:#?}");
+    assert!(all.iter().all(|m| !m.contains("Method::Uic")), "{all:#?}");
+    // So do the errors of the settings' checks.
+    let bad = CalibOptions {
+        dvl_sigma: Some(-1.0),
+        ..CalibOptions::default()
+    };
+    let e = calibrate(&data.poses, &data.dvl, &bad).expect_err("bad sigma");
+    assert_eq!(e.to_string(), "dvl_sigma must be positive");
+    let mut bad = CalibOptions::default();
+    bad.offset.range = Some((0.5, -0.5));
+    let e = calibrate(&data.poses, &data.dvl, &bad).expect_err("bad range");
+    assert_eq!(
+        e.to_string(),
+        "offset.range takes two increasing values: min,max"
+    );
+    assert_eq!(
+        Setting::from_field("offset.range"),
+        Some(Setting::OffsetRange)
+    );
+    for s in Setting::ALL {
+        assert_eq!(Setting::from_field(s.field()), Some(s), "{s:?}");
+    }
+}
+
+#[test]
+fn the_offset_range_bounds_the_refinement_too() {
+    // The truth's offset is 0.07 s; a range that ends at 0.03 s excludes it.
+    let data = dataset(2, MotionKind::CalmThenRotate, 60.0);
+    let truth = data.truth.time_offset_s;
+    assert!((truth - 0.07).abs() < 1e-12, "{truth}");
+    let mut opts = CalibOptions::default();
+    opts.offset.range = Some((-0.5, 0.03));
+    let o = calibrate(&data.poses, &data.dvl, &opts).expect("calibration");
+    assert!(o.params.time_offset_s <= 0.03, "{}", o.params.time_offset_s);
+    let failed = match &o.status {
+        dvlcal::calib::Status::Failed(r) => r.join("; "),
+        dvlcal::calib::Status::Ok => String::new(),
+    };
+    assert!(failed.contains("offset.range"), "{failed}");
+    // Started from a guess (the truth), the refinement stays inside the range and says why the
+    // result cannot be trusted.
+    let opts = CalibOptions {
+        method: Method::Bcd(data.truth),
+        ..opts
+    };
+    let o = calibrate(&data.poses, &data.dvl, &opts).expect("calibration");
+    assert!(o.params.time_offset_s <= 0.03, "{}", o.params.time_offset_s);
+    let failed = match &o.status {
+        dvlcal::calib::Status::Failed(r) => r.join("; "),
+        dvlcal::calib::Status::Ok => String::new(),
+    };
+    assert!(
+        failed.contains("ended on a bound of offset.range"),
+        "{failed}"
+    );
+    // A range around the truth that the search's window lies inside changes nothing.
+    let mut around = CalibOptions::default();
+    around.offset.range = Some((-5.0, 5.0));
+    let a = calibrate(&data.poses, &data.dvl, &around).expect("calibration");
+    let b = calibrate(&data.poses, &data.dvl, &CalibOptions::default()).expect("calibration");
+    assert_eq!(a.params, b.params);
+    assert!(a.status.is_ok());
+}

@@ -360,6 +360,20 @@ fn sanity(
             ));
         }
     }
+    // A run from a guess has no search to compare with; its offset still may not rest on a
+    // bound of the range given.
+    if free.time_offset
+        && init.is_none()
+        && let Some((a, b)) = opts.offset.range
+        && (p.time_offset_s <= a || p.time_offset_s >= b)
+    {
+        reasons.push(format!(
+            "the clock offset {:.4} s ended on a bound of {} [{a:.4}, {b:.4}] s: the data ask \
+             for an offset outside it (a range that excludes the right offset?)",
+            p.time_offset_s,
+            opts.name(Setting::OffsetRange)
+        ));
+    }
     if reasons.is_empty() {
         Status::Ok
     } else {

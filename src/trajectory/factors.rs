@@ -151,3 +151,7 @@ impl CoSensorFactors for PoseFactors {
         })
     }
 }
+
+#[cfg(test)]
+#[path = "factors_tests.rs"]
+pub(crate) mod tests;

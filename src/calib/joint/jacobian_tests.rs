@@ -35,7 +35,7 @@ use crate::calib::joint::covariance::{
 };
 use crate::calib::model::{DvlObs, NPARAM};
 use crate::lie::{Se3, curly, se3_right_jacobian, so3};
-use crate::trajectory::factors::PoseFactors;
+use crate::trajectory::factors::{CoSensorFactors, PoseFactors};
 use crate::trajectory::gp::{
     Motion, apply_scalar, d_jr_times, first_local_state, interpolation_weights, kron_diag,
     local_gamma, local_state, phi_scalar, q_scalar_inv,
@@ -667,4 +667,70 @@ fn lower_triangle_products_equal_nalgebras_to_the_bit() {
         mirror_lower(&mut lower);
         assert!(lower == lower.transpose());
     }
+}
+
+#[test]
+fn the_joint_assembly_adds_a_co_sensors_interval_factors_as_the_trajectory_solver_does() {
+    // A co-sensor with factors between knots: the joint system (without the calibration's
+    // blocks) minus the trajectory problem's own system is the DVL factors' part alone, the same
+    // as with poses that have no such factors.
+    use crate::trajectory::factors::tests::setup;
+    let (knots, cos) = setup(9);
+    let mut rng = Rng::new(17);
+    let p = test_params(&mut rng);
+    let obs = test_samples(&mut rng, &cos.times, &p, &[0.3, 0.7]);
+    let idx: Vec<usize> = (0..obs.len()).collect();
+    let n = knots.len();
+    let qc_inv = Vector6::from_element(20.0);
+    let dvl_part = |factors: Box<dyn CoSensorFactors + '_>| {
+        let jp = JointProblem::from_parts(
+            &obs,
+            &idx,
+            obs.iter().map(|o| o.cov.try_inverse().unwrap()).collect(),
+            cos.times.clone(),
+            factors,
+            qc_inv,
+        );
+        let mut joint = BlockTridiagonal::zeros(n);
+        let cost = DvlFactors::new(&jp, &p)
+            .unwrap()
+            .assemble(&knots, &mut joint, false)
+            .cost;
+        let mut own = BlockTridiagonal::zeros(n);
+        let own_cost = jp.trajectory_problem().assemble_into(&knots, &mut own);
+        let d: Vec<M18> = joint
+            .diag
+            .iter()
+            .zip(&own.diag)
+            .map(|(a, b)| a - b)
+            .collect();
+        let u: Vec<M18> = joint
+            .upper
+            .iter()
+            .zip(&own.upper)
+            .map(|(a, b)| a - b)
+            .collect();
+        let r: Vec<V18> = joint.rhs.iter().zip(&own.rhs).map(|(a, b)| a - b).collect();
+        (d, u, r, cost - own_cost)
+    };
+    let with = dvl_part(cos.restricted(0..n));
+    let poses_only = dvl_part(Box::new(cos.poses.clone()));
+    let scale = poses_only.0.iter().map(|m| m.amax()).fold(0.0, f64::max);
+    for k in 0..n {
+        assert!(
+            (with.0[k] - poses_only.0[k]).amax() < 1e-9 * scale,
+            "diagonal {k}"
+        );
+        assert!(
+            (with.2[k] - poses_only.2[k]).amax() < 1e-9 * scale,
+            "rhs {k}"
+        );
+        if k + 1 < n {
+            assert!(
+                (with.1[k] - poses_only.1[k]).amax() < 1e-9 * scale,
+                "upper {k}"
+            );
+        }
+    }
+    assert!((with.3 - poses_only.3).abs() < 1e-9 * poses_only.3.abs().max(1.0));
 }
