@@ -26,6 +26,8 @@
 //! than 0 or 1, or bytes after its last field (CDR: more than three, the most padding a writer
 //! adds; ROS 1: any), is an [`Error::Input`] naming what was being read and the byte offset,
 //! counted from the start of the message (CDR: encapsulation header included).
+//!
+//! [`Error::Input`]: crate::error::Error::Input
 
 mod declare;
 mod header;
