@@ -4,8 +4,8 @@
 
 use std::fmt::Write as _;
 
+use super::html::STYLE;
 use super::input::FrameStat;
-use super::page::STYLE;
 use super::svg::{Plot, Series, escape};
 use crate::error::Error;
 use crate::io::dvl::DvlLogStats;

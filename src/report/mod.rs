@@ -17,15 +17,26 @@
 //! it stopped.
 
 mod cameras;
+mod clock_offset;
 mod correlation;
 mod data;
+mod dvl_log;
 mod failure;
+mod frames;
+mod html;
 mod input;
+mod motion;
 mod page;
+mod refinement;
 mod reprojection;
+mod results;
+mod robustness;
 mod rotation;
+mod summary;
 mod svg;
 mod timeline;
+mod trajectory_fit;
+mod velocity;
 mod words;
 
 pub use cameras::{

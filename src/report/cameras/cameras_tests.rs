@@ -7,9 +7,12 @@ use std::process::Command;
 
 use nalgebra::{Vector2, Vector3};
 
+use super::shared::coverage_poor;
 use super::*;
 use crate::camcal::quality::coverage as grid_coverage;
-use crate::camcal::{CameraModel, CameraStd};
+use crate::camcal::{CamCalResult, CameraModel, CameraStd, Coverage, FrameFit, Residual};
+use crate::lie::{Se3, so3};
+use crate::vision::camera::{Camchain, Camera, Distortion};
 
 /// A small deterministic generator of numbers in [-1, 1).
 struct Lcg(u64);

@@ -1,0 +1,142 @@
+//! The top of the DVL report: the headline with the verdicts in a sentence and the fit in
+//! numbers, and the warnings (the log's, the calibration's and one per weak verdict).
+
+use std::fmt::Write as _;
+
+use super::data::Derived;
+use super::html::{join_words, put, section, vec3};
+use super::input::ReportInput;
+use super::svg::escape;
+use super::words::{estimated, method_words};
+
+pub(super) fn summary(s: &mut String, input: &ReportInput, d: &Derived) {
+    let o = input.outcome;
+    put!(
+        s,
+        "<section id=\"summary\"><h1>{}</h1><p class=\"meta\">",
+        escape(input.title)
+    );
+    if !input.dataset.is_empty() {
+        put!(s, "{}<br>", escape(input.dataset));
+    }
+    put!(
+        s,
+        "dvlcal {}; method: {}",
+        env!("CARGO_PKG_VERSION"),
+        escape(method_words(&o.method))
+    );
+    if let Some(t) = input.elapsed_s.filter(|t| t.is_finite()) {
+        put!(s, "; calibration took {t:.2} s");
+    }
+    s.push_str("</p>\n");
+    if let crate::calib::Status::Failed(reasons) = &o.status {
+        s.push_str(
+            "<div id=\"failed\" class=\"failed\"><p><strong>Calibration failed: this result \
+             cannot be trusted.</strong> No ROS or Kalibr exports were written.</p><ul>",
+        );
+        for r in reasons {
+            put!(s, "<li>{}</li>", escape(r));
+        }
+        s.push_str("</ul></div>\n");
+    }
+
+    let v = &o.verdicts;
+    let ext = estimated(&o.method, true);
+    let tim = estimated(&o.method, false);
+    let judged = [
+        ("the rotation", &v.rotation, ext),
+        ("the lever arm", &v.lever_arm, ext),
+        ("the clock offset", &v.time_offset, tim),
+        ("the velocity scale", &v.velocity_scale, tim),
+    ];
+    let weak: Vec<&str> = judged
+        .iter()
+        .filter(|(_, v, free)| *free && !v.ok)
+        .map(|(n, _, _)| *n)
+        .collect();
+    let free = judged.iter().filter(|j| j.2).count();
+    let headline = if free == 0 {
+        "Nothing was estimated: this run only evaluates the given calibration against the data."
+            .to_owned()
+    } else if weak.is_empty() {
+        format!(
+            "All {free} estimated quantities are well determined by this recording \
+             (details and standard deviations below)."
+        )
+    } else {
+        format!(
+            "Attention: {} {} weakly observable with this recording; the other estimates are \
+             well determined.",
+            join_words(&weak),
+            if weak.len() == 1 { "is" } else { "are" }
+        )
+    };
+    put!(s, "<p><strong>{}</strong></p>\n", escape(&headline));
+    let mut words = format!(
+        "After calibration the DVL velocities differ from the camera's prediction by {} mm/s RMS \
+         (x, y, z)",
+        vec3(&d.rms_after, 1e3, 1)
+    );
+    if let Some(b) = d.rms_before {
+        let _ = write!(
+            words,
+            ", against {} mm/s with the starting parameters",
+            vec3(&b, 1e3, 1)
+        );
+    }
+    let _ = write!(
+        words,
+        ". The stated DVL noise is {} mm/s; the weighted residuals are {:.2} times what that \
+         noise explains (about 1 is right, much more means the noise is understated or the model \
+         does not fit). {} DVL samples of {} were used, with {} camera poses.",
+        vec3(&d.stated_sigma, 1e3, 1),
+        o.normalized_cost,
+        o.counts.dvl_used,
+        o.counts.dvl_samples,
+        o.counts.poses
+    );
+    put!(s, "<p>{}</p></section>\n", escape(&words));
+}
+
+/// The log's warnings, the calibration's, and one per weak verdict.
+fn all_warnings(input: &ReportInput) -> Vec<String> {
+    let o = input.outcome;
+    let mut w: Vec<String> = input
+        .dvl_stats
+        .map(|st| st.warnings.clone())
+        .unwrap_or_default();
+    w.extend(o.warnings.iter().cloned());
+    let ext = estimated(&o.method, true);
+    let tim = estimated(&o.method, false);
+    for (name, v, free) in [
+        ("rotation", &o.verdicts.rotation, ext),
+        ("lever arm", &o.verdicts.lever_arm, ext),
+        ("time offset", &o.verdicts.time_offset, tim),
+        ("velocity scale", &o.verdicts.velocity_scale, tim),
+    ] {
+        if free && !v.ok {
+            w.push(format!("{name} is weakly observable: {}", v.reason));
+        }
+    }
+    w
+}
+
+pub(super) fn warnings(s: &mut String, input: &ReportInput) {
+    section(s, "warnings", "Warnings");
+    let w = all_warnings(input);
+    if w.is_empty() {
+        s.push_str("<p>No warnings.</p>");
+    } else {
+        put!(
+            s,
+            "<p>{} warning{}:</p><ul class=\"warn\">",
+            w.len(),
+            if w.len() == 1 { "" } else { "s" }
+        );
+        for line in &w {
+            put!(s, "<li>{}</li>", escape(line));
+        }
+        s.push_str("</ul>");
+    }
+    s.push_str("</section>\n");
+}
