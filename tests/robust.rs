@@ -221,7 +221,9 @@ fn least_squares_keeps_outliers_and_says_so() {
     // The spikes are still found and reported, only not down-weighted.
     assert!(o.robust.dvl.outliers > 0, "{:?}", o.robust.dvl);
     assert!(
-        o.warnings.iter().any(|w| w.contains("kept at full weight (loss Loss::L2)")),
+        o.warnings
+            .iter()
+            .any(|w| w.contains("kept at full weight (loss Loss::L2)")),
         "{:#?}",
         o.warnings
     );
