@@ -307,3 +307,112 @@ fn the_offset_range_bounds_the_refinement_too() {
     assert_eq!(a.params, b.params);
     assert!(a.status.is_ok());
 }
+
+/// The truth with its lever arm moved by `dp` and its rotation turned by `dphi` (rad, about the
+/// DVL axes).
+fn moved(t: &CalibrationParams, dp: Vector3<f64>, dphi: Vector3<f64>) -> CalibrationParams {
+    CalibrationParams::from_r_dvl_cam(
+        so3::exp(&dphi) * t.r_dvl_cam(),
+        t.lever_arm_cam_m() + dp,
+        t.velocity_scale,
+        t.time_offset_s,
+    )
+}
+
+fn reasons(o: &CalibrationOutcome) -> String {
+    match &o.status {
+        dvlcal::calib::Status::Failed(r) => r.join("; "),
+        dvlcal::calib::Status::Ok => "ok".into(),
+    }
+}
+
+#[test]
+fn given_values_are_checked_for_their_units_and_against_the_data() {
+    let data = dataset(6, MotionKind::CalmThenRotate, 60.0);
+    let t = data.truth;
+    let fixed = |guess: CalibrationParams| CalibOptions {
+        method: Method::Fixed {
+            guess,
+            estimate_offset: true,
+        },
+        ..CalibOptions::default()
+    };
+    // Millimetres given as metres: an error that says so, with the value in metres.
+    let mm = CalibrationParams::from_r_dvl_cam(
+        t.r_dvl_cam(),
+        t.lever_arm_cam_m() * 1000.0,
+        t.velocity_scale,
+        t.time_offset_s,
+    );
+    let e = calibrate(&data.poses, &data.dvl, &fixed(mm)).expect_err("mm as m");
+    let msg = e.to_string();
+    assert!(msg.contains("the method's guess has a lever arm"), "{msg}");
+    assert!(msg.contains("millimetres given as metres"), "{msg}");
+    // The truth held: no contradiction, a usable result.
+    let o = calibrate(&data.poses, &data.dvl, &fixed(t)).expect("calibration");
+    assert!(o.contradicted.is_empty(), "{:?}", o.contradicted);
+    assert!(o.status.is_ok(), "{}", reasons(&o));
+    // A lever arm 5 cm off: the failure names the lever arm first.
+    let o = calibrate(
+        &data.poses,
+        &data.dvl,
+        &fixed(moved(&t, Vector3::new(0.05, 0.0, 0.0), Vector3::zeros())),
+    )
+    .expect("calibration");
+    let r = reasons(&o);
+    assert!(
+        r.starts_with("the data contradict the given lever arm"),
+        "{r}"
+    );
+    assert_eq!(o.contradicted[0].what, "lever arm");
+    // Freed, it returns to about the truth: +50 mm on x.
+    assert!(
+        (o.contradicted[0].moved[0] + 50.0).abs() < 10.0,
+        "{:?}",
+        o.contradicted[0]
+    );
+    // A rotation 4 degrees off: the rotation is named.
+    let o = calibrate(
+        &data.poses,
+        &data.dvl,
+        &fixed(moved(
+            &t,
+            Vector3::zeros(),
+            Vector3::new(0.0, 0.0, 4f64.to_radians()),
+        )),
+    )
+    .expect("calibration");
+    assert!(
+        o.contradicted.iter().any(|c| c.what == "rotation"),
+        "{}",
+        reasons(&o)
+    );
+    assert!(
+        reasons(&o).starts_with("the data contradict the given rotation"),
+        "{}",
+        reasons(&o)
+    );
+    // Unusual values of a guess to refine from, and a prior that says nothing, are warnings.
+    let far = moved(&t, Vector3::new(4.0, 0.0, 0.0), Vector3::zeros());
+    let mut opts = CalibOptions {
+        method: Method::Bcd(far),
+        ..CalibOptions::default()
+    };
+    opts.priors.lever_arm = Some(dvlcal::calib::prior::LeverArmPrior {
+        lever_arm_cam_m: t.lever_arm_cam_m(),
+        sigma_m: 20.0,
+    });
+    let o = calibrate(&data.poses, &data.dvl, &opts).expect("calibration");
+    assert!(
+        o.warnings
+            .iter()
+            .any(|w| w.contains("lever arm 4.") && w.contains("check its units")),
+        "{:#?}",
+        o.warnings
+    );
+    assert!(
+        o.warnings.iter().any(|w| w.contains("constrains nothing")),
+        "{:#?}",
+        o.warnings
+    );
+}

@@ -6,6 +6,7 @@
 
 use nalgebra::Vector3;
 
+use super::given::Contradiction;
 use super::joint::covariance::{AssembledJoint, joint_covariance, joint_covariance_of};
 use super::joint::problem::JointProblem;
 use super::model::{DvlObs, NPARAM, predict};
@@ -194,17 +195,27 @@ pub(crate) fn judge(
     verdicts
 }
 
-/// Whether the result can be trusted: the sanity checks of [`sanity`], and a share of outliers
-/// among the DVL reports that a few bad reports can explain.
+/// Whether the result can be trusted: no held parameter the data contradict, the sanity checks
+/// of [`sanity`], and a share of outliers among the DVL reports that a few bad reports can
+/// explain.
 pub(crate) fn status(
     p: &CalibrationParams,
     normalized_cost: f64,
     init: Option<&InitReport>,
     free: FreeParams,
     robust: &RobustSummary,
+    contradicted: &[Contradiction],
     opts: &CalibOptions,
 ) -> Status {
     let mut status = sanity(p, normalized_cost, init, free, opts);
+    if !contradicted.is_empty() {
+        // The parameter the data contradict is the cause the other reasons only guess at.
+        let mut reasons: Vec<String> = contradicted.iter().map(Contradiction::reason).collect();
+        if let Status::Failed(r) = status {
+            reasons.extend(r);
+        }
+        status = Status::Failed(reasons);
+    }
     let share = robust.outliers as f64 / robust.factors.max(1) as f64;
     if share > opts.sanity.max_outlier_fraction {
         let reason = format!(

@@ -23,6 +23,7 @@ pub mod analysis;
 pub mod closed_form;
 pub mod cosensor;
 pub mod diagnostics;
+pub mod given;
 pub mod halves;
 pub mod init;
 pub(crate) mod joint;
@@ -82,6 +83,8 @@ pub fn calibrate_against(
     opts.validate()?;
     let mut clock = StageClock::start();
     let mut warnings = Vec::new();
+    // The values the user gave (a guess, held extrinsics, priors), checked for their units.
+    given::check_given(opts, &mut warnings)?;
     // The valid DVL reports (at least ten) with their noise.
     let observed = samples::observe(dvl, opts)?;
     // 1. The co-sensor's trajectory, outlying measurements down-weighted.
@@ -227,13 +230,18 @@ pub fn calibrate_against(
     if let Some(h) = &halves {
         halves::flag_inconsistent(&mut verdicts, h);
     }
-    // ... the sanity checks, and the clock's drift.
+    // ... the held extrinsics against the data, the sanity checks, and the clock's drift.
+    let contradicted = match opts.method {
+        Method::Fixed { .. } => given::contradicted(&traj, &weighted, &idx, &params, free)?,
+        _ => Vec::new(),
+    };
     let status = diagnostics::status(
         &params,
         normalized_cost,
         init.as_ref(),
         free,
         &dvl_robust,
+        &contradicted,
         opts,
     );
     let drift = diagnostics::drift(
@@ -280,6 +288,7 @@ pub fn calibrate_against(
         halves,
         priors,
         lever_arm_from_default_prior: roles.lever_arm_from_default_prior,
+        contradicted,
         stage_seconds: clock.stages,
     })
 }

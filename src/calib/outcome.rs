@@ -5,6 +5,7 @@
 use nalgebra::Vector3;
 
 use super::closed_form::ClosedForm;
+use super::given::Contradiction;
 use super::model::{DvlObs, NPARAM};
 use super::offset::OffsetResult;
 use super::options::Method;
@@ -223,6 +224,8 @@ pub struct CalibrationOutcome {
     pub priors: Priors,
     /// Whether the lever arm came from the broad default prior rather than the data.
     pub lever_arm_from_default_prior: bool,
+    /// The held parameters the data contradict (fixed extrinsics only), most explaining first.
+    pub contradicted: Vec<Contradiction>,
     /// Wall time of each stage of the run, in order (a profile of the run; not part of the
     /// result, and different on every run).
     pub stage_seconds: Vec<(&'static str, f64)>,
