@@ -7,7 +7,7 @@ use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
 use dvlcal::io::calib_yaml::{Observability, read_calib_yaml};
-use dvlcal::vision::camera::Camchain;
+use dvlcal::io::camchain::read_camchain;
 use nalgebra::Matrix4;
 
 #[path = "tmp_common/mod.rs"]
@@ -173,8 +173,8 @@ fn stereo_outputs_are_a_kalibr_camchain_imucam_a_urdf_joint_and_a_traced_result(
 
     // The camchain-imucam file reads as the camchain it was made from.
     let imucam = tmp.path("res/cal-camchain-imucam.yaml");
-    let given = Camchain::load(&data.join("camchain.yaml")).unwrap();
-    let back = Camchain::load(&imucam).expect("the crate's camchain reader reads it");
+    let given = read_camchain(&data.join("camchain.yaml")).unwrap();
+    let back = read_camchain(&imucam).expect("the crate's camchain reader reads it");
     assert_eq!(back.cams, given.cams);
     assert_eq!(back.topics, given.topics);
     for (a, b) in back.t_cn_c0.iter().zip(&given.t_cn_c0) {

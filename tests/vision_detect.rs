@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use apriltag_sys as sys;
-use dvlcal::vision::board::TagFamily;
+use dvlcal::types::board::TagFamily;
 use dvlcal::vision::detect::{Detector, DetectorSettings, TagDetection, load_gray};
 use nalgebra::Vector2;
 

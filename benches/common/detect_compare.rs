@@ -20,8 +20,8 @@ use std::process::{Command, Stdio};
 use std::time::Instant;
 
 use dvlcal::sim::render::RenderSettings;
-use dvlcal::vision::board::Board;
-use dvlcal::vision::camera::Camchain;
+use dvlcal::types::board::Board;
+use dvlcal::types::camera::Camchain;
 use dvlcal::vision::detect::{DetectorSettings, load_gray};
 use dvlcal::vision::frames::detect_frames;
 use dvlcal::vision::images::{StereoFrame, scan_images};

@@ -23,10 +23,11 @@ use crate::camcal::types::{
     CamCalOptions, CamCalResult, CameraModel, CameraStd, CornerObs, FrameFit, FrameTags, Residual,
 };
 use crate::camcal::views::match_views;
-use crate::lie::{Se3, hat};
-use crate::vision::board::Board;
-use crate::vision::camera::{Camchain, Camera};
 use crate::error::{Error, Result};
+use crate::io::camchain::{camchain_yaml, parse_camchain};
+use crate::lie::{Se3, hat};
+use crate::types::board::Board;
+use crate::types::camera::{Camchain, Camera};
 
 /// Intrinsic unknowns per camera: `fu, fv, pu, pv` and four distortion coefficients.
 const NI: usize = 8;
@@ -513,8 +514,8 @@ pub fn calibrate_cameras(
     let std = camera_std(&state, &cov);
     let chain = state.chain();
     // What comes back from the file must be what was found.
-    let yaml = chain.to_kalibr_yaml();
-    Camchain::parse(&yaml, std::path::Path::new("<fitted camchain>")).map_err(|e| {
+    let yaml = camchain_yaml(&chain);
+    parse_camchain(&yaml, std::path::Path::new("<fitted camchain>")).map_err(|e| {
         Error::Input(format!(
             "the fitted cameras are not a valid camera chain ({e}); the views do not determine \
              the lens"
@@ -785,9 +786,9 @@ mod tests {
     use super::*;
     use crate::camcal::CameraModel;
     use crate::lie::so3;
+    use crate::rng::Rng;
     use crate::sim::camcal_views::synthetic_detections;
     use crate::sim::image_dataset::{default_board, default_stereo_camchain};
-    use crate::rng::Rng;
 
     /// Board poses in front of cam0 spread over the image, with tilts.
     fn views(n: usize, rng: &mut Rng) -> Vec<Se3> {

@@ -15,10 +15,10 @@ use opencv::core::{Mat, Point2f, Point3f, Size, TermCriteria, TermCriteria_Type,
 use opencv::prelude::*;
 
 use crate::camcal::types::{CameraModel, CornerObs};
-use crate::lie::{Se3, so3};
-use crate::vision::camera::{Camchain, Camera, Distortion};
-use crate::vision::pnp::mat3;
 use crate::error::{Error, Result};
+use crate::lie::{Se3, so3};
+use crate::types::camera::{Camchain, Camera, Distortion};
+use crate::vision::pnp::mat3;
 
 /// Views per camera given to OpenCV's calibrateCamera.
 pub const INIT_VIEWS: usize = 30;

@@ -12,10 +12,10 @@ use opencv::core::{Mat, Point2f, Point3f, Size, TermCriteria, TermCriteria_Type,
 use opencv::prelude::*;
 
 use crate::camcal::FrameTags;
-use crate::lie::{Se3, so3};
-use crate::vision::board::Board;
-use crate::vision::camera::{Camchain, Camera, Distortion};
 use crate::error::{Error, Result};
+use crate::lie::{Se3, so3};
+use crate::types::board::Board;
+use crate::types::camera::{Camchain, Camera, Distortion};
 
 /// The pixel distance between where a true and an estimated camera model send the same rays.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -410,9 +410,9 @@ pub fn opencv_stereo_reference(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::rng::Rng;
     use crate::sim::camcal_views::synthetic_detections;
     use crate::sim::image_dataset::{default_board, default_stereo_camchain};
-    use crate::rng::Rng;
 
     #[test]
     fn ray_error_of_a_camera_against_itself_is_zero() {

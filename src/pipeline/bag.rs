@@ -21,14 +21,14 @@ use crate::io::bag::{Bag, BagMessage, Serialization, Topic};
 use crate::lie::Se3;
 use crate::time::Epoch;
 use crate::types::PoseMeasurement;
-use crate::vision::board::Board;
-use crate::vision::camera::{Camchain, Camera, Distortion};
+use crate::types::camera::{Camchain, Camera, Distortion};
 use crate::vision::frames::{FrameBytes, FrameSource, FrameStream, detect_source};
 use crate::vision::images::{ImageRef, Layout, ScanStats, StereoFrame, pair_frames, raw_time};
 use crate::vision::pnp::PnpOptions;
 
 use super::cameras::{CameraCalOptions, CameraCalRun, calibrate_cameras_from_frames};
 use super::vision::{VisionOptions, VisionRun, detector_settings, posed_frames};
+use crate::io::target::read_board;
 
 /// A bag opened, with the parts its topics play.
 #[derive(Debug)]
@@ -332,7 +332,7 @@ pub fn poses_from_bag(
     opts: &VisionOptions,
 ) -> Result<VisionRun> {
     opts.validate()?;
-    let board = Board::load(target)?;
+    let board = read_board(target)?;
     if chain.cams.len() < plan.topics.len() {
         return Err(Error::Input(format!(
             "{}: {} image topics, the camera chain has {} cameras",
@@ -396,7 +396,7 @@ pub fn calibrate_cameras_from_bag(
     opts: &CameraCalOptions,
 ) -> Result<CameraCalRun> {
     opts.vision.validate()?;
-    let board = Board::load(target)?;
+    let board = read_board(target)?;
     let mut run = calibrate_cameras_from_frames(
         ob.path(),
         target,

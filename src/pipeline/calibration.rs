@@ -30,6 +30,7 @@ use crate::report::{
 
 use super::cameras::{CameraCalRun, SEPARATE_CAMERA_RECORDING};
 use super::dataset::Dataset;
+use crate::io::camchain::kalibr_entry;
 
 /// A finished calibration of a dataset: the outcome, the result file made from it, and the wall
 /// time of the calibration itself.
@@ -407,7 +408,7 @@ fn kalibr_cameras(data: &Dataset) -> Vec<KalibrCamera> {
             let n = run.chain.cams.len();
             (0..n)
                 .map(|i| KalibrCamera {
-                    entry: run.chain.kalibr_entry(i),
+                    entry: kalibr_entry(&run.chain, i),
                     t_cn_c0: run.chain.t_cn_c0[i].to_matrix(),
                     overlaps: (0..n).filter(|&j| j != i).collect(),
                 })

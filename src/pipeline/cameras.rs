@@ -15,12 +15,14 @@ use crate::camcal::{CamCalOptions, CamCalResult, FrameTags, calibrate_cameras};
 use crate::error::{Error, Result};
 use crate::io::write_atomic;
 use crate::report::{CamCalReportInput, render_camcal_html};
-use crate::vision::board::Board;
-use crate::vision::camera::Camchain;
+use crate::types::board::Board;
+use crate::types::camera::Camchain;
 use crate::vision::frames::{DetectStats, FrameSource, detect_source_tags};
 use crate::vision::images::{ScanStats, StereoFrame, camera_count, scan_images};
 
 use super::vision::{VisionOptions, detector_settings};
+use crate::io::camchain::camchain_yaml;
+use crate::io::target::read_board;
 
 /// What to do when a camera calibration made from a DVL recording is weak: a recording made for
 /// the DVL rotates less than one made for the cameras.
@@ -124,7 +126,7 @@ pub fn calibrate_cameras_from_images(
     opts: &CameraCalOptions,
 ) -> Result<CameraCalRun> {
     opts.vision.validate()?;
-    let board = Board::load(target)?;
+    let board = read_board(target)?;
     let cams = camera_count(images);
     if cams == 0 {
         return Err(Error::dataset(
@@ -246,7 +248,7 @@ impl CameraCalRun {
                 .collect::<Vec<_>>()
                 .join(", ")
         };
-        let base = r.chain.to_kalibr_yaml();
+        let base = camchain_yaml(&r.chain);
         let mut cam = None::<usize>;
         let flush = |out: &mut String, cam: Option<usize>| {
             let Some(i) = cam else { return };

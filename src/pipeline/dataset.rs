@@ -214,13 +214,13 @@ impl Dataset {
                     let tol_ns = (vision.pair_tolerance_ms * 1e6).round() as i64;
                     let plan = plan_frames(&ob, tol_ns)?;
                     let chain = match &files.camchain {
-                        Some(c) => crate::vision::camera::Camchain::load(c)?,
+                        Some(c) => crate::io::camchain::read_camchain(c)?,
                         None => match (plan.sizes.len(), camera_from_info(&ob, 0)?) {
                             (1, Some(cam)) => {
                                 notes.push(
                                     "no camchain: the camera model is the bag's CameraInfo".into(),
                                 );
-                                crate::vision::camera::Camchain::mono(cam)
+                                crate::types::camera::Camchain::mono(cam)
                             }
                             _ => {
                                 let opts = CameraCalOptions {

@@ -5,13 +5,15 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use crate::error::{Error, Result};
+use crate::io::camchain::read_camchain;
 pub use crate::io::frames_csv::frames_csv_path;
 use crate::io::frames_csv::{FrameRow, format_frames_csv};
+use crate::io::target::read_board;
 use crate::io::tum::as_read_back;
 use crate::time::Epoch;
 use crate::types::PoseMeasurement;
-use crate::vision::board::{Board, TagPrint};
-use crate::vision::camera::Camchain;
+use crate::types::board::{Board, TagPrint};
+use crate::types::camera::Camchain;
 use crate::vision::detect::DetectorSettings;
 use crate::vision::frames::{DetectStats, FrameResult, detect_frames};
 use crate::vision::images::{Layout, ScanStats, raw_time, scan_images};
@@ -108,7 +110,7 @@ pub fn poses_from_images(
     opts: &VisionOptions,
 ) -> Result<VisionRun> {
     opts.validate()?;
-    let chain = Camchain::load(camchain)?;
+    let chain = read_camchain(camchain)?;
     poses_from_images_with_chain(images, chain, target, opts)
 }
 
@@ -121,7 +123,7 @@ pub fn poses_from_images_with_chain(
     opts: &VisionOptions,
 ) -> Result<VisionRun> {
     opts.validate()?;
-    let board = Board::load(target)?;
+    let board = read_board(target)?;
     let tol_ns = (opts.pair_tolerance_ms * 1e6).round() as i64;
     let (frames, scan) = scan_images(images, chain.cams.len(), tol_ns)?;
     let det = detector_settings(&board, opts);

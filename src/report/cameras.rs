@@ -32,7 +32,7 @@ use crate::camcal::quality::{MIN_COVERED_FRACTION, MIN_RADIAL_REACH, empty_regio
 use crate::camcal::{CamCalResult, Coverage, FrameFit, Residual};
 use crate::error::Result;
 use crate::lie::{Se3, so3};
-use crate::vision::camera::{Camchain, Camera, Distortion};
+use crate::types::camera::{Camchain, Camera, Distortion};
 
 /// The id of every section of the camera calibration report, in page order.
 pub const CAMCAL_SECTION_IDS: &[&str] = &[

@@ -34,14 +34,15 @@ use std::path::Path;
 use apriltag_sys as sys;
 use nalgebra::Vector2;
 
-use crate::vision::camera::Camera;
-use crate::vision::family::{Destroy, FamilyCodes, TagFamily, family_codes};
+use crate::error::{Error, Result};
+use crate::types::board::TagFamily;
+use crate::types::camera::Camera;
+use crate::vision::family::{Destroy, FamilyCodes, family_codes, ffi};
 use crate::vision::kalibr::{
     KALIBR_BORDER_BITS, KALIBR_CELLS_ACROSS, coarse_fit, decode_quad, grow, has_light_code_cell,
     max_decimate, max3_decimate, quads, saddle_point, widen_border,
 };
 use crate::vision::refine::{quad_centre, refine_corners};
-use crate::error::{Error, Result};
 
 /// Settings of the AprilTag detector. `Default` gives the library's defaults and at most one
 /// corrected bit.
@@ -81,7 +82,7 @@ pub struct DetectorSettings {
     /// board pose uses.
     pub board_ids: Option<Vec<u32>>,
     /// The board in view is printed the way Kalibr prints an aprilgrid (a Kalibr target YAML,
-    /// [`crate::vision::board::TagPrint::Kalibr`]). With `board_ids` and `kalibr_layout`, the
+    /// [`crate::types::board::TagPrint::Kalibr`]). With `board_ids` and `kalibr_layout`, the
     /// Kalibr pass on the brightened half image runs first, and libapriltag's own detection of
     /// the whole image only when that pass leaves ids of the board unfound (see
     /// `vision::kalibr`). Off by default: without it the order suits any board.
@@ -196,7 +197,7 @@ impl Detector {
     /// A detector with these settings.
     pub fn new(s: &DetectorSettings) -> Result<Detector> {
         s.validate()?;
-        let (create, destroy_family) = s.family.ffi();
+        let (create, destroy_family) = ffi(s.family);
         // SAFETY: plain constructors of the C library; null results are checked below.
         let tf = unsafe { create() };
         if tf.is_null() {

@@ -105,8 +105,9 @@ fn for_each_frame<R: Send>(
                             let name = f.images.get(c).cloned().flatten()?;
                             let b = bytes.get(c).and_then(|b| b.as_deref());
                             Some(match b {
-                                Some(b) => decode(c, b)
-                                    .map_err(|e| crate::error::Error::Input(format!("{name}: {e}"))),
+                                Some(b) => decode(c, b).map_err(|e| {
+                                    crate::error::Error::Input(format!("{name}: {e}"))
+                                }),
                                 None => Err(crate::error::Error::Input(format!(
                                     "{name}: not delivered by the stream"
                                 ))),
@@ -117,9 +118,9 @@ fn for_each_frame<R: Send>(
                         (i, r)
                     })
                     .collect();
-                let produced = producer
-                    .join()
-                    .unwrap_or_else(|_| Err(crate::error::Error::Input("the image reader failed".into())));
+                let produced = producer.join().unwrap_or_else(|_| {
+                    Err(crate::error::Error::Input("the image reader failed".into()))
+                });
                 (done, produced)
             });
             produced?;
@@ -157,8 +158,8 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
 
 use crate::error::Result;
-use crate::vision::board::Board;
-use crate::vision::camera::{Camchain, Camera};
+use crate::types::board::Board;
+use crate::types::camera::{Camchain, Camera};
 use crate::vision::detect::{Detector, DetectorSettings, TagDetection, load_gray};
 use crate::vision::images::{ImageRef, StereoFrame};
 use crate::vision::pnp::{FramePose, PnpOptions, PoseOutcome, solve_stereo};

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use dvlcal::vision::board::TagFamily;
+use dvlcal::types::board::TagFamily;
 use dvlcal::vision::detect::{Detector, DetectorSettings, load_gray};
 
 #[derive(Args, Debug)]
