@@ -408,7 +408,7 @@ fn time_stamps_in_the_wrong_unit_are_pointed_out() {
 
 #[test]
 fn image_names_in_other_units_are_read_as_such_and_said() {
-    use dvlcal::vision::images::scan_images;
+    use dvlcal::io::images::scan_images;
     let tmp = tmp_common::TmpDir::new("hostile-names");
     let d = &tmp.0;
     let touch = |p: std::path::PathBuf| {
@@ -476,7 +476,7 @@ fn image_names_in_other_units_are_read_as_such_and_said() {
 
 #[test]
 fn a_jpeg_cut_short_is_refused_not_half_decoded() {
-    use dvlcal::vision::detect::load_gray;
+    use dvlcal::io::image::load_gray;
     let tmp = tmp_common::TmpDir::new("hostile-jpeg");
     let img = image::GrayImage::from_fn(160, 120, |x, y| {
         image::Luma([((x * 7 + y * 3) % 256) as u8])

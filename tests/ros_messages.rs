@@ -346,7 +346,7 @@ fn compressed_images_decode_as_image_files() {
         let m: CompressedImage = decode(&image_fixture(name, Ros1), Ros1).unwrap();
         assert_eq!(m.format, format);
         // The same bytes as an image file of a dataset folder.
-        let file = dvlcal::vision::detect::decode_gray(&m.data, Path::new("frame")).unwrap();
+        let file = dvlcal::io::image::decode_gray(&m.data, Path::new("frame")).unwrap();
         assert_eq!(g, file, "{name}");
         assert_eq!(compressed_to_gray(&m).unwrap(), g, "{name}");
         if name == "png" {

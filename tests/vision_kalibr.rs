@@ -11,13 +11,14 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use dvlcal::io::camchain::read_camchain;
+use dvlcal::io::image::load_gray;
 use dvlcal::io::target::{board_yaml, parse_board, read_board};
 use dvlcal::lie::Se3;
 use dvlcal::rng::Rng;
 use dvlcal::sim::render::{RenderSettings, render};
 use dvlcal::types::board::{Board, TagFamily, TagPrint};
 use dvlcal::types::camera::{Camera, Distortion};
-use dvlcal::vision::detect::{Detector, DetectorSettings, TagDetection, load_gray};
+use dvlcal::vision::detect::{Detector, DetectorSettings, TagDetection};
 use nalgebra::{DMatrix, DVector, Matrix3, Vector2, Vector3};
 
 fn fixtures() -> PathBuf {
@@ -492,8 +493,8 @@ fn sequence_errors(
     name: &str,
     det: impl Fn(&Board) -> DetectorSettings,
 ) -> (f64, f64, usize) {
+    use dvlcal::io::images::scan_images;
     use dvlcal::vision::frames::detect_frames;
-    use dvlcal::vision::images::scan_images;
     use dvlcal::vision::pnp::PnpOptions;
     let d = vision_seq::fresh_dir(name);
     let (truth, _) = vision_seq::write_sequence_of(&d, n, &RenderSettings::default(), 11, board);

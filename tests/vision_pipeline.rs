@@ -7,12 +7,12 @@ use std::path::Path;
 use std::process::Command;
 
 use dvlcal::io::camchain::read_camchain;
+use dvlcal::io::images::{Layout, scan_images};
 use dvlcal::io::target::read_board;
 use dvlcal::lie::Se3;
 use dvlcal::sim::render::RenderSettings;
 use dvlcal::vision::detect::DetectorSettings;
 use dvlcal::vision::frames::{FrameStatus, detect_frames, detect_poses};
-use dvlcal::vision::images::{Layout, scan_images};
 use dvlcal::vision::pnp::PnpOptions;
 use vision_seq::*;
 

@@ -5,6 +5,8 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use dvlcal::io::camchain::read_camchain;
+use dvlcal::io::image::load_gray;
+use dvlcal::io::images::scan_images;
 use dvlcal::io::target::read_board;
 use dvlcal::lie::Se3;
 use dvlcal::sim::dataset::{MotionKind, SimConfig, simulate};
@@ -12,9 +14,8 @@ use dvlcal::sim::image_dataset::{
     DEFAULT_BOARD_DISTANCE_M, board_centre, board_facing, board_fully_visible, board_in_cameras,
     default_board, default_stereo_camchain,
 };
-use dvlcal::vision::detect::{Detector, DetectorSettings, load_gray};
+use dvlcal::vision::detect::{Detector, DetectorSettings};
 use dvlcal::vision::frames::detect_poses;
-use dvlcal::vision::images::scan_images;
 use dvlcal::vision::pnp::PnpOptions;
 
 struct TempDir(PathBuf);

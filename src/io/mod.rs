@@ -11,6 +11,8 @@ pub mod dataset;
 pub mod dvl;
 pub mod exports;
 pub mod frames_csv;
+pub mod image;
+pub mod images;
 pub mod provenance;
 pub mod target;
 pub mod times;

@@ -18,12 +18,12 @@ use crate::error::{Error, Result};
 use crate::io::bag::cdr;
 use crate::io::bag::roles::{self, BagOptions, BagTime, Kind, Roles};
 use crate::io::bag::{Bag, BagMessage, Serialization, Topic};
+use crate::io::images::{ImageRef, Layout, ScanStats, StereoFrame, pair_frames, raw_time};
 use crate::lie::Se3;
 use crate::time::Epoch;
 use crate::types::PoseMeasurement;
 use crate::types::camera::{Camchain, Camera, Distortion};
 use crate::vision::frames::{FrameBytes, FrameSource, FrameStream, detect_source};
-use crate::vision::images::{ImageRef, Layout, ScanStats, StereoFrame, pair_frames, raw_time};
 use crate::vision::pnp::PnpOptions;
 
 use super::cameras::{CameraCalOptions, CameraCalRun, calibrate_cameras_from_frames};

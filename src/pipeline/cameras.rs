@@ -13,12 +13,12 @@ use std::time::Instant;
 
 use crate::camcal::{CamCalOptions, CamCalResult, FrameTags, calibrate_cameras};
 use crate::error::{Error, Result};
+use crate::io::images::{ScanStats, StereoFrame, camera_count, image_sizes, scan_images};
 use crate::io::write_atomic;
 use crate::report::{CamCalReportInput, render_camcal_html};
 use crate::types::board::Board;
 use crate::types::camera::Camchain;
 use crate::vision::frames::{DetectStats, FrameSource, detect_source_tags};
-use crate::vision::images::{ScanStats, StereoFrame, camera_count, scan_images};
 
 use super::vision::{VisionOptions, detector_settings};
 use crate::io::camchain::camchain_yaml;
@@ -73,29 +73,6 @@ pub struct CameraCalRun {
     pub seconds_detect: f64,
     /// Wall time of the adjustment (all passes), s.
     pub seconds_fit: f64,
-}
-
-/// The image size of each camera, read from its first image that opens.
-fn image_sizes(frames: &[StereoFrame], cams: usize) -> Result<Vec<(u32, u32)>> {
-    (0..cams)
-        .map(|c| {
-            let mut last_err = None;
-            for p in frames
-                .iter()
-                .filter_map(|f| f.images.get(c).cloned().flatten())
-                .filter_map(|r| r.path().map(Path::to_path_buf))
-            {
-                match image::image_dimensions(&p) {
-                    Ok(d) => return Ok(d),
-                    Err(e) => last_err = Some(format!("{}: {e}", p.display())),
-                }
-            }
-            Err(Error::Input(format!(
-                "cam{c}: no readable image{}",
-                last_err.map_or(String::new(), |e| format!(" (last: {e})"))
-            )))
-        })
-        .collect()
 }
 
 fn frame_tags(

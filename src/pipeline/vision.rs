@@ -8,6 +8,7 @@ use crate::error::{Error, Result};
 use crate::io::camchain::read_camchain;
 pub use crate::io::frames_csv::frames_csv_path;
 use crate::io::frames_csv::{FrameRow, format_frames_csv};
+use crate::io::images::{Layout, ScanStats, raw_time, scan_images};
 use crate::io::target::read_board;
 use crate::io::tum::as_read_back;
 use crate::time::Epoch;
@@ -16,7 +17,6 @@ use crate::types::board::{Board, TagPrint};
 use crate::types::camera::Camchain;
 use crate::vision::detect::DetectorSettings;
 use crate::vision::frames::{DetectStats, FrameResult, detect_frames};
-use crate::vision::images::{Layout, ScanStats, raw_time, scan_images};
 use crate::vision::pnp::PnpOptions;
 
 /// Detection and PnP settings (the options `dvlcal detect` and `dvlcal calibrate` share).

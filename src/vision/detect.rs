@@ -29,7 +29,6 @@
 //!   on the same tags. `tests/vision_detect.rs` and `tests/vision_render.rs` measure both.
 
 use std::os::raw::c_int;
-use std::path::Path;
 
 use apriltag_sys as sys;
 use nalgebra::Vector2;
@@ -643,39 +642,4 @@ impl std::fmt::Debug for Detector {
             .field("settings", &self.settings)
             .finish()
     }
-}
-
-/// Reads an image file (PNG, JPEG, PGM/PPM; the format is guessed from the content) as 8-bit grey.
-/// Colour images are converted to luma, 16-bit ones scaled to 8 bits. A JPEG cut short (no
-/// end-of-image marker: a copy or a write that did not finish) is refused rather than decoded
-/// half grey. Errors name the file.
-pub fn load_gray(path: &Path) -> Result<image::GrayImage> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    decode_gray(&bytes, path)
-}
-
-/// Decodes image bytes as [`load_gray`] does; `path` names the image in errors.
-pub fn decode_gray(bytes: &[u8], path: &Path) -> Result<image::GrayImage> {
-    if bytes.starts_with(&[0xFF, 0xD8]) && !jpeg_complete(bytes) {
-        return Err(Error::Input(format!(
-            "{}: the JPEG is cut short (no end-of-image marker after {} bytes): the file was \
-             not written or copied whole",
-            path.display(),
-            bytes.len()
-        )));
-    }
-    let img = image::load_from_memory(bytes)
-        .map_err(|e| Error::Input(format!("{}: cannot decode the image: {e}", path.display())))?;
-    Ok(img.into_luma8())
-}
-
-/// Whether a JPEG ends with its end-of-image marker (`FF D9`), allowing the zero or `FF`
-/// padding some cameras write after it.
-fn jpeg_complete(bytes: &[u8]) -> bool {
-    let end = bytes
-        .iter()
-        .rposition(|&b| b != 0x00 && b != 0xFF)
-        .map_or(0, |k| k + 1);
-    // The marker's D9 is the last byte that is not padding, preceded by FF.
-    end >= 2 && bytes[end - 1] == 0xD9 && bytes[end - 2] == 0xFF
 }

@@ -158,10 +158,11 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
 
 use crate::error::Result;
+use crate::io::image::load_gray;
+use crate::io::images::{ImageRef, StereoFrame};
 use crate::types::board::Board;
 use crate::types::camera::{Camchain, Camera};
-use crate::vision::detect::{Detector, DetectorSettings, TagDetection, load_gray};
-use crate::vision::images::{ImageRef, StereoFrame};
+use crate::vision::detect::{Detector, DetectorSettings, TagDetection};
 use crate::vision::pnp::{FramePose, PnpOptions, PoseOutcome, solve_stereo};
 
 /// What became of a frame.

@@ -5,7 +5,6 @@ pub mod board_svg;
 pub mod detect;
 pub mod family;
 pub mod frames;
-pub mod images;
 pub mod kalibr;
 pub mod pnp;
 pub(crate) mod refine;
