@@ -22,9 +22,11 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use dvlcal::io::bag::frames::plan_frames;
+use dvlcal::io::bag::open::OpenBag;
 use dvlcal::io::bag::roles::BagOptions;
 use dvlcal::io::camchain::read_camchain;
-use dvlcal::pipeline::{OpenBag, VisionOptions, plan_frames, poses_from_bag, poses_from_images};
+use dvlcal::pipeline::{VisionOptions, poses_from_bag, poses_from_images};
 
 fn sample(rel: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))

@@ -309,8 +309,9 @@ fn zero_header_stamps_fall_back_to_the_record_time_with_a_warning() {
 
 #[test]
 fn tf_poses_need_the_child_frame_named() {
+    use dvlcal::io::bag::open::OpenBag;
+    use dvlcal::io::bag::poses::read_bag_poses;
     use dvlcal::io::bag::roles::BagOptions;
-    use dvlcal::pipeline::{OpenBag, read_bag_poses};
     let path = fixture("tf_poses.mcap");
     let ob = OpenBag::open(&path, &BagOptions::default()).unwrap();
     let e = read_bag_poses(&ob).unwrap_err().to_string();
@@ -330,8 +331,10 @@ fn tf_poses_need_the_child_frame_named() {
 
 #[test]
 fn unknown_image_encodings_are_counted_and_named_never_reinterpreted() {
+    use dvlcal::io::bag::frames::plan_frames;
+    use dvlcal::io::bag::open::OpenBag;
     use dvlcal::io::bag::roles::BagOptions;
-    use dvlcal::pipeline::{OpenBag, VisionOptions, plan_frames, poses_from_bag};
+    use dvlcal::pipeline::{VisionOptions, poses_from_bag};
     use dvlcal::types::camera::{Camchain, Camera, Distortion};
     let ob = OpenBag::open(&fixture("bad_encoding.mcap"), &BagOptions::default()).unwrap();
     let plan = plan_frames(&ob, 2_000_000).unwrap();
@@ -438,8 +441,9 @@ fn a_bag_cut_short_gives_the_frames_before_the_cut_and_says_so() {
 
 #[test]
 fn camera_info_gives_a_single_cameras_model() {
+    use dvlcal::io::bag::camera_info::camera_from_info;
+    use dvlcal::io::bag::open::OpenBag;
     use dvlcal::io::bag::roles::BagOptions;
-    use dvlcal::pipeline::{OpenBag, camera_from_info};
 
     let opts = BagOptions {
         image_topics: Some(vec!["/cam1/image_raw".into()]),

@@ -9,10 +9,12 @@ use crate::io::dvl::{DvlLog, DvlReadOptions, read_dvl_log};
 use crate::io::frames_csv::{frames_csv_path, read_tum_with_covariances};
 use crate::types::PoseMeasurement;
 
-use super::bag::{
-    OpenBag, calibrate_cameras_from_bag, camera_from_info, plan_frames, poses_from_bag,
-    read_bag_poses,
-};
+use crate::io::bag::camera_info::camera_from_info;
+use crate::io::bag::frames::plan_frames;
+use crate::io::bag::open::OpenBag;
+use crate::io::bag::poses::read_bag_poses;
+
+use super::bag::{calibrate_cameras_from_bag, poses_from_bag};
 use super::cameras::{CameraCalOptions, CameraCalRun, calibrate_cameras_from_images};
 use super::vision::{VisionOptions, VisionRun, poses_from_images, poses_from_images_with_chain};
 

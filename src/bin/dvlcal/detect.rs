@@ -6,12 +6,12 @@ use std::path::PathBuf;
 use anyhow::Result;
 use clap::Args;
 
+use dvlcal::io::bag::frames::plan_frames;
+use dvlcal::io::bag::open::OpenBag;
 use dvlcal::io::camchain::read_camchain;
 use dvlcal::io::tum::write_tum;
 use dvlcal::io::write_atomic;
-use dvlcal::pipeline::{
-    OpenBag, VisionOptions, frames_csv_path, plan_frames, poses_from_bag, poses_from_images,
-};
+use dvlcal::pipeline::{VisionOptions, frames_csv_path, poses_from_bag, poses_from_images};
 
 /// Detection settings shared by every command that reads images.
 #[derive(Args, Debug, Clone)]
