@@ -10,6 +10,7 @@ pub mod camchain;
 pub mod dataset;
 pub mod dvl;
 pub mod exports;
+pub mod frames;
 pub mod frames_csv;
 pub mod image;
 pub mod images;

@@ -14,9 +14,12 @@ use crate::io::bag::frames::plan_frames;
 use crate::io::bag::open::OpenBag;
 use crate::io::bag::poses::read_bag_poses;
 
-use super::bag::{calibrate_cameras_from_bag, poses_from_bag};
-use super::cameras::{CameraCalOptions, CameraCalRun, calibrate_cameras_from_images};
-use super::vision::{VisionOptions, VisionRun, poses_from_images, poses_from_images_with_chain};
+use super::cameras::{
+    CameraCalOptions, CameraCalRun, calibrate_cameras_from_bag, calibrate_cameras_from_images,
+};
+use super::vision::{
+    VisionOptions, VisionRun, poses_from_bag, poses_from_images, poses_from_images_with_chain,
+};
 
 /// The files of a dataset: found in `dir` with `given` taking precedence, or, without a folder,
 /// exactly the files `given` names (a DVL log, and poses or images with a target and, optionally,

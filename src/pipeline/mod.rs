@@ -24,7 +24,6 @@
 //!
 //! Long steps take a worker-thread count; results never depend on it.
 
-mod bag;
 mod calibration;
 mod cameras;
 mod dataset;
@@ -32,14 +31,14 @@ mod evaluate;
 mod simulate;
 mod vision;
 
-pub use bag::{calibrate_cameras_from_bag, frame_source, poses_from_bag};
 pub use calibration::{
     CalibrationRun, CameraOutputs, OutputOptions, ResultPaths, calibrate_dataset,
     calibration_context, dataset_inputs, frame_names, method_name, result_file, sibling,
     write_failure_report, write_report, write_results,
 };
 pub use cameras::{
-    CameraCalOptions, CameraCalRun, SEPARATE_CAMERA_RECORDING, calibrate_cameras_from_images,
+    CameraCalOptions, CameraCalRun, SEPARATE_CAMERA_RECORDING, calibrate_cameras_from_bag,
+    calibrate_cameras_from_images,
 };
 pub use dataset::{Dataset, dataset_files, describe_files};
 pub use evaluate::{
@@ -48,7 +47,7 @@ pub use evaluate::{
 pub use simulate::{ImageRequest, SimulateRequest, SimulatedRecording, write_simulated_dataset};
 pub use vision::{
     MAX_REPROJECTION_RMS_PX, VisionOptions, VisionRun, detector_settings, frames_csv_path,
-    posed_frames, poses_from_images, poses_from_images_with_chain,
+    posed_frames, poses_from_bag, poses_from_images, poses_from_images_with_chain,
 };
 
 pub use crate::parallel::worker_pool;
