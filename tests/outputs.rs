@@ -316,32 +316,17 @@ fn documented_info_keys() -> BTreeSet<String> {
         .collect()
 }
 
-/// Every key the result writer can put into `info`, read from its source: the literal keys of
-/// `put(...)` and `extra.insert(...)` in src/pipeline/calibration.rs, and the named fields.
+/// Every key the result writer can put into `info`: the named fields and every figure of
+/// `RunFigures`.
 fn written_info_keys() -> BTreeSet<String> {
-    let src = std::fs::read_to_string(
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("src/pipeline/calibration.rs"),
-    )
-    .unwrap();
     let mut keys: BTreeSet<String> = ["method", "iterations", "warnings", "notes"]
         .map(String::from)
         .into();
-    for pat in ["put(", "extra.insert("] {
-        for (i, _) in src.match_indices(pat) {
-            // `put(` itself, not the end of another name (`refuse_input(`).
-            let before = src[..i].chars().next_back().unwrap_or(' ');
-            if before.is_alphanumeric() || before == '_' {
-                continue;
-            }
-            let rest = src[i + pat.len()..].trim_start();
-            if let Some(r) = rest.strip_prefix('"') {
-                let key: String = r.chars().take_while(|c| *c != '"').collect();
-                if !key.is_empty() && !key.contains(' ') {
-                    keys.insert(key);
-                }
-            }
-        }
-    }
+    keys.extend(
+        dvlcal::io::calib_yaml::RunFigures::KEYS
+            .iter()
+            .map(|k| k.to_string()),
+    );
     keys
 }
 
