@@ -4,7 +4,6 @@
 use std::path::Path;
 
 use dvlcal::io::target::parse_board;
-use dvlcal::types::board::Board;
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {

@@ -4,7 +4,6 @@
 use std::path::Path;
 
 use dvlcal::io::camchain::parse_camchain;
-use dvlcal::types::camera::Camchain;
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
