@@ -1,8 +1,9 @@
 //! One source of stereo frames for the detection workers, whatever holds the images: a folder
 //! of image files ([`crate::io::images`]) or the image topics of a bag
-//! ([`crate::io::bag::frames`]). The frames are known before any image is read; [`FrameSource::read`]
-//! then hands each frame's images over as the bytes stored (a file, a serialised message) with
-//! their names, in one pass, and [`decode`] turns each into the grey image the detector takes.
+//! ([`crate::io::bag::frames`]). The frames are known before any image is read;
+//! [`FrameSource::read`] then hands each frame's images over as the bytes stored (a file, a
+//! serialised message) with their names, in one pass, and [`decode`] turns each into the grey
+//! image the detector takes.
 //!
 //! A folder's files are read in frame order. A bag is opened again and read once in record
 //! order: each frame's messages are gathered as they pass and the frame is handed over as soon

@@ -58,7 +58,7 @@ impl Default for CameraCalOptions {
 /// What a camera calibration run found.
 #[derive(Debug)]
 pub struct CameraCalRun {
-    /// The image folder.
+    /// The image folder or bag.
     pub images: PathBuf,
     /// The board file.
     pub target: PathBuf,

@@ -84,7 +84,7 @@ pub const MAX_REPROJECTION_RMS_PX: f64 = 3.0;
 /// Everything a run of the image pipeline produced.
 #[derive(Debug)]
 pub struct VisionRun {
-    /// The image folder.
+    /// The image folder or bag.
     pub images: PathBuf,
     /// The camera chain the poses were solved with.
     pub chain: Camchain,
