@@ -16,6 +16,7 @@ use crate::io::calib_yaml::{
     CalibrationFile, CalibrationInfo, CalibrationStd, Observability, ObservabilityFlags,
     ResultStatus, RunFigures, WorstResidual, write_calib_yaml,
 };
+use crate::io::camchain::kalibr_entry;
 use crate::io::dataset::DatasetFiles;
 use crate::io::dvl::DvlLog;
 use crate::io::exports::{
@@ -29,7 +30,6 @@ use crate::report::{
 
 use super::cameras::{CameraCalRun, SEPARATE_CAMERA_RECORDING};
 use super::dataset::Dataset;
-use crate::io::camchain::kalibr_entry;
 
 /// A finished calibration of a dataset: the outcome, the result file made from it, and the wall
 /// time of the calibration itself.

@@ -13,8 +13,12 @@ use std::time::Instant;
 
 use crate::camcal::{CamCalOptions, CamCalResult, FrameTags, calibrate_cameras};
 use crate::error::{Error, Result};
+use crate::io::bag::frames::BagFrames;
+use crate::io::bag::open::OpenBag;
+use crate::io::camchain::camchain_yaml;
 use crate::io::frames::FrameSource;
 use crate::io::images::{ScanStats, StereoFrame, camera_count, image_sizes, scan_images};
+use crate::io::target::read_board;
 use crate::io::write_atomic;
 use crate::report::{CamCalReportInput, render_camcal_html};
 use crate::types::board::Board;
@@ -22,10 +26,6 @@ use crate::types::camera::Camchain;
 use crate::vision::frames::{DetectStats, detect_source_tags};
 
 use super::vision::{VisionOptions, detector_settings};
-use crate::io::bag::frames::BagFrames;
-use crate::io::bag::open::OpenBag;
-use crate::io::camchain::camchain_yaml;
-use crate::io::target::read_board;
 
 /// What to do when a camera calibration made from a DVL recording is weak: a recording made for
 /// the DVL rotates less than one made for the cameras.

@@ -4,15 +4,16 @@
 use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result};
-use crate::io::dataset::{DatasetFiles, DatasetOverrides, discover};
-use crate::io::dvl::{DvlLog, DvlReadOptions, read_dvl_log};
-use crate::io::frames_csv::{frames_csv_path, read_tum_with_covariances};
-use crate::types::PoseMeasurement;
-
 use crate::io::bag::camera_info::camera_from_info;
 use crate::io::bag::frames::plan_frames;
 use crate::io::bag::open::OpenBag;
 use crate::io::bag::poses::read_bag_poses;
+use crate::io::camchain::read_camchain;
+use crate::io::dataset::{DatasetFiles, DatasetOverrides, discover};
+use crate::io::dvl::{DvlLog, DvlReadOptions, read_dvl_log};
+use crate::io::frames_csv::{frames_csv_path, read_tum_with_covariances};
+use crate::types::PoseMeasurement;
+use crate::types::camera::Camchain;
 
 use super::cameras::{
     CameraCalOptions, CameraCalRun, calibrate_cameras_from_bag, calibrate_cameras_from_images,
@@ -219,13 +220,13 @@ impl Dataset {
                     let tol_ns = (vision.pair_tolerance_ms * 1e6).round() as i64;
                     let plan = plan_frames(&ob, tol_ns)?;
                     let chain = match &files.camchain {
-                        Some(c) => crate::io::camchain::read_camchain(c)?,
+                        Some(c) => read_camchain(c)?,
                         None => match (plan.sizes.len(), camera_from_info(&ob, 0)?) {
                             (1, Some(cam)) => {
                                 notes.push(
                                     "no camchain: the camera model is the bag's CameraInfo".into(),
                                 );
-                                crate::types::camera::Camchain::mono(cam)
+                                Camchain::mono(cam)
                             }
                             _ => {
                                 let opts = CameraCalOptions {
