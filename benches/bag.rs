@@ -22,9 +22,11 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use dvlcal::io::bag::frames::plan_frames;
+use dvlcal::io::bag::open::OpenBag;
 use dvlcal::io::bag::roles::BagOptions;
-use dvlcal::pipeline::{OpenBag, VisionOptions, plan_frames, poses_from_bag, poses_from_images};
-use dvlcal::vision::camera::Camchain;
+use dvlcal::io::camchain::read_camchain;
+use dvlcal::pipeline::{VisionOptions, poses_from_bag, poses_from_images};
 
 fn sample(rel: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -61,7 +63,7 @@ fn run_bag(bag: &Path, threads: usize) -> (usize, usize, f64) {
     let ob = OpenBag::open(bag, &BagOptions::default()).expect("open bag");
     let o = opts(threads);
     let plan = plan_frames(&ob, (o.pair_tolerance_ms * 1e6) as i64).expect("plan");
-    let chain = Camchain::load(&sample("stereo/camchain.yaml")).expect("camchain");
+    let chain = read_camchain(&sample("stereo/camchain.yaml")).expect("camchain");
     let run = poses_from_bag(&ob, &plan, chain, &sample("stereo/target.yaml"), &o).expect("run");
     (
         run.stats.frames,

@@ -22,7 +22,7 @@ use dvlcal::eval::camera::{
     baseline_error, extrinsic_error, opencv_stereo_reference, ray_pixel_error,
 };
 use dvlcal::sim::image_dataset::{default_board, default_stereo_camchain};
-use dvlcal::vision::camera::Camchain;
+use dvlcal::types::camera::Camchain;
 
 struct Row {
     ray: [f64; 3],

@@ -16,8 +16,9 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 use detect_compare::{DECIMATE, Frames, Print, Row, best_of, have_cli, pipeline_settings};
-use dvlcal::vision::board::Board;
-use dvlcal::vision::detect::{Detector, load_gray};
+use dvlcal::io::image::load_gray;
+use dvlcal::types::board::Board;
+use dvlcal::vision::detect::Detector;
 
 fn main() {
     let n: usize = std::env::args()

@@ -92,12 +92,14 @@
 //! The modules follow the data (`docs/architecture.md` has the picture and the layering rules,
 //! `docs/conventions.md` the frames, quaternions, twists and times):
 //! - foundation: [`error`], [`time`], [`lie`] (SO(3), SE(3)), [`types`] (values passed between
-//!   stages);
-//! - stages: [`io`] (every format in and out, nothing estimated), [`vision`] (AprilTag boards,
-//!   cameras, detection, stereo PnP), [`trajectory`] (the white-noise-on-jerk GP on SE(3));
-//! - [`calib`] (the UIC estimator), [`camcal`] (camera intrinsics and stereo extrinsics from
-//!   board images), [`sim`] (recordings with known truth), [`eval`] (accuracy
-//!   and odometry checks), [`report`] (the HTML report);
+//!   stages, the camera model and the board geometry);
+//! - [`io`] (every format in and out, nothing estimated), [`trajectory`] (the
+//!   white-noise-on-jerk GP on SE(3));
+//! - [`vision`] (AprilTag detection and stereo PnP on what `io` reads), [`calib`] (the UIC
+//!   estimator);
+//! - [`camcal`] (camera intrinsics and stereo extrinsics from board images), [`sim`]
+//!   (recordings with known truth);
+//! - [`eval`] (accuracy and odometry checks), [`report`] (the HTML report);
 //! - [`pipeline`]: the stages strung together, for the `dvlcal` program and other programs.
 
 #![warn(missing_docs)]

@@ -21,11 +21,12 @@ fn layer(top: &str) -> Option<u32> {
         "files" => 1,
         "lie" | "parallel" | "rng" => 1,
         "types" => 2,
-        "io" | "vision" | "trajectory" => 3,
-        "calib" | "camcal" | "sim" => 4,
-        "eval" | "report" => 5,
-        "pipeline" => 6,
-        "" => 7, // the crate root re-exports
+        "io" | "trajectory" => 3,
+        "vision" | "calib" => 4,
+        "camcal" | "sim" => 5,
+        "eval" | "report" => 6,
+        "pipeline" => 7,
+        "" => 8, // the crate root re-exports
         _ => return None,
     })
 }

@@ -10,6 +10,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use dvlcal::io::calib_yaml::{CalibrationFile, read_calib_yaml};
+use dvlcal::io::camchain::read_camchain;
 
 const ROOT: &str = env!("CARGO_MANIFEST_DIR");
 
@@ -308,8 +309,9 @@ fn zero_header_stamps_fall_back_to_the_record_time_with_a_warning() {
 
 #[test]
 fn tf_poses_need_the_child_frame_named() {
+    use dvlcal::io::bag::open::OpenBag;
+    use dvlcal::io::bag::poses::read_bag_poses;
     use dvlcal::io::bag::roles::BagOptions;
-    use dvlcal::pipeline::{OpenBag, read_bag_poses};
     let path = fixture("tf_poses.mcap");
     let ob = OpenBag::open(&path, &BagOptions::default()).unwrap();
     let e = read_bag_poses(&ob).unwrap_err().to_string();
@@ -329,9 +331,11 @@ fn tf_poses_need_the_child_frame_named() {
 
 #[test]
 fn unknown_image_encodings_are_counted_and_named_never_reinterpreted() {
+    use dvlcal::io::bag::frames::plan_frames;
+    use dvlcal::io::bag::open::OpenBag;
     use dvlcal::io::bag::roles::BagOptions;
-    use dvlcal::pipeline::{OpenBag, VisionOptions, plan_frames, poses_from_bag};
-    use dvlcal::vision::camera::{Camchain, Camera, Distortion};
+    use dvlcal::pipeline::{VisionOptions, poses_from_bag};
+    use dvlcal::types::camera::{Camchain, Camera, Distortion};
     let ob = OpenBag::open(&fixture("bad_encoding.mcap"), &BagOptions::default()).unwrap();
     let plan = plan_frames(&ob, 2_000_000).unwrap();
     assert_eq!(plan.frames.len(), 7);
@@ -362,7 +366,6 @@ fn unknown_image_encodings_are_counted_and_named_never_reinterpreted() {
 
 #[test]
 fn calibrate_cameras_from_a_bag_gives_the_folders_camchain() {
-    use dvlcal::vision::camera::Camchain;
     let tmp = TmpDir::new("bag-cameras");
     let target = sample("stereo/target.yaml");
     let run = |src: &[&str], out: &Path| {
@@ -377,7 +380,7 @@ fn calibrate_cameras_from_a_bag_gives_the_folders_camchain() {
         ]);
         let (ok, stdout, stderr) = dvlcal(&a);
         assert!(ok, "{stdout}\n{stderr}");
-        Camchain::load(out).unwrap()
+        read_camchain(out).unwrap()
     };
     let bag = sample("bags/stereo_sqlite3");
     let a = run(&["--bag", bag.to_str().unwrap()], &tmp.0.join("bag.yaml"));
@@ -438,9 +441,10 @@ fn a_bag_cut_short_gives_the_frames_before_the_cut_and_says_so() {
 
 #[test]
 fn camera_info_gives_a_single_cameras_model() {
+    use dvlcal::io::bag::camera_info::camera_from_info;
+    use dvlcal::io::bag::open::OpenBag;
     use dvlcal::io::bag::roles::BagOptions;
-    use dvlcal::pipeline::{OpenBag, camera_from_info};
-    use dvlcal::vision::camera::Camchain;
+
     let opts = BagOptions {
         image_topics: Some(vec!["/cam1/image_raw".into()]),
         ..BagOptions::default()
@@ -449,7 +453,7 @@ fn camera_info_gives_a_single_cameras_model() {
     let cam = camera_from_info(&ob, 0)
         .unwrap()
         .expect("a CameraInfo beside /cam1/image_raw");
-    let chain = Camchain::load(&sample("stereo/camchain.yaml")).unwrap();
+    let chain = read_camchain(&sample("stereo/camchain.yaml")).unwrap();
     assert_eq!(cam, chain.cams[1]);
 }
 

@@ -10,9 +10,10 @@ use tmp_common::TmpDir;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+use dvlcal::io::camchain::read_camchain;
 use dvlcal::io::dataset::{DatasetOverrides, discover};
 use dvlcal::pipeline::dataset_files;
-use dvlcal::vision::camera::Camchain;
+use dvlcal::types::camera::Camchain;
 
 const STEREO: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/sample_data/stereo");
 
@@ -90,8 +91,8 @@ fn calibrate_without_camchain_calibrates_the_cameras_first_and_stays_near_the_tr
     // The camchain beside the result, close to the truth the images were rendered with.
     let camchain = out.join("camchain.yaml");
     assert!(stdout.contains("camchain.yaml"), "{all}");
-    let fitted = Camchain::load(&camchain).expect("the written camchain loads");
-    let truth = Camchain::load(&Path::new(STEREO).join("camchain.yaml")).unwrap();
+    let fitted = read_camchain(&camchain).expect("the written camchain loads");
+    let truth = read_camchain(&Path::new(STEREO).join("camchain.yaml")).unwrap();
     assert_eq!(fitted.cams.len(), 2);
     let mut figures = String::new();
     for (i, (f, t)) in fitted.cams.iter().zip(&truth.cams).enumerate() {

@@ -10,8 +10,10 @@ use dvlcal::camcal::{CamCalOptions, CameraModel, calibrate_cameras};
 use dvlcal::eval::camera::{
     baseline_error, extrinsic_error, opencv_stereo_reference, ray_pixel_error,
 };
+use dvlcal::io::camchain::read_camchain;
+use dvlcal::io::target::read_board;
 use dvlcal::sim::image_dataset::{default_board, default_stereo_camchain};
-use dvlcal::vision::camera::Camchain;
+use dvlcal::types::camera::Camchain;
 
 /// Ray error RMS per camera (px) and baseline error (mm) of an estimate against the truth.
 fn errors(truth: &Camchain, est: &Camchain) -> (Vec<f64>, f64, f64) {
@@ -110,7 +112,7 @@ fn fisheye_stereo_with_the_equidistant_model() {
     assert!(b < 0.5 && t < 1.0, "baseline {b} mm, translation {t} mm");
     assert!(matches!(
         two.chain.cams[0].distortion,
-        dvlcal::vision::camera::Distortion::Equidistant { .. }
+        dvlcal::types::camera::Distortion::Equidistant { .. }
     ));
 }
 
@@ -121,11 +123,11 @@ fn fisheye_stereo_with_the_equidistant_model() {
 fn calibrate_cameras_command_on_a_kalibr_printed_board() {
     use dvlcal::sim::camcal_views::calibration_views;
     use dvlcal::sim::image_dataset::{FrameSpec, ImageSimSettings, write_image_dataset};
-    use dvlcal::vision::board::{Board, TagPrint};
+    use dvlcal::types::board::TagPrint;
     let tmp = tmp_common::TmpDir::new("calibrate-cameras");
     let target = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("calib_boards/kalibr_aprilgrid_6x6.yaml");
-    let board = Board::load(&target).expect("board");
+    let board = read_board(&target).expect("board");
     assert_eq!(board.print, TagPrint::Kalibr);
     let truth = default_stereo_camchain();
     let frames: Vec<FrameSpec> = calibration_views(&truth, &board, 30, 4)
@@ -162,7 +164,7 @@ fn calibrate_cameras_command_on_a_kalibr_printed_board() {
         String::from_utf8_lossy(&run.stderr)
     );
     assert!(stdout.contains("2 detection passes"), "{stdout}");
-    let chain = Camchain::load(&out).expect("the written camchain reads back");
+    let chain = read_camchain(&out).expect("the written camchain reads back");
     let (rays, b, t) = errors(&truth, &chain);
     eprintln!(
         "Kalibr board, command: ray RMS {rays:.3?} px, baseline error {b:.3} mm, translation {t:.3} mm"

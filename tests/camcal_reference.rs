@@ -10,7 +10,7 @@ use dvlcal::eval::camera::{
     baseline_error, extrinsic_error, opencv_stereo_reference, ray_pixel_error,
 };
 use dvlcal::sim::image_dataset::{default_board, default_stereo_camchain};
-use dvlcal::vision::camera::Camera;
+use dvlcal::types::camera::Camera;
 
 #[test]
 fn ray_error_is_zero_against_itself_and_grows_with_the_focal_length() {

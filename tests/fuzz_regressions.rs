@@ -11,13 +11,13 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use dvlcal::io::calib_yaml::{parse_calib_yaml, parse_calibration_guess};
+use dvlcal::io::camchain::parse_camchain;
 use dvlcal::io::dvl::{DvlFormat, DvlReadOptions, read_dvl_text};
+use dvlcal::io::target::parse_board;
 use dvlcal::io::times::parse_times;
 use dvlcal::io::tum::parse_tum;
 use dvlcal::io::twist_csv::parse_twist_csv;
 use dvlcal::time::Epoch;
-use dvlcal::vision::board::Board;
-use dvlcal::vision::camera::Camchain;
 
 /// The fuzz targets, as named in `fuzz/Cargo.toml`.
 const TARGETS: [&str; 10] = [
@@ -97,11 +97,11 @@ fn run(target: &str, data: &[u8]) -> Vec<Outcome> {
             ]
         }
         "camchain" => vec![outcome(
-            Camchain::parse(text, Path::new("fuzz-camchain.yaml")),
+            parse_camchain(text, Path::new("fuzz-camchain.yaml")),
             |c| format!("{} cameras", c.cams.len()),
         )],
         "board" => vec![outcome(
-            Board::parse(text, Path::new("fuzz-board.yaml")),
+            parse_board(text, Path::new("fuzz-board.yaml")),
             |b| format!("{} tags", b.tags.len()),
         )],
         "calib_yaml" => {

@@ -3,7 +3,9 @@
 //! units, JPEGs cut short, and messages that must name the real cause.
 
 use dvlcal::calib::{CalibOptions, calibrate, usable_covariance};
+use dvlcal::io::camchain::read_camchain;
 use dvlcal::io::dvl::{DvlReadOptions, read_dvl_log};
+use dvlcal::io::target::read_board;
 use dvlcal::sim::dataset::{MotionKind, SimConfig, simulate};
 use nalgebra::Matrix3;
 
@@ -182,8 +184,6 @@ fn a_closed_standard_output_ends_the_program_quietly() {
 
 #[test]
 fn camera_chains_and_boards_in_the_wrong_units_or_shape_are_refused() {
-    use dvlcal::vision::board::Board;
-    use dvlcal::vision::camera::Camchain;
     let tmp = tmp_common::TmpDir::new("hostile-geometry");
     let cam = |pu: f64, r11: f64, tx: f64| {
         format!(
@@ -197,7 +197,7 @@ fn camera_chains_and_boards_in_the_wrong_units_or_shape_are_refused() {
     let load = |name: &str, text: String| {
         let p = tmp.0.join(name);
         std::fs::write(&p, text).expect("write");
-        Camchain::load(&p).map(|_| ()).map_err(|e| e.to_string())
+        read_camchain(&p).map(|_| ()).map_err(|e| e.to_string())
     };
     load("good.yaml", cam(376.0, 1.0, -0.11)).expect("a good chain");
     let e = load("pp.yaml", cam(900.0, 1.0, -0.11)).unwrap_err();
@@ -219,7 +219,7 @@ fn camera_chains_and_boards_in_the_wrong_units_or_shape_are_refused() {
     let board = |name: &str, text: &str| {
         let p = tmp.0.join(name);
         std::fs::write(&p, text).expect("write");
-        Board::load(&p).map(|_| ()).map_err(|e| e.to_string())
+        read_board(&p).map(|_| ()).map_err(|e| e.to_string())
     };
     board(
         "b.yaml",
@@ -408,7 +408,7 @@ fn time_stamps_in_the_wrong_unit_are_pointed_out() {
 
 #[test]
 fn image_names_in_other_units_are_read_as_such_and_said() {
-    use dvlcal::vision::images::scan_images;
+    use dvlcal::io::images::scan_images;
     let tmp = tmp_common::TmpDir::new("hostile-names");
     let d = &tmp.0;
     let touch = |p: std::path::PathBuf| {
@@ -476,7 +476,7 @@ fn image_names_in_other_units_are_read_as_such_and_said() {
 
 #[test]
 fn a_jpeg_cut_short_is_refused_not_half_decoded() {
-    use dvlcal::vision::detect::load_gray;
+    use dvlcal::io::image::load_gray;
     let tmp = tmp_common::TmpDir::new("hostile-jpeg");
     let img = image::GrayImage::from_fn(160, 120, |x, y| {
         image::Luma([((x * 7 + y * 3) % 256) as u8])
@@ -530,7 +530,7 @@ fn messages_name_the_real_cause() {
     assert!(e.contains("DVL"), "{e}");
 
     // NaN intrinsics are named as not numbers, whichever way YAML spells them.
-    use dvlcal::vision::camera::Camchain;
+
     let tmp = tmp_common::TmpDir::new("hostile-nan");
     for nan in [".nan", ".NaN", "nan", "NaN", ".inf"] {
         let p = tmp.0.join("chain.yaml");
@@ -542,7 +542,7 @@ fn messages_name_the_real_cause() {
             ),
         )
         .unwrap();
-        let e = Camchain::load(&p).unwrap_err().to_string();
+        let e = read_camchain(&p).unwrap_err().to_string();
         assert!(
             e.contains("chain.yaml") && !e.contains("must be [fu, fv, pu, pv]"),
             "{nan}: {e}"
@@ -553,7 +553,6 @@ fn messages_name_the_real_cause() {
 
 #[test]
 fn distortion_that_folds_the_image_is_refused() {
-    use dvlcal::vision::camera::Camchain;
     let tmp = tmp_common::TmpDir::new("hostile-fold");
     let chain = |model: &str, k: [f64; 4]| {
         let p = tmp.0.join("chain.yaml");
@@ -565,7 +564,7 @@ fn distortion_that_folds_the_image_is_refused() {
             ),
         )
         .unwrap();
-        Camchain::load(&p).map(|_| ()).map_err(|e| e.to_string())
+        read_camchain(&p).map(|_| ()).map_err(|e| e.to_string())
     };
     // EuRoC's cam0 (radtan) and TUM-VI's cam0 (equidistant, scaled to this image) are real lenses.
     chain(

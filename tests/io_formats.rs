@@ -509,12 +509,8 @@ fn calib_yaml_round_trip() {
         notes: vec![],
         ..Default::default()
     };
-    info.extra
-        .insert("poses".to_string(), serde_yaml::Value::from(1200u64));
-    info.extra.insert(
-        "residual_rms_mps".to_string(),
-        serde_yaml::Value::from(0.0123),
-    );
+    info.figures.poses = Some(1200);
+    info.figures.dvl_normalized_cost = Some(0.0123);
     file.info = Some(info);
     write_calib_yaml(&p, &file).unwrap();
     let text = std::fs::read_to_string(&p).unwrap();
@@ -543,6 +539,76 @@ fn calib_yaml_round_trip() {
     // A held parameter has no standard deviation, not a zero one.
     assert!(text.contains("  velocity_scale: null"), "{text}");
     assert_eq!(read_calib_yaml(&p).unwrap(), file);
+}
+
+/// The run's figures are written as keys of `info` in alphabetical order, as a map of YAML values
+/// writes them (lists of mappings, NaN, keys present only when given), and read back with the
+/// keys a file holds that are none of them kept as read.
+#[test]
+fn calib_yaml_figures_write_as_a_sorted_map() {
+    use dvlcal::io::calib_yaml::{RunFigures, WorstResidual};
+    use serde_yaml::{Mapping, Value};
+    let figures = RunFigures {
+        poses: Some(1200),
+        loss: Some("cauchy".into()),
+        dvl_residual_rms_mps: Some([0.01, 0.02, 0.5]),
+        halves_difference_in_std: Some(vec![0.5, f64::NAN, -1.25e-7]),
+        dvl_residuals_correlated: Some(true),
+        dvl_worst_residuals: Some(vec![WorstResidual {
+            t_s: 12.5,
+            variances_out: 30.0,
+            weight: 0.125,
+        }]),
+        ..RunFigures::default()
+    };
+    let info = CalibrationInfo {
+        method: Some("uic".into()),
+        figures,
+        ..CalibrationInfo::default()
+    };
+    let mut worst = Mapping::new();
+    worst.insert("t_s".into(), 12.5.into());
+    worst.insert("variances_out".into(), 30.0.into());
+    worst.insert("weight".into(), 0.125.into());
+    let mut map = std::collections::BTreeMap::<String, Value>::new();
+    map.insert("method".into(), "uic".into());
+    map.insert("poses".into(), 1200usize.into());
+    map.insert("loss".into(), "cauchy".into());
+    map.insert("dvl_residual_rms_mps".into(), vec![0.01, 0.02, 0.5].into());
+    map.insert(
+        "halves_difference_in_std".into(),
+        vec![0.5, f64::NAN, -1.25e-7].into(),
+    );
+    map.insert("dvl_residuals_correlated".into(), true.into());
+    map.insert(
+        "dvl_worst_residuals".into(),
+        vec![Value::Mapping(worst)].into(),
+    );
+    // `method` first, then the figures sorted: what a sorted map of values gives here.
+    let text = serde_yaml::to_string(&info).unwrap();
+    let mut expected = String::from("method: uic\n");
+    map.remove("method");
+    expected.push_str(&serde_yaml::to_string(&map).unwrap());
+    assert_eq!(text, expected);
+    assert!(text.contains(".nan"), "{text}");
+    // Read back: the figures, and a key of another version kept as it was.
+    let mut back: CalibrationInfo =
+        serde_yaml::from_str(&format!("{text}old_key: [1, 2]\n")).unwrap();
+    assert_eq!(back.figures.poses, Some(1200));
+    assert_eq!(
+        back.figures.dvl_worst_residuals,
+        info.figures.dvl_worst_residuals
+    );
+    assert!(back.figures.other.contains_key("old_key"), "{back:?}");
+    back.figures.other.clear();
+    back.figures.halves_difference_in_std = None;
+    let mut want = info.clone();
+    want.figures.halves_difference_in_std = None;
+    assert_eq!(back, want);
+    // A figure of another type than this version's is kept as read, not refused.
+    let odd: CalibrationInfo = serde_yaml::from_str("poses: many\n").unwrap();
+    assert_eq!(odd.figures.poses, None);
+    assert!(odd.figures.other.contains_key("poses"));
 }
 
 /// A result of `--method fixed` as earlier versions wrote it: zero standard deviations and

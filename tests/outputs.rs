@@ -7,7 +7,7 @@ use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
 use dvlcal::io::calib_yaml::{Observability, read_calib_yaml};
-use dvlcal::vision::camera::Camchain;
+use dvlcal::io::camchain::read_camchain;
 use nalgebra::Matrix4;
 
 #[path = "tmp_common/mod.rs"]
@@ -173,8 +173,8 @@ fn stereo_outputs_are_a_kalibr_camchain_imucam_a_urdf_joint_and_a_traced_result(
 
     // The camchain-imucam file reads as the camchain it was made from.
     let imucam = tmp.path("res/cal-camchain-imucam.yaml");
-    let given = Camchain::load(&data.join("camchain.yaml")).unwrap();
-    let back = Camchain::load(&imucam).expect("the crate's camchain reader reads it");
+    let given = read_camchain(&data.join("camchain.yaml")).unwrap();
+    let back = read_camchain(&imucam).expect("the crate's camchain reader reads it");
     assert_eq!(back.cams, given.cams);
     assert_eq!(back.topics, given.topics);
     for (a, b) in back.t_cn_c0.iter().zip(&given.t_cn_c0) {
@@ -316,32 +316,17 @@ fn documented_info_keys() -> BTreeSet<String> {
         .collect()
 }
 
-/// Every key the result writer can put into `info`, read from its source: the literal keys of
-/// `put(...)` and `extra.insert(...)` in src/pipeline/calibration.rs, and the named fields.
+/// Every key the result writer can put into `info`: the named fields and every figure of
+/// `RunFigures`.
 fn written_info_keys() -> BTreeSet<String> {
-    let src = std::fs::read_to_string(
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("src/pipeline/calibration.rs"),
-    )
-    .unwrap();
     let mut keys: BTreeSet<String> = ["method", "iterations", "warnings", "notes"]
         .map(String::from)
         .into();
-    for pat in ["put(", "extra.insert("] {
-        for (i, _) in src.match_indices(pat) {
-            // `put(` itself, not the end of another name (`refuse_input(`).
-            let before = src[..i].chars().next_back().unwrap_or(' ');
-            if before.is_alphanumeric() || before == '_' {
-                continue;
-            }
-            let rest = src[i + pat.len()..].trim_start();
-            if let Some(r) = rest.strip_prefix('"') {
-                let key: String = r.chars().take_while(|c| *c != '"').collect();
-                if !key.is_empty() && !key.contains(' ') {
-                    keys.insert(key);
-                }
-            }
-        }
-    }
+    keys.extend(
+        dvlcal::io::calib_yaml::RunFigures::KEYS
+            .iter()
+            .map(|k| k.to_string()),
+    );
     keys
 }
 

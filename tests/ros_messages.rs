@@ -346,7 +346,7 @@ fn compressed_images_decode_as_image_files() {
         let m: CompressedImage = decode(&image_fixture(name, Ros1), Ros1).unwrap();
         assert_eq!(m.format, format);
         // The same bytes as an image file of a dataset folder.
-        let file = dvlcal::vision::detect::decode_gray(&m.data, Path::new("frame")).unwrap();
+        let file = dvlcal::io::image::decode_gray(&m.data, Path::new("frame")).unwrap();
         assert_eq!(g, file, "{name}");
         assert_eq!(compressed_to_gray(&m).unwrap(), g, "{name}");
         if name == "png" {
@@ -410,10 +410,9 @@ fn camera_info_model() {
         whole.roi = RegionOfInterest::default();
         let m = whole.model().unwrap();
         assert_eq!((m.width, m.height), (640, 480));
-        assert_eq!((m.fx, m.fy, m.cx, m.cy), (500.0, 501.0, 320.0, 240.0));
+        assert_eq!((m.fu, m.fv, m.pu, m.pv), (500.0, 501.0, 320.0, 240.0));
         assert_eq!(m.distortion.kalibr_name(), "radtan");
         assert_eq!(m.distortion.coeffs(), [-0.25, 0.1, 0.001, -0.002]);
-        assert!(!m.rectified);
         let mut k3 = whole.clone();
         k3.d[4] = 0.01;
         let e = k3.model().unwrap_err().to_string();

@@ -2,9 +2,11 @@
 //! camchain files).
 
 use dvlcal::Error;
+use dvlcal::io::camchain::{camchain_yaml, parse_camchain, read_camchain};
+use dvlcal::io::target::{board_yaml, parse_board, read_board};
 use dvlcal::lie::Se3;
-use dvlcal::vision::board::{Board, TagFamily};
-use dvlcal::vision::camera::{Camchain, Camera, Distortion};
+use dvlcal::types::board::{Board, TagFamily};
+use dvlcal::types::camera::{Camchain, Camera, Distortion};
 use dvlcal::vision::family::{family_layout, tag_cells};
 use nalgebra::{Matrix2x3, Vector2, Vector3, Vector6};
 use std::path::{Path, PathBuf};
@@ -28,7 +30,7 @@ fn kalibr_grid_geometry_and_ids() {
         "april_6x6.yaml",
         "target_type: 'aprilgrid'\ntagCols: 6\ntagRows: 6\ntagSize: 0.088\ntagSpacing: 0.3\n",
     );
-    let b = Board::load(&p).unwrap();
+    let b = read_board(&p).unwrap();
     assert_eq!(b.family, TagFamily::Tag36h11);
     assert_eq!(b.tags.len(), 36);
     let d = 0.088 * 1.3;
@@ -64,7 +66,7 @@ fn grid_yaml_with_first_id_and_family() {
         "grid.yaml",
         "family: tagStandard41h12\nrows: 2\ncols: 3\ntag_size: 0.05\nspacing: 0.25\nfirst_id: 10\n",
     );
-    let b = Board::load(&p).unwrap();
+    let b = read_board(&p).unwrap();
     assert_eq!(b.family, TagFamily::TagStandard41h12);
     let ids: Vec<u32> = b.tags.iter().map(|t| t.id).collect();
     assert_eq!(ids, vec![10, 11, 12, 13, 14, 15]);
@@ -75,14 +77,14 @@ fn grid_yaml_with_first_id_and_family() {
         &Vector3::new(d, d, 0.0)
     ));
     // to_yaml round trip.
-    let back = Board::parse(&b.to_yaml(), Path::new("x.yaml")).unwrap();
+    let back = parse_board(&board_yaml(&b), Path::new("x.yaml")).unwrap();
     assert_eq!(back.tags, b.tags);
 }
 
 #[test]
 fn list_form_pose_and_matrix() {
     let text = "family: tag36h11\ntags:\n  - id: 3\n    size: 0.2\n    position: [1.0, 2.0, 0.0]\n    quaternion_xyzw: [0, 0, 0, 1]\n  - id: 7\n    size: 0.1\n    T_board_tag: [[0, -1, 0, 0.5], [1, 0, 0, 0], [0, 0, 1, 0.3], [0, 0, 0, 1]]\n";
-    let b = Board::parse(text, Path::new("wall.yaml")).unwrap();
+    let b = parse_board(text, Path::new("wall.yaml")).unwrap();
     assert!(b.grid.is_none());
     let t3 = b.tag(3).unwrap();
     assert!(close(&t3.corners[0], &Vector3::new(0.9, 1.9, 0.0)));
@@ -94,7 +96,7 @@ fn list_form_pose_and_matrix() {
     // The pose recovered from the corners.
     let p = t7.pose();
     assert!((p.trans - Vector3::new(0.5, 0.0, 0.3)).norm() < 1e-12);
-    let back = Board::parse(&b.to_yaml(), Path::new("x.yaml")).unwrap();
+    let back = parse_board(&board_yaml(&b), Path::new("x.yaml")).unwrap();
     for (a, c) in back.tags.iter().zip(&b.tags) {
         for k in 0..4 {
             assert!((a.corners[k] - c.corners[k]).norm() < 1e-9);
@@ -109,7 +111,7 @@ fn shipped_boards_load() {
     for e in std::fs::read_dir(&dir).unwrap() {
         let p = e.unwrap().path();
         if p.extension().is_some_and(|x| x == "yaml") {
-            let b = Board::load(&p).unwrap_or_else(|e| panic!("{e}"));
+            let b = read_board(&p).unwrap_or_else(|e| panic!("{e}"));
             assert!(!b.tags.is_empty(), "{}", p.display());
             n += 1;
         }
@@ -118,7 +120,7 @@ fn shipped_boards_load() {
 }
 
 fn err_of(text: &str) -> String {
-    match Board::parse(text, Path::new("boards/bad.yaml")) {
+    match parse_board(text, Path::new("boards/bad.yaml")) {
         Ok(_) => panic!("accepted: {text}"),
         Err(e) => e.to_string(),
     }
@@ -149,7 +151,7 @@ fn board_errors_name_file_and_line() {
     assert!(e.contains("twice"), "{e}");
     let e = err_of("rows: 6\ncols: 6\ntag_size: 0.1\nspacing: 0.3\ncolour: red\n");
     assert!(e.contains("colour"), "{e}");
-    match Board::load(Path::new("/nonexistent/board.yaml")) {
+    match read_board(Path::new("/nonexistent/board.yaml")) {
         Err(Error::Io { path, .. }) => assert_eq!(path, Path::new("/nonexistent/board.yaml")),
         other => panic!("{other:?}"),
     }
@@ -279,9 +281,9 @@ fn stereo_chain() -> Camchain {
 #[test]
 fn camchain_round_trip() {
     let c = stereo_chain();
-    let text = c.to_kalibr_yaml();
+    let text = camchain_yaml(&c);
     let p = tmp("camchain.yaml", &text);
-    let back = Camchain::load(&p).unwrap();
+    let back = read_camchain(&p).unwrap();
     assert_eq!(back.cams, c.cams);
     assert_eq!(back.topics, c.topics);
     for (a, b) in back.t_cn_c0.iter().zip(&c.t_cn_c0) {
@@ -314,7 +316,7 @@ cam1:
   resolution: [752, 480]
   rostopic: /cam1/image_raw
 ";
-    let c = Camchain::parse(text, Path::new("camchain.yaml")).unwrap();
+    let c = parse_camchain(text, Path::new("camchain.yaml")).unwrap();
     assert_eq!(c.cams.len(), 2);
     assert_eq!(c.cams[1].width, 752);
     assert!((c.t_cn_c0[1].trans.x + 0.1100740994).abs() < 1e-9);
@@ -322,7 +324,7 @@ cam1:
     // Mono.
     let mono = text.split("cam1:").next().unwrap();
     assert_eq!(
-        Camchain::parse(mono, Path::new("m.yaml"))
+        parse_camchain(mono, Path::new("m.yaml"))
             .unwrap()
             .cams
             .len(),
@@ -333,14 +335,14 @@ cam1:
         "distortion_model: radtan\n  intrinsics: [457",
         "distortion_model: fov\n  intrinsics: [457",
     );
-    let e = Camchain::parse(&bad, Path::new("camchain.yaml"))
+    let e = parse_camchain(&bad, Path::new("camchain.yaml"))
         .unwrap_err()
         .to_string();
     assert!(
         e.starts_with("camchain.yaml:9:") && e.contains("fov"),
         "{e}"
     );
-    let e = Camchain::parse("cam1:\n  camera_model: pinhole\n", Path::new("c.yaml"))
+    let e = parse_camchain("cam1:\n  camera_model: pinhole\n", Path::new("c.yaml"))
         .unwrap_err()
         .to_string();
     assert!(e.contains("c.yaml") && e.contains("cam0"), "{e}");

@@ -5,8 +5,9 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use apriltag_sys as sys;
-use dvlcal::vision::board::TagFamily;
-use dvlcal::vision::detect::{Detector, DetectorSettings, TagDetection, load_gray};
+use dvlcal::io::image::load_gray;
+use dvlcal::types::board::TagFamily;
+use dvlcal::vision::detect::{Detector, DetectorSettings, TagDetection};
 use nalgebra::Vector2;
 
 // `image_u8_destroy` is not in Debian's libapriltag.so; it lives in libapriltag-utils.so.

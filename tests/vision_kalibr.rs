@@ -10,12 +10,15 @@ use vision_seq::facing;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+use dvlcal::io::camchain::read_camchain;
+use dvlcal::io::image::load_gray;
+use dvlcal::io::target::{board_yaml, parse_board, read_board};
 use dvlcal::lie::Se3;
 use dvlcal::rng::Rng;
 use dvlcal::sim::render::{RenderSettings, render};
-use dvlcal::vision::board::{Board, TagFamily, TagPrint};
-use dvlcal::vision::camera::{Camera, Distortion};
-use dvlcal::vision::detect::{Detector, DetectorSettings, TagDetection, load_gray};
+use dvlcal::types::board::{Board, TagFamily, TagPrint};
+use dvlcal::types::camera::{Camera, Distortion};
+use dvlcal::vision::detect::{Detector, DetectorSettings, TagDetection};
 use nalgebra::{DMatrix, DVector, Matrix3, Vector2, Vector3};
 
 fn fixtures() -> PathBuf {
@@ -490,14 +493,13 @@ fn sequence_errors(
     name: &str,
     det: impl Fn(&Board) -> DetectorSettings,
 ) -> (f64, f64, usize) {
-    use dvlcal::vision::camera::Camchain;
+    use dvlcal::io::images::scan_images;
     use dvlcal::vision::frames::detect_frames;
-    use dvlcal::vision::images::scan_images;
     use dvlcal::vision::pnp::PnpOptions;
     let d = vision_seq::fresh_dir(name);
     let (truth, _) = vision_seq::write_sequence_of(&d, n, &RenderSettings::default(), 11, board);
-    let chain = Camchain::load(&d.join("camchain.yaml")).unwrap();
-    let target = Board::load(&d.join("target.yaml")).unwrap();
+    let chain = read_camchain(&d.join("camchain.yaml")).unwrap();
+    let target = read_board(&d.join("target.yaml")).unwrap();
     assert_eq!(
         target.print,
         TagPrint::Kalibr,
@@ -801,12 +803,12 @@ fn a_kalibr_yaml_prints_kalibrs_layout_and_dvlcals_yaml_todays() {
 fn a_kalibr_board_reads_back_as_a_kalibr_print() {
     let yaml =
         "target_type: 'aprilgrid'\ntagCols: 6\ntagRows: 6\ntagSize: 0.088\ntagSpacing: 0.3\n";
-    let b = Board::parse(yaml, Path::new("t.yaml")).unwrap();
+    let b = parse_board(yaml, Path::new("t.yaml")).unwrap();
     assert_eq!(b.print, TagPrint::Kalibr);
-    let back = Board::parse(&b.to_yaml(), Path::new("t.yaml")).unwrap();
+    let back = parse_board(&board_yaml(&b), Path::new("t.yaml")).unwrap();
     assert_eq!(back, b);
-    assert!(b.to_yaml().contains("target_type: 'aprilgrid'"));
-    let ours = Board::parse(
+    assert!(board_yaml(&b).contains("target_type: 'aprilgrid'"));
+    let ours = parse_board(
         "rows: 6\ncols: 6\ntag_size: 0.088\nspacing: 0.3\n",
         Path::new("o.yaml"),
     )

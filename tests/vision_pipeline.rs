@@ -6,13 +6,13 @@ mod vision_seq;
 use std::path::Path;
 use std::process::Command;
 
+use dvlcal::io::camchain::read_camchain;
+use dvlcal::io::images::{Layout, scan_images};
+use dvlcal::io::target::read_board;
 use dvlcal::lie::Se3;
 use dvlcal::sim::render::RenderSettings;
-use dvlcal::vision::board::Board;
-use dvlcal::vision::camera::Camchain;
 use dvlcal::vision::detect::DetectorSettings;
 use dvlcal::vision::frames::{FrameStatus, detect_frames, detect_poses};
-use dvlcal::vision::images::{Layout, scan_images};
 use dvlcal::vision::pnp::PnpOptions;
 use vision_seq::*;
 
@@ -149,8 +149,8 @@ fn rendered_sequence_end_to_end() {
         .unwrap();
     std::fs::write(image_path(&d, 0, times[n - 1] + DT_NS), b"not an image").unwrap();
 
-    let chain = Camchain::load(&d.join("camchain.yaml")).unwrap();
-    let board = Board::load(&d.join("target.yaml")).unwrap();
+    let chain = read_camchain(&d.join("camchain.yaml")).unwrap();
+    let board = read_board(&d.join("target.yaml")).unwrap();
     let (frames, scan) = scan_images(&d, 2, 1_000_000).unwrap();
     assert_eq!(frames.len(), n + 1);
     assert_eq!(scan.unpaired_cam0, 1);

@@ -6,8 +6,8 @@ use nalgebra::{Matrix3, Vector2, Vector3, Vector6};
 use dvlcal::lie::{Se3, so3};
 use dvlcal::rng::Rng;
 use dvlcal::sim::camcal_views::synthetic_detections;
-use dvlcal::vision::board::{Board, TagFamily};
-use dvlcal::vision::camera::{Camchain, Camera, Distortion};
+use dvlcal::types::board::{Board, TagFamily};
+use dvlcal::types::camera::{Camchain, Camera, Distortion};
 use dvlcal::vision::detect::TagDetection;
 use dvlcal::vision::pnp::{
     CORNER_SAMPLE_PER_CAMERA, PnpOptions, PoseOutcome, solve_stereo, stereo_pose,

@@ -5,11 +5,12 @@
 #[path = "vision_seq/mod.rs"]
 mod vision_seq;
 
+use dvlcal::io::target::read_board;
 use dvlcal::lie::Se3;
 use dvlcal::rng::Rng;
 use dvlcal::sim::render::{RenderSettings, render, render_exhaustive};
-use dvlcal::vision::board::{Board, TagFamily};
-use dvlcal::vision::camera::{Camera, Distortion};
+use dvlcal::types::board::{Board, TagFamily};
+use dvlcal::types::camera::{Camera, Distortion};
 use dvlcal::vision::detect::{Detector, DetectorSettings};
 use dvlcal::vision::family::tag_cells;
 use nalgebra::{Matrix3, Vector3};
@@ -201,7 +202,7 @@ fn other_families_and_listed_tags() {
         assert_eq!(n, 9, "{}", fam.name());
         assert!(mean < 0.02, "{}: {mean}", fam.name());
     }
-    let wall = Board::load(
+    let wall = read_board(
         &std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("calib_boards/pool_wall_example.yaml"),
     )
@@ -292,7 +293,7 @@ fn rendered_edges_sit_where_the_board_projects() {
 #[test]
 fn edge_mask_render_equals_exhaustive_render() {
     let grid = Board::grid(TagFamily::Tag36h11, 6, 6, 0.035, 0.3, 0);
-    let wall = Board::load(
+    let wall = read_board(
         &std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("calib_boards/pool_wall_example.yaml"),
     )

@@ -4,17 +4,18 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+use dvlcal::io::camchain::read_camchain;
+use dvlcal::io::image::load_gray;
+use dvlcal::io::images::scan_images;
+use dvlcal::io::target::read_board;
 use dvlcal::lie::Se3;
 use dvlcal::sim::dataset::{MotionKind, SimConfig, simulate};
 use dvlcal::sim::image_dataset::{
     DEFAULT_BOARD_DISTANCE_M, board_centre, board_facing, board_fully_visible, board_in_cameras,
     default_board, default_stereo_camchain,
 };
-use dvlcal::vision::board::Board;
-use dvlcal::vision::camera::Camchain;
-use dvlcal::vision::detect::{Detector, DetectorSettings, load_gray};
+use dvlcal::vision::detect::{Detector, DetectorSettings};
 use dvlcal::vision::frames::detect_poses;
-use dvlcal::vision::images::scan_images;
 use dvlcal::vision::pnp::PnpOptions;
 
 struct TempDir(PathBuf);
@@ -177,13 +178,13 @@ fn simulate_images_writes_a_usable_dataset() {
     assert_eq!(t0, expected);
     assert_eq!(t1, expected);
 
-    let chain = Camchain::load(&out.join("camchain.yaml")).unwrap();
+    let chain = read_camchain(&out.join("camchain.yaml")).unwrap();
     let want = default_stereo_camchain();
     assert_eq!(chain.cams, want.cams);
     for (a, b) in chain.t_cn_c0.iter().zip(&want.t_cn_c0) {
         assert!((a.to_matrix() - b.to_matrix()).abs().max() < 1e-12);
     }
-    let board = Board::load(&out.join("target.yaml")).unwrap();
+    let board = read_board(&out.join("target.yaml")).unwrap();
     assert_eq!(board.tags, default_board().tags);
 
     let first = out.join("cam0").join(format!("{}.png", t0[0]));

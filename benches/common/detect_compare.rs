@@ -19,12 +19,13 @@ use std::path::PathBuf;
 use std::process::{Command, Stdio};
 use std::time::Instant;
 
+use dvlcal::io::image::load_gray;
+use dvlcal::io::images::{StereoFrame, scan_images};
 use dvlcal::sim::render::RenderSettings;
-use dvlcal::vision::board::Board;
-use dvlcal::vision::camera::Camchain;
-use dvlcal::vision::detect::{DetectorSettings, load_gray};
+use dvlcal::types::board::Board;
+use dvlcal::types::camera::Camchain;
+use dvlcal::vision::detect::DetectorSettings;
 use dvlcal::vision::frames::detect_frames;
-use dvlcal::vision::images::{StereoFrame, scan_images};
 use dvlcal::vision::pnp::PnpOptions;
 
 /// Quad decimation of both detectors (the default of both).

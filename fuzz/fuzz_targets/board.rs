@@ -3,12 +3,12 @@
 
 use std::path::Path;
 
-use dvlcal::vision::board::Board;
+use dvlcal::io::target::parse_board;
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
     let Ok(text) = std::str::from_utf8(data) else {
         return;
     };
-    let _ = Board::parse(text, Path::new("fuzz-board.yaml"));
+    let _ = parse_board(text, Path::new("fuzz-board.yaml"));
 });

@@ -3,12 +3,12 @@
 
 use std::path::Path;
 
-use dvlcal::vision::camera::Camchain;
+use dvlcal::io::camchain::parse_camchain;
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
     let Ok(text) = std::str::from_utf8(data) else {
         return;
     };
-    let _ = Camchain::parse(text, Path::new("fuzz-camchain.yaml"));
+    let _ = parse_camchain(text, Path::new("fuzz-camchain.yaml"));
 });

@@ -24,9 +24,10 @@ use crate::camcal::types::{
 };
 use crate::camcal::views::match_views;
 use crate::error::{Error, Result};
+use crate::io::camchain::{camchain_yaml, parse_camchain};
 use crate::lie::{Se3, hat};
-use crate::vision::board::Board;
-use crate::vision::camera::{Camchain, Camera};
+use crate::types::board::Board;
+use crate::types::camera::{Camchain, Camera};
 
 /// Intrinsic unknowns per camera: `fu, fv, pu, pv` and four distortion coefficients.
 const NI: usize = 8;
@@ -513,8 +514,8 @@ pub fn calibrate_cameras(
     let std = camera_std(&state, &cov);
     let chain = state.chain();
     // What comes back from the file must be what was found.
-    let yaml = chain.to_kalibr_yaml();
-    Camchain::parse(&yaml, std::path::Path::new("<fitted camchain>")).map_err(|e| {
+    let yaml = camchain_yaml(&chain);
+    parse_camchain(&yaml, std::path::Path::new("<fitted camchain>")).map_err(|e| {
         Error::Input(format!(
             "the fitted cameras are not a valid camera chain ({e}); the views do not determine \
              the lens"

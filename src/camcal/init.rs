@@ -17,7 +17,7 @@ use opencv::prelude::*;
 use crate::camcal::types::{CameraModel, CornerObs};
 use crate::error::{Error, Result};
 use crate::lie::{Se3, so3};
-use crate::vision::camera::{Camchain, Camera, Distortion};
+use crate::types::camera::{Camchain, Camera, Distortion};
 use crate::vision::pnp::mat3;
 
 /// Views per camera given to OpenCV's calibrateCamera.

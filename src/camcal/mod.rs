@@ -16,7 +16,7 @@
 //!    estimated corner noise), the coverage of each image by corners, and warnings where the
 //!    result is weak (distortion fitted where no corner was, a wide uncertainty).
 //!
-//! The result is a [`Camchain`](crate::vision::camera::Camchain), written in Kalibr's camchain format.
+//! The result is a [`Camchain`](crate::types::camera::Camchain), written in Kalibr's camchain format.
 
 pub mod bundle;
 pub mod init;

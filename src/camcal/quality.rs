@@ -4,7 +4,7 @@
 use nalgebra::Vector2;
 
 use crate::camcal::types::{CameraStd, Coverage};
-use crate::vision::camera::{Camchain, Camera};
+use crate::types::camera::{Camchain, Camera};
 
 /// Share of the grid cells that must hold corners before the distortion counts as measured over
 /// the image.
@@ -187,7 +187,7 @@ pub fn weak_points(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::vision::camera::Distortion;
+    use crate::types::camera::Distortion;
 
     fn cam() -> Camera {
         Camera {

@@ -3,7 +3,7 @@
 use nalgebra::{Vector2, Vector3};
 
 use crate::lie::Se3;
-use crate::vision::camera::{Camchain, Distortion};
+use crate::types::camera::{Camchain, Distortion};
 use crate::vision::detect::TagDetection;
 
 /// The camera model to fit (Kalibr's names: `pinhole-radtan`, `pinhole-equi`).

@@ -1,7 +1,7 @@
 //! Detections matched to the board: the corner observations of every usable view.
 
 use crate::camcal::types::{CornerObs, FrameTags};
-use crate::vision::board::Board;
+use crate::types::board::Board;
 
 /// The corner observations of all frames, and what was left out.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -81,7 +81,7 @@ pub fn match_views(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::vision::board::TagFamily;
+    use crate::types::board::TagFamily;
     use crate::vision::detect::TagDetection;
     use nalgebra::Vector2;
 

@@ -14,8 +14,8 @@ use opencv::prelude::*;
 use crate::camcal::FrameTags;
 use crate::error::{Error, Result};
 use crate::lie::{Se3, so3};
-use crate::vision::board::Board;
-use crate::vision::camera::{Camchain, Camera, Distortion};
+use crate::types::board::Board;
+use crate::types::camera::{Camchain, Camera, Distortion};
 
 /// The pixel distance between where a true and an estimated camera model send the same rays.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -11,6 +11,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use nalgebra::{Matrix3, Matrix4, Vector3};
+use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
 use super::provenance::Provenance;
@@ -99,9 +100,192 @@ pub struct CalibrationInfo {
     /// Other remarks.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub notes: Vec<String>,
-    /// Further figures (data counts, residual RMS, ...), written as keys of `info`.
-    #[serde(flatten, skip_serializing_if = "BTreeMap::is_empty")]
-    pub extra: BTreeMap<String, serde_yaml::Value>,
+    /// The run's figures (data counts, residual RMS, ...), written as keys of `info`.
+    #[serde(flatten, skip_serializing_if = "RunFigures::is_empty")]
+    pub figures: RunFigures,
+}
+
+/// One of the worst residuals of a run ([`RunFigures::dvl_worst_residuals`]).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct WorstResidual {
+    /// Time of the report or pose, s, from the run's epoch (its own clock).
+    pub t_s: f64,
+    /// Squared whitened residual over the noise scale (dimensionless).
+    pub variances_out: f64,
+    /// The robust loss's weight, 0..1.
+    pub weight: f64,
+}
+
+/// Declares [`RunFigures`]: one optional field per key of `info`, named as the key.
+macro_rules! run_figures {
+    ($( $(#[$doc:meta])* $key:ident: $ty:ty, )*) => {
+        /// The figures of a calibration run that the result file records as keys of `info`
+        /// (`docs/formats.md` lists them with their units). The pipeline fills them; a key whose
+        /// field is `None` is left out. They are written in the alphabetical order of their keys,
+        /// numbers in the shortest form that reads back (`.nan` where a figure is not a number).
+        #[derive(Clone, Debug, Default, PartialEq)]
+        pub struct RunFigures {
+            $( $(#[$doc])* pub $key: Option<$ty>, )*
+            /// Keys of `info` in a file read that are none of the above, or whose value is not
+            /// of the type above (files of other versions), kept as they were read.
+            pub other: BTreeMap<String, serde_yaml::Value>,
+        }
+
+        impl RunFigures {
+            /// Every key the figures have, in the order of the fields.
+            pub const KEYS: &'static [&'static str] = &[$(stringify!($key)),*];
+
+            /// Whether no figure is given.
+            pub fn is_empty(&self) -> bool {
+                $( self.$key.is_none() && )* self.other.is_empty()
+            }
+
+            /// The figures as the keys and values of `info`.
+            fn to_map(
+                &self,
+            ) -> std::result::Result<BTreeMap<String, serde_yaml::Value>, serde_yaml::Error> {
+                let mut map = self.other.clone();
+                $(
+                    if let Some(v) = &self.$key {
+                        map.insert(stringify!($key).to_owned(), serde_yaml::to_value(v)?);
+                    }
+                )*
+                Ok(map)
+            }
+
+            /// The figures of the keys of `info` read from a file.
+            fn from_map(mut map: BTreeMap<String, serde_yaml::Value>) -> RunFigures {
+                RunFigures {
+                    $( $key: take(&mut map, stringify!($key)), )*
+                    other: map,
+                }
+            }
+        }
+    };
+}
+
+/// The value of `key`, removed from `map`, when it has the type asked for.
+fn take<T: DeserializeOwned>(
+    map: &mut BTreeMap<String, serde_yaml::Value>,
+    key: &str,
+) -> Option<T> {
+    let value = serde_yaml::from_value(map.get(key)?.clone()).ok()?;
+    map.remove(key);
+    Some(value)
+}
+
+run_figures! {
+    /// How the camchain was obtained, when the cameras were calibrated from the same images.
+    camchain_source: String,
+    /// Camera poses given.
+    poses: usize,
+    /// Where the poses' covariances came from.
+    pose_covariances: String,
+    /// The DVL log read.
+    dvl_log: String,
+    /// The A50 time stamp used.
+    dvl_time_source: String,
+    /// Velocity reports in the log.
+    dvl_velocity_reports: usize,
+    /// Reports the A50 marked invalid.
+    dvl_invalid: usize,
+    /// Repeated reports.
+    dvl_duplicates: usize,
+    /// Malformed lines skipped.
+    dvl_rejected_lines: usize,
+    /// Reports given to the calibration.
+    dvl_samples: usize,
+    /// Reports the refinement used.
+    dvl_used: usize,
+    /// Reports whose covariance was replaced by the default noise.
+    dvl_covariance_replaced: usize,
+    /// Reports outside the camera trajectory's time span.
+    dvl_outside_camera_span: usize,
+    /// Reports falling in gaps between poses.
+    dvl_in_pose_gaps: usize,
+    /// The sound speed the DVL assumes, m/s.
+    dvl_sound_speed_mps: f64,
+    /// The water's sound speed, m/s.
+    water_sound_speed_mps: f64,
+    /// RMS of the DVL residuals per axis, m/s, DVL frame.
+    dvl_residual_rms_mps: [f64; 3],
+    /// Weighted squared residuals per degree of freedom.
+    dvl_normalized_cost: f64,
+    /// The joint cost after each round.
+    cost_per_iteration: Vec<f64>,
+    /// RMS angular speed of the camera over the reports used, rad/s.
+    rms_angular_speed_radps: f64,
+    /// RMS speed of the camera over the reports used, m/s.
+    rms_speed_mps: f64,
+    /// RMS lever-arm velocity over RMS speed.
+    lever_arm_velocity_ratio: f64,
+    /// The trajectory prior's jerk power spectral density, translation then rotation.
+    trajectory_qc: Vec<f64>,
+    /// How the initial clock offset was found.
+    clock_offset_init: String,
+    /// The offset at which the speed series correlate best, s.
+    clock_alignment_lag_s: f64,
+    /// Their correlation there.
+    clock_alignment_correlation: f64,
+    /// The best other peak of the correlation, s.
+    clock_alignment_second_lag_s: f64,
+    /// Its correlation.
+    clock_alignment_second_correlation: f64,
+    /// Whether the two peaks are too close to tell apart.
+    clock_alignment_ambiguous: bool,
+    /// Slowly rotating reports the offset search used.
+    calm_samples: usize,
+    /// The robust loss.
+    loss: String,
+    /// Reports left out of the initialisation as velocity spikes.
+    dvl_spikes_screened_from_init: usize,
+    /// Reports the loss down-weighted as outliers.
+    dvl_downweighted: usize,
+    /// Poses the loss down-weighted as outliers.
+    poses_downweighted: usize,
+    /// The worst DVL reports.
+    dvl_worst_residuals: Vec<WorstResidual>,
+    /// The worst poses.
+    poses_worst_residuals: Vec<WorstResidual>,
+    /// The DVL noise the residuals show, over the stated variance.
+    dvl_noise_over_stated_variance: f64,
+    /// Integrated autocorrelation time of the DVL residuals per axis, samples.
+    dvl_residual_autocorrelation_time_samples: Vec<f64>,
+    /// Whether that time is beyond what white noise gives.
+    dvl_residuals_correlated: bool,
+    /// The factor the DVL information was divided by for it.
+    dvl_information_divided_by: f64,
+    /// Where the recording was split for the halves check, s, DVL clock.
+    halves_split_dvl_time_s: f64,
+    /// The halves' difference over its standard deviation, per parameter (NaN where not
+    /// compared).
+    halves_difference_in_std: Vec<f64>,
+    /// The factor each standard deviation was inflated by for the halves' difference.
+    halves_std_inflation: Vec<f64>,
+    /// Whether the lever arm is the broad default prior's.
+    lever_arm_from_default_prior: bool,
+    /// The share of the DVL reports the result rests on.
+    usable_fraction: f64,
+    /// The clock offset of the recording's first third alone, s.
+    clock_offset_first_third_s: f64,
+    /// The same of the last third, s.
+    clock_offset_last_third_s: f64,
+    /// Their difference over the time between the thirds' middles, ppm.
+    clock_drift_apparent_ppm: f64,
+}
+
+impl Serialize for RunFigures {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        self.to_map()
+            .map_err(serde::ser::Error::custom)?
+            .serialize(s)
+    }
+}
+
+impl<'de> Deserialize<'de> for RunFigures {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        BTreeMap::<String, serde_yaml::Value>::deserialize(d).map(RunFigures::from_map)
+    }
 }
 
 /// Whether a result can be used.

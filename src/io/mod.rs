@@ -6,11 +6,16 @@
 
 pub mod bag;
 pub mod calib_yaml;
+pub mod camchain;
 pub mod dataset;
 pub mod dvl;
 pub mod exports;
+pub mod frames;
 pub mod frames_csv;
+pub mod image;
+pub mod images;
 pub mod provenance;
+pub mod target;
 pub mod times;
 pub mod tum;
 pub mod twist_csv;

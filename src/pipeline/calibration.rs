@@ -1,7 +1,6 @@
 //! A calibration of a loaded dataset and everything written from it: the result file, the ROS and
 //! Kalibr exports, the HTML report, and the summary printed at the end.
 
-use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -15,8 +14,9 @@ use crate::calib::{
 use crate::error::{Error, Result};
 use crate::io::calib_yaml::{
     CalibrationFile, CalibrationInfo, CalibrationStd, Observability, ObservabilityFlags,
-    ResultStatus, write_calib_yaml,
+    ResultStatus, RunFigures, WorstResidual, write_calib_yaml,
 };
+use crate::io::camchain::kalibr_entry;
 use crate::io::dataset::DatasetFiles;
 use crate::io::dvl::DvlLog;
 use crate::io::exports::{
@@ -77,7 +77,7 @@ fn note_pose_covariances(file: &mut CalibrationFile, data: &Dataset) {
         (None, None) => "the pose source".to_string(),
     };
     let info = file.info.get_or_insert_with(CalibrationInfo::default);
-    info.extra.insert("pose_covariances".into(), source.into());
+    info.figures.pose_covariances = Some(source);
 }
 
 /// Records in the result file that the camchain was calibrated from the same images, and warns
@@ -89,10 +89,7 @@ fn note_cameras(file: &mut CalibrationFile, cams: &CameraCalRun) {
         cams.images.display(),
         cams.one_line()
     ));
-    info.extra.insert(
-        "camchain_source".into(),
-        "calibrated from the same images".into(),
-    );
+    info.figures.camchain_source = Some("calibrated from the same images".into());
     if cams.is_weak() {
         let w = &cams.result.warnings;
         let more = match w.len() {
@@ -163,139 +160,85 @@ pub fn result_file(o: &CalibrationOutcome, log: &DvlLog) -> CalibrationFile {
         time_offset: flag(&o.verdicts.time_offset),
         velocity_scale: flag(&o.verdicts.velocity_scale),
     });
-    let mut extra = BTreeMap::new();
-    let mut put = |k: &str, val: serde_yaml::Value| {
-        extra.insert(k.to_owned(), val);
-    };
-    put("poses", o.counts.poses.into());
     let st = &log.stats;
-    put("dvl_log", st.path.display().to_string().into());
-    put("dvl_time_source", st.time_source_used.clone().into());
-    put("dvl_velocity_reports", st.velocity_reports.into());
-    put("dvl_invalid", st.invalid.into());
-    put("dvl_duplicates", st.duplicates.into());
-    put("dvl_rejected_lines", st.rejected_lines.into());
-    put("dvl_samples", o.counts.dvl_samples.into());
-    if let Some(c) = st.sound_speed_mps {
-        put("dvl_sound_speed_mps", c.into());
-        if o.params.velocity_scale > 0.0 {
-            put(
-                "water_sound_speed_mps",
-                (c / o.params.velocity_scale).into(),
-            );
-        }
-    }
-    put("dvl_used", o.counts.dvl_used.into());
-    put(
-        "dvl_covariance_replaced",
-        o.counts.dvl_covariance_replaced.into(),
-    );
-    put("dvl_outside_camera_span", o.counts.dvl_outside_span.into());
-    put("dvl_in_pose_gaps", o.counts.dvl_in_pose_gaps.into());
-    put(
-        "dvl_residual_rms_mps",
-        vec![o.residual_rms.x, o.residual_rms.y, o.residual_rms.z].into(),
-    );
-    put("dvl_normalized_cost", o.normalized_cost.into());
-    put(
-        "cost_per_iteration",
-        o.iterations
-            .iter()
-            .map(|i| i.cost)
-            .collect::<Vec<_>>()
-            .into(),
-    );
-    put(
-        "rms_angular_speed_radps",
-        o.excitation.rms_angular_speed.into(),
-    );
-    put("rms_speed_mps", o.excitation.rms_speed.into());
-    put(
-        "lever_arm_velocity_ratio",
-        o.excitation.lever_arm_ratio.into(),
-    );
-    put(
-        "trajectory_qc",
-        o.trajectory.qc.iter().copied().collect::<Vec<_>>().into(),
-    );
-    if let Some(init) = &o.init {
-        put(
-            "clock_offset_init",
-            match init.offset.method {
+    let worst = |w: &[crate::calib::robust::Outlier]| -> Option<Vec<WorstResidual>> {
+        (!w.is_empty()).then(|| {
+            w.iter()
+                .map(|x| WorstResidual {
+                    t_s: x.t,
+                    variances_out: x.s,
+                    weight: x.weight,
+                })
+                .collect()
+        })
+    };
+    let init = o.init.as_ref().map(|i| &i.offset);
+    let alignment = init.map(|i| &i.alignment);
+    let second = alignment.and_then(|a| a.second_lag_s.zip(a.second_correlation));
+    let sound = st.sound_speed_mps;
+    let figures = RunFigures {
+        poses: Some(o.counts.poses),
+        dvl_log: Some(st.path.display().to_string()),
+        dvl_time_source: Some(st.time_source_used.clone()),
+        dvl_velocity_reports: Some(st.velocity_reports),
+        dvl_invalid: Some(st.invalid),
+        dvl_duplicates: Some(st.duplicates),
+        dvl_rejected_lines: Some(st.rejected_lines),
+        dvl_samples: Some(o.counts.dvl_samples),
+        dvl_sound_speed_mps: sound,
+        water_sound_speed_mps: sound
+            .filter(|_| o.params.velocity_scale > 0.0)
+            .map(|c| c / o.params.velocity_scale),
+        dvl_used: Some(o.counts.dvl_used),
+        dvl_covariance_replaced: Some(o.counts.dvl_covariance_replaced),
+        dvl_outside_camera_span: Some(o.counts.dvl_outside_span),
+        dvl_in_pose_gaps: Some(o.counts.dvl_in_pose_gaps),
+        dvl_residual_rms_mps: Some([o.residual_rms.x, o.residual_rms.y, o.residual_rms.z]),
+        dvl_normalized_cost: Some(o.normalized_cost),
+        cost_per_iteration: Some(o.iterations.iter().map(|i| i.cost).collect()),
+        rms_angular_speed_radps: Some(o.excitation.rms_angular_speed),
+        rms_speed_mps: Some(o.excitation.rms_speed),
+        lever_arm_velocity_ratio: Some(o.excitation.lever_arm_ratio),
+        trajectory_qc: Some(o.trajectory.qc.iter().copied().collect()),
+        clock_offset_init: init.map(|i| {
+            match i.method {
                 OffsetMethod::CalmSubset => "global speed alignment, then calm subset",
                 OffsetMethod::SpeedCorrelation => {
                     "global speed alignment, then speed correlation (no calm segment)"
                 }
             }
-            .into(),
-        );
-        let a = &init.offset.alignment;
-        put("clock_alignment_lag_s", a.lag_s.into());
-        put("clock_alignment_correlation", a.correlation.into());
-        if let (Some(l), Some(c)) = (a.second_lag_s, a.second_correlation) {
-            put("clock_alignment_second_lag_s", l.into());
-            put("clock_alignment_second_correlation", c.into());
-        }
-        put("clock_alignment_ambiguous", a.ambiguous.into());
-        put("calm_samples", o.counts.calm.into());
-    }
-    put("loss", o.robust.loss.name().into());
-    put(
-        "dvl_spikes_screened_from_init",
-        o.counts.dvl_spikes_screened.into(),
-    );
-    put("dvl_downweighted", o.counts.dvl_downweighted.into());
-    put("poses_downweighted", o.counts.poses_downweighted.into());
-    let worst = |w: &[crate::calib::robust::Outlier]| -> serde_yaml::Value {
-        w.iter()
-            .map(|x| {
-                let mut m = serde_yaml::Mapping::new();
-                m.insert("t_s".into(), x.t.into());
-                m.insert("variances_out".into(), x.s.into());
-                m.insert("weight".into(), x.weight.into());
-                serde_yaml::Value::Mapping(m)
-            })
-            .collect::<Vec<_>>()
-            .into()
-    };
-    if !o.robust.dvl.worst.is_empty() {
-        put("dvl_worst_residuals", worst(&o.robust.dvl.worst));
-    }
-    if !o.robust.poses.worst.is_empty() {
-        put("poses_worst_residuals", worst(&o.robust.poses.worst));
-    }
-    put(
-        "dvl_noise_over_stated_variance",
-        o.robust.dvl.noise_scale.into(),
-    );
-    let wh = &o.whiteness;
-    put(
-        "dvl_residual_autocorrelation_time_samples",
-        wh.tau.to_vec().into(),
-    );
-    put("dvl_residuals_correlated", wh.correlated.into());
-    put("dvl_information_divided_by", wh.inflation.into());
-    if let Some(h) = &o.halves {
-        put("halves_split_dvl_time_s", h.split_t.into());
-        put(
-            "halves_difference_in_std",
+            .to_owned()
+        }),
+        clock_alignment_lag_s: alignment.map(|a| a.lag_s),
+        clock_alignment_correlation: alignment.map(|a| a.correlation),
+        clock_alignment_second_lag_s: second.map(|(l, _)| l),
+        clock_alignment_second_correlation: second.map(|(_, c)| c),
+        clock_alignment_ambiguous: alignment.map(|a| a.ambiguous),
+        calm_samples: init.map(|_| o.counts.calm),
+        loss: Some(o.robust.loss.name().to_owned()),
+        dvl_spikes_screened_from_init: Some(o.counts.dvl_spikes_screened),
+        dvl_downweighted: Some(o.counts.dvl_downweighted),
+        poses_downweighted: Some(o.counts.poses_downweighted),
+        dvl_worst_residuals: worst(&o.robust.dvl.worst),
+        poses_worst_residuals: worst(&o.robust.poses.worst),
+        dvl_noise_over_stated_variance: Some(o.robust.dvl.noise_scale),
+        dvl_residual_autocorrelation_time_samples: Some(o.whiteness.tau.to_vec()),
+        dvl_residuals_correlated: Some(o.whiteness.correlated),
+        dvl_information_divided_by: Some(o.whiteness.inflation),
+        halves_split_dvl_time_s: o.halves.as_ref().map(|h| h.split_t),
+        halves_difference_in_std: o.halves.as_ref().map(|h| {
             (0..crate::calib::model::NPARAM)
                 .map(|k| if h.compared[k] { h.z(k) } else { f64::NAN })
-                .collect::<Vec<_>>()
-                .into(),
-        );
-        put("halves_std_inflation", h.inflation.to_vec().into());
-    }
-    put(
-        "lever_arm_from_default_prior",
-        o.lever_arm_from_default_prior.into(),
-    );
-    put("usable_fraction", o.usable_fraction().into());
-    if let Some(d) = &o.drift {
-        put("clock_offset_first_third_s", d.first_third_s.into());
-        put("clock_offset_last_third_s", d.last_third_s.into());
-        put("clock_drift_apparent_ppm", d.drift_ppm.into());
-    }
+                .collect()
+        }),
+        halves_std_inflation: o.halves.as_ref().map(|h| h.inflation.to_vec()),
+        lever_arm_from_default_prior: Some(o.lever_arm_from_default_prior),
+        usable_fraction: Some(o.usable_fraction()),
+        clock_offset_first_third_s: o.drift.as_ref().map(|d| d.first_third_s),
+        clock_offset_last_third_s: o.drift.as_ref().map(|d| d.last_third_s),
+        clock_drift_apparent_ppm: o.drift.as_ref().map(|d| d.drift_ppm),
+        ..RunFigures::default()
+    };
     let mut warnings = st.warnings.clone();
     warnings.extend(o.warnings.iter().cloned());
     for (name, vd) in [
@@ -313,7 +256,7 @@ pub fn result_file(o: &CalibrationOutcome, log: &DvlLog) -> CalibrationFile {
         iterations: Some(o.iterations.len() as u64),
         warnings,
         notes: Vec::new(),
-        extra,
+        figures,
     });
     f
 }
@@ -407,7 +350,7 @@ fn kalibr_cameras(data: &Dataset) -> Vec<KalibrCamera> {
             let n = run.chain.cams.len();
             (0..n)
                 .map(|i| KalibrCamera {
-                    entry: run.chain.kalibr_entry(i),
+                    entry: kalibr_entry(&run.chain, i),
                     t_cn_c0: run.chain.t_cn_c0[i].to_matrix(),
                     overlaps: (0..n).filter(|&j| j != i).collect(),
                 })

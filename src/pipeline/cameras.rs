@@ -1,5 +1,5 @@
-//! Camera calibration from a folder of board images: scan, detect, calibrate, detect again with
-//! the fitted lenses, calibrate again, and write the camchain and the report.
+//! Camera calibration from board images, a folder's or a bag's: scan or plan, detect, calibrate,
+//! detect again with the fitted lenses, calibrate again, and write the camchain and the report.
 //!
 //! Without a camera model the detector fits each tag side as a straight line in the distorted
 //! image, where a side is slightly bent; the corners then lean towards the image centre, more so
@@ -13,12 +13,17 @@ use std::time::Instant;
 
 use crate::camcal::{CamCalOptions, CamCalResult, FrameTags, calibrate_cameras};
 use crate::error::{Error, Result};
+use crate::io::bag::frames::BagFrames;
+use crate::io::bag::open::OpenBag;
+use crate::io::camchain::camchain_yaml;
+use crate::io::frames::FrameSource;
+use crate::io::images::{ScanStats, StereoFrame, camera_count, image_sizes, scan_images};
+use crate::io::target::read_board;
 use crate::io::write_atomic;
 use crate::report::{CamCalReportInput, render_camcal_html};
-use crate::vision::board::Board;
-use crate::vision::camera::Camchain;
-use crate::vision::frames::{DetectStats, FrameSource, detect_source_tags};
-use crate::vision::images::{ScanStats, StereoFrame, camera_count, scan_images};
+use crate::types::board::Board;
+use crate::types::camera::Camchain;
+use crate::vision::frames::{DetectStats, detect_source_tags};
 
 use super::vision::{VisionOptions, detector_settings};
 
@@ -53,7 +58,7 @@ impl Default for CameraCalOptions {
 /// What a camera calibration run found.
 #[derive(Debug)]
 pub struct CameraCalRun {
-    /// The image folder.
+    /// The image folder or bag.
     pub images: PathBuf,
     /// The board file.
     pub target: PathBuf,
@@ -71,29 +76,6 @@ pub struct CameraCalRun {
     pub seconds_detect: f64,
     /// Wall time of the adjustment (all passes), s.
     pub seconds_fit: f64,
-}
-
-/// The image size of each camera, read from its first image that opens.
-fn image_sizes(frames: &[StereoFrame], cams: usize) -> Result<Vec<(u32, u32)>> {
-    (0..cams)
-        .map(|c| {
-            let mut last_err = None;
-            for p in frames
-                .iter()
-                .filter_map(|f| f.images.get(c).cloned().flatten())
-                .filter_map(|r| r.path().map(Path::to_path_buf))
-            {
-                match image::image_dimensions(&p) {
-                    Ok(d) => return Ok(d),
-                    Err(e) => last_err = Some(format!("{}: {e}", p.display())),
-                }
-            }
-            Err(Error::Input(format!(
-                "cam{c}: no readable image{}",
-                last_err.map_or(String::new(), |e| format!(" (last: {e})"))
-            )))
-        })
-        .collect()
 }
 
 fn frame_tags(
@@ -124,7 +106,7 @@ pub fn calibrate_cameras_from_images(
     opts: &CameraCalOptions,
 ) -> Result<CameraCalRun> {
     opts.vision.validate()?;
-    let board = Board::load(target)?;
+    let board = read_board(target)?;
     let cams = camera_count(images);
     if cams == 0 {
         return Err(Error::dataset(
@@ -139,35 +121,61 @@ pub fn calibrate_cameras_from_images(
         images,
         target,
         &board,
-        &frames,
+        FrameSource::Files(&frames),
         scan,
         sizes,
-        &|| FrameSource::Files(&frames),
         opts,
     )
 }
 
+/// Calibrates the cameras of a bag's image topics from the board `target`, as
+/// [`calibrate_cameras_from_images`] does for a folder (each detection pass streams the bag
+/// once). The chain's `rostopic`s are the bag's image topics.
+pub fn calibrate_cameras_from_bag(
+    ob: &OpenBag,
+    plan: &BagFrames,
+    target: &Path,
+    opts: &CameraCalOptions,
+) -> Result<CameraCalRun> {
+    opts.vision.validate()?;
+    let board = read_board(target)?;
+    let mut run = calibrate_cameras_from_frames(
+        ob.path(),
+        target,
+        &board,
+        FrameSource::Bag {
+            path: ob.path(),
+            plan,
+        },
+        plan.scan.clone(),
+        plan.sizes.clone(),
+        opts,
+    )?;
+    for (t, topic) in run.result.chain.topics.iter_mut().zip(&plan.topics) {
+        *t = Some(topic.name.clone());
+    }
+    Ok(run)
+}
+
 /// The calibration of [`calibrate_cameras_from_images`] on frames from any source (a folder,
-/// a bag): `source` gives the frames' images once per detection pass. `name` is the images'
-/// folder or bag, `sizes` the image size of each camera.
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn calibrate_cameras_from_frames<'a>(
+/// a bag), whose images are read once per detection pass. `name` is the images' folder or bag,
+/// `sizes` the image size of each camera.
+fn calibrate_cameras_from_frames(
     name: &Path,
     target: &Path,
     board: &Board,
-    frames: &[StereoFrame],
+    src: FrameSource<'_>,
     scan: ScanStats,
     sizes: Vec<(u32, u32)>,
-    source: &dyn Fn() -> FrameSource<'a>,
     opts: &CameraCalOptions,
 ) -> Result<CameraCalRun> {
+    let frames = src.frames();
     let det = detector_settings(board, &opts.vision);
     let pool = crate::parallel::worker_pool(opts.vision.threads)?;
     let mut seconds_detect = 0.0;
     let mut seconds_fit = 0.0;
 
     let start = Instant::now();
-    let src = source();
     let (dets, mut detect) =
         pool.install(|| detect_source_tags(src, &sizes, None, &det, opts.vision.progress))?;
     seconds_detect += start.elapsed().as_secs_f64();
@@ -178,7 +186,6 @@ pub(crate) fn calibrate_cameras_from_frames<'a>(
     let mut passes = 1;
     if opts.second_pass {
         let start = Instant::now();
-        let src = source();
         let (dets, d2) = pool.install(|| {
             detect_source_tags(src, &sizes, Some(&result.chain), &det, opts.vision.progress)
         })?;
@@ -246,7 +253,7 @@ impl CameraCalRun {
                 .collect::<Vec<_>>()
                 .join(", ")
         };
-        let base = r.chain.to_kalibr_yaml();
+        let base = camchain_yaml(&r.chain);
         let mut cam = None::<usize>;
         let flush = |out: &mut String, cam: Option<usize>| {
             let Some(i) = cam else { return };

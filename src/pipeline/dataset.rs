@@ -4,17 +4,23 @@
 use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result};
+use crate::io::bag::camera_info::camera_from_info;
+use crate::io::bag::frames::plan_frames;
+use crate::io::bag::open::OpenBag;
+use crate::io::bag::poses::read_bag_poses;
+use crate::io::camchain::read_camchain;
 use crate::io::dataset::{DatasetFiles, DatasetOverrides, discover};
 use crate::io::dvl::{DvlLog, DvlReadOptions, read_dvl_log};
 use crate::io::frames_csv::{frames_csv_path, read_tum_with_covariances};
 use crate::types::PoseMeasurement;
+use crate::types::camera::Camchain;
 
-use super::bag::{
-    OpenBag, calibrate_cameras_from_bag, camera_from_info, plan_frames, poses_from_bag,
-    read_bag_poses,
+use super::cameras::{
+    CameraCalOptions, CameraCalRun, calibrate_cameras_from_bag, calibrate_cameras_from_images,
 };
-use super::cameras::{CameraCalOptions, CameraCalRun, calibrate_cameras_from_images};
-use super::vision::{VisionOptions, VisionRun, poses_from_images, poses_from_images_with_chain};
+use super::vision::{
+    VisionOptions, VisionRun, poses_from_bag, poses_from_images, poses_from_images_with_chain,
+};
 
 /// The files of a dataset: found in `dir` with `given` taking precedence, or, without a folder,
 /// exactly the files `given` names (a DVL log, and poses or images with a target and, optionally,
@@ -214,13 +220,13 @@ impl Dataset {
                     let tol_ns = (vision.pair_tolerance_ms * 1e6).round() as i64;
                     let plan = plan_frames(&ob, tol_ns)?;
                     let chain = match &files.camchain {
-                        Some(c) => crate::vision::camera::Camchain::load(c)?,
+                        Some(c) => read_camchain(c)?,
                         None => match (plan.sizes.len(), camera_from_info(&ob, 0)?) {
                             (1, Some(cam)) => {
                                 notes.push(
                                     "no camchain: the camera model is the bag's CameraInfo".into(),
                                 );
-                                crate::vision::camera::Camchain::mono(cam)
+                                Camchain::mono(cam)
                             }
                             _ => {
                                 let opts = CameraCalOptions {

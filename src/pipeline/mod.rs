@@ -16,13 +16,14 @@
 //! 4. [`calibrate_cameras_from_images`] calibrates the cameras themselves from board images
 //!    (intrinsics, distortion, stereo extrinsics) and writes a Kalibr camchain and its report.
 //! 5. [`write_simulated_dataset`] writes a dataset folder with known truth.
-//! 6. [`OpenBag`] takes a bag (ROS 1 or ROS 2) as a dataset: [`plan_frames`] and
-//!    [`poses_from_bag`] stream its images through the same pipeline, [`read_bag_poses`] reads
-//!    its poses, [`bag_info`] lists it.
+//! 6. A bag (ROS 1 or ROS 2) is a dataset too: opened with the parts of its topics
+//!    ([`crate::io::bag::open::OpenBag`]) and its frames planned
+//!    ([`crate::io::bag::frames::plan_frames`]), [`poses_from_bag`] streams its images through
+//!    the same pipeline; its poses and its listing are read by [`crate::io::bag::poses`] and
+//!    [`crate::io::bag::info`].
 //!
 //! Long steps take a worker-thread count; results never depend on it.
 
-mod bag;
 mod calibration;
 mod cameras;
 mod dataset;
@@ -30,17 +31,14 @@ mod evaluate;
 mod simulate;
 mod vision;
 
-pub use bag::{
-    BagFrames, BagInfo, BagPoses, OpenBag, TopicInfo, bag_info, calibrate_cameras_from_bag,
-    camera_from_info, frame_source, plan_frames, poses_from_bag, read_bag_poses,
-};
 pub use calibration::{
     CalibrationRun, CameraOutputs, OutputOptions, ResultPaths, calibrate_dataset,
     calibration_context, dataset_inputs, frame_names, method_name, result_file, sibling,
     write_failure_report, write_report, write_results,
 };
 pub use cameras::{
-    CameraCalOptions, CameraCalRun, SEPARATE_CAMERA_RECORDING, calibrate_cameras_from_images,
+    CameraCalOptions, CameraCalRun, SEPARATE_CAMERA_RECORDING, calibrate_cameras_from_bag,
+    calibrate_cameras_from_images,
 };
 pub use dataset::{Dataset, dataset_files, describe_files};
 pub use evaluate::{
@@ -49,7 +47,7 @@ pub use evaluate::{
 pub use simulate::{ImageRequest, SimulateRequest, SimulatedRecording, write_simulated_dataset};
 pub use vision::{
     MAX_REPROJECTION_RMS_PX, VisionOptions, VisionRun, detector_settings, frames_csv_path,
-    posed_frames, poses_from_images, poses_from_images_with_chain,
+    posed_frames, poses_from_bag, poses_from_images, poses_from_images_with_chain,
 };
 
 pub use crate::parallel::worker_pool;

@@ -18,7 +18,9 @@ use nalgebra::Vector3;
 
 use crate::error::{Error, Result};
 use crate::io::calib_yaml::{CalibrationFile, CalibrationInfo, write_calib_yaml};
+use crate::io::camchain::camchain_yaml;
 use crate::io::dvl::a50::write_a50_jsonl;
+use crate::io::target::board_yaml;
 use crate::io::tum::write_tum;
 use crate::io::twist_csv::{TwistRow, write_twist_csv};
 use crate::io::write_atomic;
@@ -29,8 +31,8 @@ use crate::sim::image_dataset::{
     FrameSpec, ImageSimSettings, ImageSimStats, board_facing, write_image_dataset,
 };
 use crate::sim::motion::MotionState;
-use crate::vision::board::Board;
-use crate::vision::camera::Camchain;
+use crate::types::board::Board;
+use crate::types::camera::Camchain;
 
 /// The distance every simulated A50 beam reports, m.
 const ALTITUDE_M: f64 = 1.5;
@@ -186,9 +188,9 @@ fn write_images(
     )?;
     write_atomic(
         &out.join("camchain.yaml"),
-        im.chain.to_kalibr_yaml().as_bytes(),
+        camchain_yaml(&im.chain).as_bytes(),
     )?;
-    write_atomic(&out.join("target.yaml"), im.board.to_yaml().as_bytes())?;
+    write_atomic(&out.join("target.yaml"), board_yaml(&im.board).as_bytes())?;
     write_image_dataset(out, &im.board, &im.chain, &frames, &im.settings, progress)
 }
 

@@ -1,20 +1,26 @@
-//! Camera poses from a folder of stereo images: scan, detect, solve, and the per-frame table.
+//! Camera poses from stereo images, a folder's or a bag's: scan or plan, detect, solve (one
+//! path for both), and the per-frame table.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use crate::error::{Error, Result};
+use crate::io::bag::frames::BagFrames;
+use crate::io::bag::open::OpenBag;
+use crate::io::camchain::read_camchain;
+use crate::io::frames::FrameSource;
 pub use crate::io::frames_csv::frames_csv_path;
 use crate::io::frames_csv::{FrameRow, format_frames_csv};
+use crate::io::images::{Layout, ScanStats, raw_time, scan_images};
+use crate::io::target::read_board;
 use crate::io::tum::as_read_back;
 use crate::time::Epoch;
 use crate::types::PoseMeasurement;
-use crate::vision::board::{Board, TagPrint};
-use crate::vision::camera::Camchain;
+use crate::types::board::{Board, TagPrint};
+use crate::types::camera::Camchain;
 use crate::vision::detect::DetectorSettings;
-use crate::vision::frames::{DetectStats, FrameResult, detect_frames};
-use crate::vision::images::{Layout, ScanStats, raw_time, scan_images};
+use crate::vision::frames::{DetectStats, FrameResult, detect_source};
 use crate::vision::pnp::PnpOptions;
 
 /// Detection and PnP settings (the options `dvlcal detect` and `dvlcal calibrate` share).
@@ -78,7 +84,7 @@ pub const MAX_REPROJECTION_RMS_PX: f64 = 3.0;
 /// Everything a run of the image pipeline produced.
 #[derive(Debug)]
 pub struct VisionRun {
-    /// The image folder.
+    /// The image folder or bag.
     pub images: PathBuf,
     /// The camera chain the poses were solved with.
     pub chain: Camchain,
@@ -108,7 +114,7 @@ pub fn poses_from_images(
     opts: &VisionOptions,
 ) -> Result<VisionRun> {
     opts.validate()?;
-    let chain = Camchain::load(camchain)?;
+    let chain = read_camchain(camchain)?;
     poses_from_images_with_chain(images, chain, target, opts)
 }
 
@@ -121,10 +127,78 @@ pub fn poses_from_images_with_chain(
     opts: &VisionOptions,
 ) -> Result<VisionRun> {
     opts.validate()?;
-    let board = Board::load(target)?;
+    let board = read_board(target)?;
     let tol_ns = (opts.pair_tolerance_ms * 1e6).round() as i64;
     let (frames, scan) = scan_images(images, chain.cams.len(), tol_ns)?;
-    let det = detector_settings(&board, opts);
+    solve_poses(
+        images,
+        FrameSource::Files(&frames),
+        scan,
+        &[],
+        chain,
+        &board,
+        opts,
+    )
+}
+
+/// Camera poses from a bag's images, as [`poses_from_images_with_chain`] does for a folder:
+/// the frames planned from the header stamps ([`crate::io::bag::frames::plan_frames`]), the
+/// images streamed, detected and solved on `opts.threads` workers.
+pub fn poses_from_bag(
+    ob: &OpenBag,
+    plan: &BagFrames,
+    chain: Camchain,
+    target: &Path,
+    opts: &VisionOptions,
+) -> Result<VisionRun> {
+    opts.validate()?;
+    let board = read_board(target)?;
+    if chain.cams.len() < plan.topics.len() {
+        return Err(Error::Input(format!(
+            "{}: {} image topics, the camera chain has {} cameras",
+            ob.path().display(),
+            plan.topics.len(),
+            chain.cams.len()
+        )));
+    }
+    for (c, (&(w, h), cam)) in plan.sizes.iter().zip(&chain.cams).enumerate() {
+        if (w, h) != (0, 0) && (w, h) != (cam.width, cam.height) {
+            return Err(Error::Input(format!(
+                "{}: {} images are {w}x{h}, cam{c} of the camera chain is {}x{}",
+                ob.path().display(),
+                plan.topics[c].name,
+                cam.width,
+                cam.height
+            )));
+        }
+    }
+    solve_poses(
+        ob.path(),
+        FrameSource::Bag {
+            path: ob.path(),
+            plan,
+        },
+        plan.scan.clone(),
+        &plan.unreadable,
+        chain,
+        &board,
+        opts,
+    )
+}
+
+/// The poses of the frames of `src` (a folder or a bag, `name`): detection and stereo PnP on a
+/// pool of `opts.threads` workers. `unreadable` names the images the planning could not read;
+/// they head the run's problems.
+fn solve_poses(
+    name: &Path,
+    src: FrameSource<'_>,
+    scan: ScanStats,
+    unreadable: &[String],
+    chain: Camchain,
+    board: &Board,
+    opts: &VisionOptions,
+) -> Result<VisionRun> {
+    let det = detector_settings(board, opts);
     let pnp = PnpOptions {
         min_corners: opts.min_corners,
         sigma_px: opts.pixel_sigma,
@@ -132,13 +206,14 @@ pub fn poses_from_images_with_chain(
     };
     let pool = crate::parallel::worker_pool(opts.threads)?;
     let start = Instant::now();
-    let (results, stats) =
-        pool.install(|| detect_frames(&frames, &board, &chain, &det, &pnp, opts.progress))?;
+    let (results, mut stats) =
+        pool.install(|| detect_source(src, board, &chain, &det, &pnp, opts.progress))?;
+    stats.problems.splice(0..0, unreadable.iter().cloned());
     let seconds = start.elapsed().as_secs_f64();
-    let epoch = Epoch::at(raw_time(frames.first().map_or(0, |f| f.t_ns)));
+    let epoch = Epoch::at(raw_time(src.frames().first().map_or(0, |f| f.t_ns)));
     let poses = posed_frames(&results, &epoch);
     Ok(VisionRun {
-        images: images.to_path_buf(),
+        images: name.to_path_buf(),
         chain,
         epoch,
         poses,

@@ -34,7 +34,7 @@ pub fn frame_stats(results: &[FrameResult], epoch: &Epoch) -> Vec<FrameStat> {
     results
         .iter()
         .map(|r| FrameStat {
-            t: epoch.rel(crate::vision::images::raw_time(r.frame.t_ns)),
+            t: epoch.rel(crate::io::images::raw_time(r.frame.t_ns)),
             posed: r.status == FrameStatus::Posed && r.pose.is_some(),
             tags_detected: r.tags_detected.iter().sum(),
             tags_used: r.pose.as_ref().map_or(0, |p| p.tags_used),

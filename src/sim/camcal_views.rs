@@ -20,8 +20,8 @@ use nalgebra::{Matrix3, Vector2, Vector3};
 use crate::lie::{Se3, so3};
 use crate::rng::Rng;
 use crate::sim::image_dataset::{board_centre, board_in_cameras};
-use crate::vision::board::Board;
-use crate::vision::camera::{Camchain, Camera};
+use crate::types::board::Board;
+use crate::types::camera::{Camchain, Camera};
 use crate::vision::detect::TagDetection;
 
 /// Smallest share of the board's tag corners that must fall on cam0's image and on cam1's.

@@ -3,7 +3,7 @@
 //! # Frames
 //!
 //! - `world`: the frame of the simulated camera poses `T_world_cam0` (the motion's frame).
-//! - `board`: the board's own frame (Kalibr's, see [`crate::vision::board`]); it is fixed in the
+//! - `board`: the board's own frame (Kalibr's, see [`crate::types::board`]); it is fixed in the
 //!   world at `T_world_board`.
 //! - `cam0`, `cam1`: the cameras; `T_c1_c0` comes from the camchain (`Camchain::t_cn_c0[1]`).
 //!
@@ -29,8 +29,8 @@ use crate::error::{Error, Result};
 use crate::lie::{Se3, so3};
 use crate::rng::Rng;
 use crate::sim::render::{RenderSettings, render};
-use crate::vision::board::{Board, TagFamily};
-use crate::vision::camera::{Camchain, Camera, Distortion};
+use crate::types::board::{Board, TagFamily};
+use crate::types::camera::{Camchain, Camera, Distortion};
 
 /// First stream number of the per-frame image streams (frame `k` uses `IMAGE_STREAM_BASE + k`);
 /// far from the motion and dataset noise streams.

@@ -19,8 +19,9 @@ use nalgebra::{Matrix2, Vector2, Vector3};
 
 use crate::lie::Se3;
 use crate::rng::Rng;
-use crate::vision::board::{Board, TagPrint, grid_paper};
-use crate::vision::camera::Camera;
+use crate::types::board::{Board, TagPrint};
+use crate::types::camera::Camera;
+use crate::vision::board_svg::grid_paper;
 use crate::vision::family::tags_cells;
 use crate::vision::kalibr::{KALIBR_CELLS_ACROSS, kalibr_tag_cells};
 

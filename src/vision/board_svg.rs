@@ -14,15 +14,18 @@
 
 use std::fmt::Write as _;
 
+use nalgebra::Vector2;
+
 use crate::error::{Error, Result};
-use crate::vision::board::{Board, TagPrint, grid_paper};
-use crate::vision::family::tags_cells;
+use crate::io::target::board_yaml;
+use crate::types::board::{Board, GridLayout, TagPrint};
+use crate::vision::family::{family_layout, tags_cells};
 use crate::vision::kalibr::{KALIBR_CELLS_ACROSS, kalibr_tag_cells};
 
 /// Lines of the board definition printed under the board.
 fn legend(board: &Board, source: &str) -> Vec<String> {
     let mut v = vec![format!("{}  ({})", board.description, source)];
-    for l in board.to_yaml().lines().filter(|l| !l.starts_with('#')) {
+    for l in board_yaml(board).lines().filter(|l| !l.starts_with('#')) {
         v.push(l.to_owned());
     }
     v.push("Print at 100 % scale, no fitting to the page; measure a tag's black square and correct tag_size if it differs.".into());
@@ -453,11 +456,35 @@ fn scale_bar(s: &mut String, x: f64, y: f64, length: f64) {
     s.push_str("</g>\n");
 }
 
+/// The white paper of a grid board in the board plane: lower-left and upper-right corners. The
+/// margin around the outer tags' black squares is the gap between tags, and at least the pattern's
+/// own white ring plus one cell; for a Kalibr print, the gap (where the outer corner squares
+/// end) plus two bits.
+pub fn grid_paper(board: &Board, g: &GridLayout) -> (Vector2<f64>, Vector2<f64>) {
+    let layout = family_layout(board.family);
+    let (tw, wab) = layout
+        .map(|l| (l.total_width as f64, l.width_at_border.max(1) as f64))
+        .unwrap_or((10.0, 8.0));
+    let cell = g.tag_size_m / wab;
+    let margin = match board.print {
+        TagPrint::Apriltag => (g.spacing * g.tag_size_m).max(((tw - wab) / 2.0 + 1.0) * cell),
+        // The outer corner squares reach `spacing * tag size` out; two bits of white beyond.
+        TagPrint::Kalibr => (g.spacing + 0.2) * g.tag_size_m,
+    };
+    let d = g.tag_size_m * (1.0 + g.spacing);
+    let w = (g.cols as f64 - 1.0) * d + g.tag_size_m;
+    let h = (g.rows as f64 - 1.0) * d + g.tag_size_m;
+    (
+        Vector2::new(-margin, -margin),
+        Vector2::new(w + margin, h + margin),
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::lie::Se3;
-    use crate::vision::board::{BoardTag, TagFamily};
+    use crate::types::board::{BoardTag, TagFamily};
     use nalgebra::{Matrix3, Vector3};
 
     fn list_board(tags: &[(u32, f64, f64)]) -> Board {

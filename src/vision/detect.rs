@@ -29,14 +29,14 @@
 //!   on the same tags. `tests/vision_detect.rs` and `tests/vision_render.rs` measure both.
 
 use std::os::raw::c_int;
-use std::path::Path;
 
 use apriltag_sys as sys;
 use nalgebra::Vector2;
 
 use crate::error::{Error, Result};
-use crate::vision::camera::Camera;
-use crate::vision::family::{Destroy, FamilyCodes, TagFamily, family_codes};
+use crate::types::board::TagFamily;
+use crate::types::camera::Camera;
+use crate::vision::family::{Destroy, FamilyCodes, family_codes, ffi};
 use crate::vision::kalibr::{
     KALIBR_BORDER_BITS, KALIBR_CELLS_ACROSS, coarse_fit, decode_quad, grow, has_light_code_cell,
     max_decimate, max3_decimate, quads, saddle_point, widen_border,
@@ -81,7 +81,7 @@ pub struct DetectorSettings {
     /// board pose uses.
     pub board_ids: Option<Vec<u32>>,
     /// The board in view is printed the way Kalibr prints an aprilgrid (a Kalibr target YAML,
-    /// [`crate::vision::board::TagPrint::Kalibr`]). With `board_ids` and `kalibr_layout`, the
+    /// [`crate::types::board::TagPrint::Kalibr`]). With `board_ids` and `kalibr_layout`, the
     /// Kalibr pass on the brightened half image runs first, and libapriltag's own detection of
     /// the whole image only when that pass leaves ids of the board unfound (see
     /// `vision::kalibr`). Off by default: without it the order suits any board.
@@ -196,7 +196,7 @@ impl Detector {
     /// A detector with these settings.
     pub fn new(s: &DetectorSettings) -> Result<Detector> {
         s.validate()?;
-        let (create, destroy_family) = s.family.ffi();
+        let (create, destroy_family) = ffi(s.family);
         // SAFETY: plain constructors of the C library; null results are checked below.
         let tf = unsafe { create() };
         if tf.is_null() {
@@ -642,39 +642,4 @@ impl std::fmt::Debug for Detector {
             .field("settings", &self.settings)
             .finish()
     }
-}
-
-/// Reads an image file (PNG, JPEG, PGM/PPM; the format is guessed from the content) as 8-bit grey.
-/// Colour images are converted to luma, 16-bit ones scaled to 8 bits. A JPEG cut short (no
-/// end-of-image marker: a copy or a write that did not finish) is refused rather than decoded
-/// half grey. Errors name the file.
-pub fn load_gray(path: &Path) -> Result<image::GrayImage> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    decode_gray(&bytes, path)
-}
-
-/// Decodes image bytes as [`load_gray`] does; `path` names the image in errors.
-pub fn decode_gray(bytes: &[u8], path: &Path) -> Result<image::GrayImage> {
-    if bytes.starts_with(&[0xFF, 0xD8]) && !jpeg_complete(bytes) {
-        return Err(Error::Input(format!(
-            "{}: the JPEG is cut short (no end-of-image marker after {} bytes): the file was \
-             not written or copied whole",
-            path.display(),
-            bytes.len()
-        )));
-    }
-    let img = image::load_from_memory(bytes)
-        .map_err(|e| Error::Input(format!("{}: cannot decode the image: {e}", path.display())))?;
-    Ok(img.into_luma8())
-}
-
-/// Whether a JPEG ends with its end-of-image marker (`FF D9`), allowing the zero or `FF`
-/// padding some cameras write after it.
-fn jpeg_complete(bytes: &[u8]) -> bool {
-    let end = bytes
-        .iter()
-        .rposition(|&b| b != 0x00 && b != 0xFF)
-        .map_or(0, |k| k + 1);
-    // The marker's D9 is the last byte that is not padding, preceded by FF.
-    end >= 2 && bytes[end - 1] == 0xD9 && bytes[end - 2] == 0xFF
 }

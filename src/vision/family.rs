@@ -1,8 +1,10 @@
-//! The AprilTag families libapriltag ships: one table of their names, code counts and
-//! libapriltag constructors, shared by the detector, the renderer and the board printer, and the
-//! tag patterns read from libapriltag's own family data.
+//! The AprilTag families libapriltag ships ([`TagFamily`], whose names and code counts live with
+//! the boards): one table of their libapriltag constructors, shared by the detector, the renderer
+//! and the board printer, and the tag patterns read from libapriltag's own family data.
 
 use apriltag_sys as sys;
+
+use crate::types::board::TagFamily;
 
 unsafe extern "C" {
     // In Debian's libapriltag 3.3 but missing from apriltag-sys's bindings.
@@ -15,157 +17,68 @@ pub(crate) type Create = unsafe extern "C" fn() -> *mut sys::apriltag_family_t;
 /// A libapriltag family destructor.
 pub(crate) type Destroy = unsafe extern "C" fn(*mut sys::apriltag_family_t);
 
-/// One row of the family table.
+/// One row of the constructor table.
 struct FamilyEntry {
     family: TagFamily,
-    name: &'static str,
-    /// Number of codes (checked against libapriltag's `ncodes` by `tests/vision_board.rs`).
-    codes: usize,
     create: Create,
     destroy: Destroy,
 }
 
-/// Every family with its name, code count and libapriltag constructor, in the enum's order.
+/// libapriltag's constructor and destructor of every family, in the order of [`TagFamily::ALL`].
 const FAMILIES: [FamilyEntry; 9] = [
     FamilyEntry {
         family: TagFamily::Tag36h11,
-        name: "tag36h11",
-        codes: 587,
         create: sys::tag36h11_create,
         destroy: sys::tag36h11_destroy,
     },
     FamilyEntry {
         family: TagFamily::Tag36h10,
-        name: "tag36h10",
-        codes: 2320,
         create: tag36h10_create,
         destroy: tag36h10_destroy,
     },
     FamilyEntry {
         family: TagFamily::Tag25h9,
-        name: "tag25h9",
-        codes: 35,
         create: sys::tag25h9_create,
         destroy: sys::tag25h9_destroy,
     },
     FamilyEntry {
         family: TagFamily::Tag16h5,
-        name: "tag16h5",
-        codes: 30,
         create: sys::tag16h5_create,
         destroy: sys::tag16h5_destroy,
     },
     FamilyEntry {
         family: TagFamily::TagCircle21h7,
-        name: "tagCircle21h7",
-        codes: 38,
         create: sys::tagCircle21h7_create,
         destroy: sys::tagCircle21h7_destroy,
     },
     FamilyEntry {
         family: TagFamily::TagCircle49h12,
-        name: "tagCircle49h12",
-        codes: 65535,
         create: sys::tagCircle49h12_create,
         destroy: sys::tagCircle49h12_destroy,
     },
     FamilyEntry {
         family: TagFamily::TagStandard41h12,
-        name: "tagStandard41h12",
-        codes: 2115,
         create: sys::tagStandard41h12_create,
         destroy: sys::tagStandard41h12_destroy,
     },
     FamilyEntry {
         family: TagFamily::TagStandard52h13,
-        name: "tagStandard52h13",
-        codes: 48714,
         create: sys::tagStandard52h13_create,
         destroy: sys::tagStandard52h13_destroy,
     },
     FamilyEntry {
         family: TagFamily::TagCustom48h12,
-        name: "tagCustom48h12",
-        codes: 42211,
         create: sys::tagCustom48h12_create,
         destroy: sys::tagCustom48h12_destroy,
     },
 ];
 
-/// The tag families libapriltag ships.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum TagFamily {
-    /// The `tag36h11` family (587 codes).
-    Tag36h11,
-    /// The `tag36h10` family (2320 codes).
-    Tag36h10,
-    /// The `tag25h9` family (35 codes).
-    Tag25h9,
-    /// The `tag16h5` family (30 codes).
-    Tag16h5,
-    /// The `tagCircle21h7` family (38 codes).
-    TagCircle21h7,
-    /// The `tagCircle49h12` family (65535 codes).
-    TagCircle49h12,
-    /// The `tagStandard41h12` family (2115 codes).
-    TagStandard41h12,
-    /// The `tagStandard52h13` family (48714 codes).
-    TagStandard52h13,
-    /// The `tagCustom48h12` family (42211 codes).
-    TagCustom48h12,
-}
-
-impl TagFamily {
-    /// The family's row of [`FAMILIES`].
-    fn entry(&self) -> &'static FamilyEntry {
-        // FAMILIES lists the families in declaration order (checked by a unit test).
-        let e = &FAMILIES[*self as usize];
-        debug_assert_eq!(e.family, *self);
-        e
-    }
-
-    /// The family's name as libapriltag spells it ("tag36h11", "tagStandard41h12", ...).
-    pub fn name(&self) -> &'static str {
-        self.entry().name
-    }
-
-    /// Number of codes (valid ids are `0..code_count()`).
-    pub fn code_count(&self) -> usize {
-        self.entry().codes
-    }
-
-    /// libapriltag's constructor and destructor of the family.
-    pub(crate) fn ffi(&self) -> (Create, Destroy) {
-        let e = self.entry();
-        (e.create, e.destroy)
-    }
-
-    /// Every family, in a fixed order.
-    pub const ALL: [TagFamily; 9] = [
-        TagFamily::Tag36h11,
-        TagFamily::Tag36h10,
-        TagFamily::Tag25h9,
-        TagFamily::Tag16h5,
-        TagFamily::TagCircle21h7,
-        TagFamily::TagCircle49h12,
-        TagFamily::TagStandard41h12,
-        TagFamily::TagStandard52h13,
-        TagFamily::TagCustom48h12,
-    ];
-
-    /// The family of a name; case-insensitive ("tag36h11", "TAG36H11", "tagStandard41h12").
-    pub fn from_name(s: &str) -> Option<TagFamily> {
-        let s = s.trim();
-        TagFamily::ALL
-            .into_iter()
-            .find(|f| f.name().eq_ignore_ascii_case(s))
-    }
-}
-
-impl std::fmt::Display for TagFamily {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
-    }
+/// libapriltag's constructor and destructor of a family.
+pub(crate) fn ffi(family: TagFamily) -> (Create, Destroy) {
+    // FAMILIES lists the families in the enum's order (checked by a unit test).
+    let e = &FAMILIES[family as usize];
+    debug_assert_eq!(e.family, family);
+    (e.create, e.destroy)
 }
 
 /// A family's layout and the cell patterns of some of its tags, read from libapriltag.
@@ -194,8 +107,7 @@ struct RawFamily<'a> {
 /// Creates the family in libapriltag, calls `f` with it and frees it. `None` when the
 /// constructor fails or the family lacks its code tables.
 fn read_family<T>(family: TagFamily, f: impl FnOnce(&RawFamily<'_>) -> T) -> Option<T> {
-    let entry = family.entry();
-    let (create, destroy) = (entry.create, entry.destroy);
+    let (create, destroy) = ffi(family);
     // SAFETY: the family constructors return a heap-allocated family (or null); it is read only
     // inside this block, while alive, through the counts it states (after checking its tables
     // are not null), and freed with its own destructor.
@@ -327,6 +239,7 @@ mod tests {
     fn table_rows_follow_the_enum_and_names_are_unique() {
         for (i, f) in TagFamily::ALL.iter().enumerate() {
             assert_eq!(FAMILIES[i].family, *f);
+            assert_eq!(*f as usize, i);
             assert_eq!(TagFamily::from_name(f.name()), Some(*f));
         }
     }

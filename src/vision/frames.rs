@@ -1,155 +1,14 @@
 //! Images to poses: decode, detect tags and solve the stereo PnP of every frame, in parallel.
 //!
-//! Frames are spread over rayon's worker threads (the pool the caller runs in, so
-//! `ThreadPool::install` chooses the thread count); each worker thread owns one [`Detector`].
-//! Every frame is processed independently, so the results, returned in frame order, are the
-//! same whatever the number of threads. Images that cannot be read, or whose size differs from
-//! the camera chain's, are counted and named in [`DetectStats::problems`]; they never stop the run.
-//!
-//! The images come from files ([`FrameSource::Files`]) or from a stream ([`FrameStream`]: a
-//! bag read in one pass on a thread of its own, which hands each frame's encoded images to the
-//! workers through a queue a few frames long, so that memory stays bounded by the worker count
-//! whatever the recording's length).
-
-/// The encoded images of one frame, one per camera (`None` where the frame has no image).
-pub type FrameBytes = Vec<Option<Vec<u8>>>;
-
-/// The producer of a [`FrameStream`]: it calls `send(frame index, images)` once per frame it
-/// can deliver, in any order, and returns when it has sent all it can (an error from `send`
-/// means the workers stopped: return it).
-pub type Produce<'a> =
-    Box<dyn FnOnce(&mut dyn FnMut(usize, FrameBytes) -> Result<()>) -> Result<()> + Send + 'a>;
-
-/// Decodes one encoded image of a stream (camera, bytes) to grey; the error says what was
-/// wrong.
-pub type Decode<'a> = Box<dyn Fn(usize, &[u8]) -> Result<image::GrayImage> + Send + Sync + 'a>;
-
-/// Frames whose images a producer delivers (a bag read once, in record order).
-pub struct FrameStream<'a> {
-    /// The frames, in time order, as planned before the stream starts.
-    pub frames: &'a [StereoFrame],
-    /// Runs on a thread of its own and sends the frames' images.
-    pub produce: Produce<'a>,
-    /// Decodes one image (on a worker thread).
-    pub decode: Decode<'a>,
-}
-
-/// Where the images of the frames come from.
-pub enum FrameSource<'a> {
-    /// Files named by the frames ([`ImageRef::File`]), read by the workers.
-    Files(&'a [StereoFrame]),
-    /// A producer's stream.
-    Stream(FrameStream<'a>),
-}
-
-impl FrameSource<'_> {
-    /// The frames.
-    pub fn frames(&self) -> &[StereoFrame] {
-        match self {
-            FrameSource::Files(f) => f,
-            FrameSource::Stream(s) => s.frames,
-        }
-    }
-}
-
-/// The image of camera `c` of a frame (`None`: the frame has none), loaded on demand.
-type LoadImage<'a> = &'a dyn Fn(usize) -> Option<Result<image::GrayImage>>;
-
-/// Frames a stream may have in flight beyond those being processed, per worker.
-const QUEUE_PER_WORKER: usize = 2;
-
-/// Runs `work` on every frame of `src` on the current rayon pool; results in frame order. For
-/// a stream, frames the producer never delivered get `work` with images that fail to load
-/// (counted as unreadable, named); an error of the producer is returned after the workers end.
-fn for_each_frame<R: Send>(
-    src: FrameSource<'_>,
-    bar: &ProgressBar,
-    work: &(dyn Fn(&StereoFrame, LoadImage<'_>) -> R + Sync),
-) -> Result<Vec<R>> {
-    match src {
-        FrameSource::Files(frames) => Ok(frames
-            .par_iter()
-            .map(|f| {
-                let load = |c: usize| {
-                    f.images.get(c).cloned().flatten().map(|r| match r {
-                        ImageRef::File(p) => load_gray(&p),
-                        other => Err(crate::error::Error::Input(format!("{other}: not a file"))),
-                    })
-                };
-                let r = work(f, &load);
-                bar.inc(1);
-                r
-            })
-            .collect()),
-        FrameSource::Stream(s) => {
-            let frames = s.frames;
-            let decode = &s.decode;
-            let workers = rayon::current_num_threads().max(1);
-            let (tx, rx) = sync_channel::<(usize, FrameBytes)>(QUEUE_PER_WORKER * workers);
-            let produce = s.produce;
-            let (mut done, produced) = std::thread::scope(|scope| {
-                let producer = scope.spawn(move || {
-                    produce(&mut |i, bytes| {
-                        tx.send((i, bytes)).map_err(|_| {
-                            crate::error::Error::Input("the image workers stopped early".into())
-                        })
-                    })
-                });
-                let done: Vec<(usize, R)> = rx
-                    .into_iter()
-                    .par_bridge()
-                    .filter(|(i, _)| *i < frames.len())
-                    .map(|(i, bytes)| {
-                        let f = &frames[i];
-                        let load = |c: usize| {
-                            let name = f.images.get(c).cloned().flatten()?;
-                            let b = bytes.get(c).and_then(|b| b.as_deref());
-                            Some(match b {
-                                Some(b) => decode(c, b).map_err(|e| {
-                                    crate::error::Error::Input(format!("{name}: {e}"))
-                                }),
-                                None => Err(crate::error::Error::Input(format!(
-                                    "{name}: not delivered by the stream"
-                                ))),
-                            })
-                        };
-                        let r = work(f, &load);
-                        bar.inc(1);
-                        (i, r)
-                    })
-                    .collect();
-                let produced = producer.join().unwrap_or_else(|_| {
-                    Err(crate::error::Error::Input("the image reader failed".into()))
-                });
-                (done, produced)
-            });
-            produced?;
-            // Frames the stream never delivered (a bag cut short): their images fail to load.
-            let mut seen = vec![false; frames.len()];
-            for (i, _) in &done {
-                seen[*i] = true;
-            }
-            done.sort_by_key(|(i, _)| *i);
-            done.dedup_by_key(|(i, _)| *i);
-            let missing: Vec<(usize, R)> = (0..frames.len())
-                .filter(|&i| !seen[i])
-                .map(|i| {
-                    let f = &frames[i];
-                    let load = |c: usize| {
-                        let name = f.images.get(c).cloned().flatten()?;
-                        Some(Err(crate::error::Error::Input(format!(
-                            "{name}: not delivered by the stream"
-                        ))))
-                    };
-                    (i, work(f, &load))
-                })
-                .collect();
-            done.extend(missing);
-            done.sort_by_key(|(i, _)| *i);
-            Ok(done.into_iter().map(|(_, r)| r).collect())
-        }
-    }
-}
+//! The frames come from an [`io::frames::FrameSource`](crate::io::frames::FrameSource) (a
+//! folder or a bag), read in one pass on a thread of its own, which hands each frame's encoded
+//! images to the workers through a queue a few frames long, so that memory stays bounded by the
+//! worker count whatever the recording's length. The workers are rayon's (the pool the caller
+//! runs in, so `ThreadPool::install` chooses the thread count); each owns one [`Detector`] and
+//! decodes its frames' images itself ([`crate::io::frames::decode`]). Every frame is processed
+//! independently, so the results, returned in frame order, are the same whatever the number of
+//! threads. Images that cannot be read, or whose size differs from the camera chain's, are
+//! counted and named in [`DetectStats::problems`]; they never stop the run.
 
 use std::sync::Mutex;
 use std::sync::mpsc::sync_channel;
@@ -157,12 +16,89 @@ use std::sync::mpsc::sync_channel;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
 
-use crate::error::Result;
-use crate::vision::board::Board;
-use crate::vision::camera::{Camchain, Camera};
-use crate::vision::detect::{Detector, DetectorSettings, TagDetection, load_gray};
-use crate::vision::images::{ImageRef, StereoFrame};
+use crate::error::{Error, Result};
+use crate::io::frames::{FrameImages, FrameSource, decode};
+use crate::io::images::StereoFrame;
+use crate::types::board::Board;
+use crate::types::camera::{Camchain, Camera};
+use crate::vision::detect::{Detector, DetectorSettings, TagDetection};
 use crate::vision::pnp::{FramePose, PnpOptions, PoseOutcome, solve_stereo};
+
+/// The image of camera `c` of a frame (`None`: the frame has none), decoded on demand.
+type LoadImage<'a> = &'a dyn Fn(usize) -> Option<Result<image::GrayImage>>;
+
+/// Frames the source may have in flight beyond those being processed, per worker.
+const QUEUE_PER_WORKER: usize = 2;
+
+/// Runs `work` on every frame of `src` on the current rayon pool; results in frame order.
+/// Frames the source never delivered (a bag cut short) get `work` with images that fail to load
+/// (counted as unreadable, named); an error of the reading pass is returned after the workers
+/// end.
+fn for_each_frame<R: Send>(
+    src: FrameSource<'_>,
+    bar: &ProgressBar,
+    work: &(dyn Fn(&StereoFrame, LoadImage<'_>) -> R + Sync),
+) -> Result<Vec<R>> {
+    let frames = src.frames();
+    let workers = rayon::current_num_threads().max(1);
+    let (tx, rx) = sync_channel::<(usize, FrameImages<'_>)>(QUEUE_PER_WORKER * workers);
+    let (mut done, produced) = std::thread::scope(|scope| {
+        let producer = scope.spawn(move || {
+            src.read(&mut |i, images| {
+                tx.send((i, images))
+                    .map_err(|_| Error::Input("the image workers stopped early".into()))
+            })
+        });
+        let done: Vec<(usize, R)> = rx
+            .into_iter()
+            .par_bridge()
+            .filter(|(i, _)| *i < frames.len())
+            .map(|(i, images)| {
+                let f = &frames[i];
+                let load = |c: usize| {
+                    let name = f.images.get(c).cloned().flatten()?;
+                    Some(match images.get(c) {
+                        Some(Some(Ok(image))) => decode(&name, image),
+                        // A file that could not be read: its error, whose text is what is kept.
+                        Some(Some(Err(e))) => Err(Error::Input(e.to_string())),
+                        _ => Err(Error::Input(format!("{name}: not delivered by the stream"))),
+                    })
+                };
+                let r = work(f, &load);
+                bar.inc(1);
+                (i, r)
+            })
+            .collect();
+        let produced = producer
+            .join()
+            .unwrap_or_else(|_| Err(Error::Input("the image reader failed".into())));
+        (done, produced)
+    });
+    produced?;
+    // Frames the source never delivered (a bag cut short): their images fail to load.
+    let mut seen = vec![false; frames.len()];
+    for (i, _) in &done {
+        seen[*i] = true;
+    }
+    done.sort_by_key(|(i, _)| *i);
+    done.dedup_by_key(|(i, _)| *i);
+    let missing: Vec<(usize, R)> = (0..frames.len())
+        .filter(|&i| !seen[i])
+        .map(|i| {
+            let f = &frames[i];
+            let load = |c: usize| {
+                let name = f.images.get(c).cloned().flatten()?;
+                Some(Err(Error::Input(format!(
+                    "{name}: not delivered by the stream"
+                ))))
+            };
+            (i, work(f, &load))
+        })
+        .collect();
+    done.extend(missing);
+    done.sort_by_key(|(i, _)| *i);
+    Ok(done.into_iter().map(|(_, r)| r).collect())
+}
 
 /// What became of a frame.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -295,7 +231,7 @@ pub fn detect_source(
     let frames = src.frames();
     let n_frames = frames.len();
     if let Some(f) = frames.iter().find(|f| f.images.len() > chain.cams.len()) {
-        return Err(crate::error::Error::Input(format!(
+        return Err(Error::Input(format!(
             "frame at {} ns has {} images, the camera chain {} cameras",
             f.t_ns,
             f.images.len(),

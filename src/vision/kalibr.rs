@@ -45,7 +45,8 @@ use apriltag_sys as sys;
 use image::GrayImage;
 use nalgebra::{Matrix3, SMatrix, SVector, Vector2, Vector3};
 
-use crate::vision::family::{FamilyCodes, TagCells, TagFamily, tags_cells};
+use crate::types::board::TagFamily;
+use crate::vision::family::{FamilyCodes, TagCells, tags_cells};
 use crate::vision::refine::{bilinear, quad_centre};
 
 /// Width of a Kalibr tag's black border, in bits.

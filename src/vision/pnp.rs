@@ -3,7 +3,7 @@
 //! Per frame:
 //! 1. An initial pose from the camera with the most corners: OpenCV's `solvePnP` (SQPnP, then
 //!    IPPE and the iterative solver as fall-backs) on corners undistorted through our own
-//!    [`crate::vision::camera::Camera`] model, so every distortion model we read is handled the same way.
+//!    [`crate::types::camera::Camera`] model, so every distortion model we read is handled the same way.
 //! 2. Levenberg-Marquardt over the reprojection errors of all cameras, each corner reaching
 //!    camera n through the stereo extrinsics `T_cn_c0`.
 //! 3. Outlier tags: after each solve, the tag observation (one tag in one camera) with the largest
@@ -24,8 +24,8 @@ use opencv::prelude::*;
 
 use crate::error::{Error, Result};
 use crate::lie::{Se3, hat, so3};
-use crate::vision::board::Board;
-use crate::vision::camera::Camchain;
+use crate::types::board::Board;
+use crate::types::camera::Camchain;
 use crate::vision::detect::TagDetection;
 
 /// Settings of [`stereo_pose`].

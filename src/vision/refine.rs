@@ -29,7 +29,7 @@
 use image::GrayImage;
 use nalgebra::{Matrix2, Vector2};
 
-use crate::vision::camera::Camera;
+use crate::types::camera::Camera;
 
 /// Passes of locate-fit-intersect (each re-centres the search windows on the previous lines).
 const PASSES: usize = 3;

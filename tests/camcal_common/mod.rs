@@ -7,8 +7,8 @@ use rayon::prelude::*;
 use dvlcal::camcal::FrameTags;
 use dvlcal::sim::camcal_views::calibration_views;
 use dvlcal::sim::image_dataset::{ImageSimSettings, render_frame};
-use dvlcal::vision::board::Board;
-use dvlcal::vision::camera::Camchain;
+use dvlcal::types::board::Board;
+use dvlcal::types::camera::Camchain;
 use dvlcal::vision::detect::{Detector, DetectorSettings};
 
 /// `n` stereo frames of `board` seen by `chain` from [`calibration_views`] poses, rendered with the
@@ -106,7 +106,7 @@ pub fn detect_views(
 /// baseline).
 pub fn fisheye_chain() -> Camchain {
     use dvlcal::lie::{Se3, so3};
-    use dvlcal::vision::camera::{Camera, Distortion};
+    use dvlcal::types::camera::{Camera, Distortion};
     use nalgebra::Vector3;
     let cam = |fu: f64, pu: f64, pv: f64, k: [f64; 4]| Camera {
         fu,

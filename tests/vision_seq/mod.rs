@@ -9,11 +9,12 @@ use std::path::{Path, PathBuf};
 
 use nalgebra::{Matrix3, Vector3, Vector6};
 
+use dvlcal::io::camchain::camchain_yaml;
 use dvlcal::lie::{Se3, so3};
 use dvlcal::rng::Rng;
 use dvlcal::sim::render::{RenderSettings, render};
-use dvlcal::vision::board::{Board, TagFamily};
-use dvlcal::vision::camera::{Camchain, Camera, Distortion};
+use dvlcal::types::board::{Board, TagFamily};
+use dvlcal::types::camera::{Camchain, Camera, Distortion};
 
 /// First frame time, ns (an EuRoC-like Unix time with a sub-microsecond part).
 pub const T0_NS: i64 = 1_403_636_579_763_555_584;
@@ -118,7 +119,7 @@ pub fn write_sequence_of(
         poses.push(t_b_c0);
         times.push(t_ns);
     }
-    std::fs::write(dir.join("camchain.yaml"), chain.to_kalibr_yaml()).unwrap();
+    std::fs::write(dir.join("camchain.yaml"), camchain_yaml(&chain)).unwrap();
     std::fs::write(dir.join("target.yaml"), TARGET_YAML).unwrap();
     (poses, times)
 }

@@ -7,8 +7,8 @@ use std::path::PathBuf;
 use anyhow::Result;
 use clap::Args;
 
+use dvlcal::io::bag::info::bag_info;
 use dvlcal::io::bag::roles::{BagOptions, BagTime};
-use dvlcal::pipeline::bag_info;
 
 /// Which topics of a bag play which part (by default chosen from the message types).
 #[derive(Args, Debug, Clone, Default)]

@@ -3,7 +3,7 @@
 use anyhow::Result;
 use std::path::PathBuf;
 
-use dvlcal::vision::board::Board;
+use dvlcal::io::target::read_board;
 use dvlcal::vision::board_svg::board_svg;
 
 #[derive(clap::Args)]
@@ -19,7 +19,7 @@ pub struct BoardArgs {
 pub fn run(a: BoardArgs) -> Result<()> {
     dvlcal::files::refuse_input("--out", &a.out, [a.target.as_path()])?;
     dvlcal::files::prepare_output("--out", &a.out)?;
-    let board = Board::load(&a.target)?;
+    let board = read_board(&a.target)?;
     let svg = board_svg(&board, &a.target.display().to_string())?;
     dvlcal::io::write_atomic(&a.out, svg.as_bytes())?;
     println!("wrote {}: {}", a.out.display(), board.description);

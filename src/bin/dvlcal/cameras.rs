@@ -7,9 +7,10 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 
 use dvlcal::camcal::{CamCalOptions, CameraModel};
+use dvlcal::io::bag::frames::plan_frames;
+use dvlcal::io::bag::open::OpenBag;
 use dvlcal::pipeline::{
-    CameraCalOptions, OpenBag, calibrate_cameras_from_bag, calibrate_cameras_from_images,
-    plan_frames,
+    CameraCalOptions, calibrate_cameras_from_bag, calibrate_cameras_from_images,
 };
 
 use crate::detect::DetectTuning;

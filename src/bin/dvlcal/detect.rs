@@ -6,12 +6,12 @@ use std::path::PathBuf;
 use anyhow::Result;
 use clap::Args;
 
+use dvlcal::io::bag::frames::plan_frames;
+use dvlcal::io::bag::open::OpenBag;
+use dvlcal::io::camchain::read_camchain;
 use dvlcal::io::tum::write_tum;
 use dvlcal::io::write_atomic;
-use dvlcal::pipeline::{
-    OpenBag, VisionOptions, frames_csv_path, plan_frames, poses_from_bag, poses_from_images,
-};
-use dvlcal::vision::camera::Camchain;
+use dvlcal::pipeline::{VisionOptions, frames_csv_path, poses_from_bag, poses_from_images};
 
 /// Detection settings shared by every command that reads images.
 #[derive(Args, Debug, Clone)]
@@ -112,7 +112,7 @@ pub fn run(a: DetectArgs) -> Result<()> {
             }
             let tol_ns = (opts.pair_tolerance_ms * 1e6).round() as i64;
             let plan = plan_frames(&ob, tol_ns)?;
-            let chain = Camchain::load(&a.camchain)?;
+            let chain = read_camchain(&a.camchain)?;
             poses_from_bag(&ob, &plan, chain, &a.target, &opts)?
         }
         (None, None) => anyhow::bail!("give --images DIR or --bag BAG"),

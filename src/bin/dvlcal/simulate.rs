@@ -8,13 +8,13 @@ use clap::ValueEnum;
 use std::path::PathBuf;
 
 use dvlcal::io::calib_yaml::read_calib_yaml;
+use dvlcal::io::camchain::read_camchain;
+use dvlcal::io::target::read_board;
 use dvlcal::pipeline::{ImageRequest, SimulateRequest, write_simulated_dataset};
 use dvlcal::sim::dataset::{MotionKind, SimConfig};
 use dvlcal::sim::image_dataset::{
     DEFAULT_BOARD_DISTANCE_M, ImageSimSettings, default_board, default_stereo_camchain,
 };
-use dvlcal::vision::board::Board;
-use dvlcal::vision::camera::Camchain;
 
 #[derive(Clone, Copy, ValueEnum)]
 pub enum MotionArg {
@@ -150,11 +150,11 @@ pub fn run(a: SimulateArgs) -> Result<()> {
         settings.render.supersample = a.supersample;
         Some(ImageRequest {
             board: match &a.target {
-                Some(p) => Board::load(p)?,
+                Some(p) => read_board(p)?,
                 None => default_board(),
             },
             chain: match &a.camchain {
-                Some(p) => Camchain::load(p)?,
+                Some(p) => read_camchain(p)?,
                 None => default_stereo_camchain(),
             },
             board_distance_m: a.board_distance,

@@ -6,8 +6,9 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use dvlcal::vision::board::TagFamily;
-use dvlcal::vision::detect::{Detector, DetectorSettings, load_gray};
+use dvlcal::io::image::load_gray;
+use dvlcal::types::board::TagFamily;
+use dvlcal::vision::detect::{Detector, DetectorSettings};
 
 #[derive(Args, Debug)]
 pub struct TagsArgs {

@@ -1,4 +1,4 @@
-//! A `sensor_msgs/CameraInfo` as a camera model of the kinds Kalibr calibrates: pinhole
+//! A `sensor_msgs/CameraInfo` as a [`Camera`] of the kinds Kalibr calibrates: pinhole
 //! intrinsics with radial-tangential (`radtan`) or equidistant distortion.
 //!
 //! - `plumb_bob`: `D = [k1, k2, p1, p2, k3]` (four coefficients also read). Kalibr's radtan
@@ -12,80 +12,15 @@
 //! a region of interest would make the model describe images other than the ones published,
 //! so they are errors too.
 
-use super::cdr::CameraInfo;
+use super::cdr::{self, CameraInfo};
+use super::open::OpenBag;
 use crate::error::{Error, Result};
-
-/// The lens distortion of a [`CameraInfoModel`].
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum DistortionModel {
-    /// Radial-tangential (Kalibr's `radtan`, OpenCV's with `k3 = 0`).
-    RadTan {
-        /// First radial coefficient.
-        k1: f64,
-        /// Second radial coefficient.
-        k2: f64,
-        /// First tangential coefficient.
-        p1: f64,
-        /// Second tangential coefficient.
-        p2: f64,
-    },
-    /// Equidistant fisheye (Kalibr's `equidistant`, OpenCV's fisheye model).
-    Equidistant {
-        /// Coefficient of theta^3.
-        k1: f64,
-        /// Coefficient of theta^5.
-        k2: f64,
-        /// Coefficient of theta^7.
-        k3: f64,
-        /// Coefficient of theta^9.
-        k4: f64,
-    },
-}
-
-impl DistortionModel {
-    /// The model's name in Kalibr's camchain files (`radtan`, `equidistant`).
-    pub fn kalibr_name(&self) -> &'static str {
-        match self {
-            DistortionModel::RadTan { .. } => "radtan",
-            DistortionModel::Equidistant { .. } => "equidistant",
-        }
-    }
-
-    /// The coefficients in Kalibr's order (`[k1, k2, p1, p2]` or `[k1, k2, k3, k4]`).
-    pub fn coeffs(&self) -> [f64; 4] {
-        match *self {
-            DistortionModel::RadTan { k1, k2, p1, p2 } => [k1, k2, p1, p2],
-            DistortionModel::Equidistant { k1, k2, k3, k4 } => [k1, k2, k3, k4],
-        }
-    }
-}
-
-/// The pinhole camera a `CameraInfo` describes, in the terms of a Kalibr camera.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct CameraInfoModel {
-    /// Image width, pixels.
-    pub width: u32,
-    /// Image height, pixels.
-    pub height: u32,
-    /// Horizontal focal length, pixels.
-    pub fx: f64,
-    /// Vertical focal length, pixels.
-    pub fy: f64,
-    /// Principal point, column.
-    pub cx: f64,
-    /// Principal point, row.
-    pub cy: f64,
-    /// The lens distortion.
-    pub distortion: DistortionModel,
-    /// Whether every distortion coefficient is zero: the images are already undistorted (as
-    /// drivers that publish rectified images announce them), or the lens is taken as ideal.
-    pub rectified: bool,
-}
+use crate::types::camera::{Camera, Distortion};
 
 impl CameraInfo {
-    /// The camera model of this message (see the module documentation for what is accepted);
-    /// an error says why a message does not give one.
-    pub fn model(&self) -> Result<CameraInfoModel> {
+    /// The camera of this message (see the module documentation for what is accepted); an
+    /// error says why a message does not give one.
+    pub fn model(&self) -> Result<Camera> {
         let k = &self.k;
         if k.iter().all(|&v| v == 0.0) {
             return Err(Error::Input(format!(
@@ -130,20 +65,19 @@ impl CameraInfo {
             )));
         }
         let distortion = self.distortion()?;
-        Ok(CameraInfoModel {
+        Ok(Camera {
+            fu: fx,
+            fv: fy,
+            pu: cx,
+            pv: cy,
+            distortion,
             width: self.width,
             height: self.height,
-            fx,
-            fy,
-            cx,
-            cy,
-            distortion,
-            rectified: distortion.coeffs().iter().all(|&c| c == 0.0),
         })
     }
 
     /// The distortion model from `distortion_model` and `D`.
-    fn distortion(&self) -> Result<DistortionModel> {
+    fn distortion(&self) -> Result<Distortion> {
         let d = &self.d;
         let name = self.distortion_model.as_str();
         let err = |msg: String| {
@@ -173,7 +107,7 @@ impl CameraInfo {
                     );
                 }
                 let [k1, k2, p1, p2] = four(d);
-                Ok(DistortionModel::RadTan { k1, k2, p1, p2 })
+                Ok(Distortion::RadTan { k1, k2, p1, p2 })
             }
             "rational_polynomial" => {
                 if d.len() < 4 {
@@ -191,7 +125,7 @@ impl CameraInfo {
                     );
                 }
                 let [k1, k2, p1, p2] = four(d);
-                Ok(DistortionModel::RadTan { k1, k2, p1, p2 })
+                Ok(Distortion::RadTan { k1, k2, p1, p2 })
             }
             "equidistant" | "fisheye" => {
                 if d.len() != 4 {
@@ -201,7 +135,7 @@ impl CameraInfo {
                     ));
                 }
                 let [k1, k2, k3, k4] = four(d);
-                Ok(DistortionModel::Equidistant { k1, k2, k3, k4 })
+                Ok(Distortion::Equidistant { k1, k2, k3, k4 })
             }
             _ => err(
                 "not a supported distortion model (plumb_bob, rational_polynomial, equidistant \
@@ -209,6 +143,31 @@ impl CameraInfo {
                     .into(),
             ),
         }
+    }
+}
+
+/// The camera of a bag's `CameraInfo` topic (its first message that describes a calibrated
+/// camera), for a bag of one camera and no camchain. `None` when the image topic has no
+/// `CameraInfo`.
+pub fn camera_from_info(ob: &OpenBag, cam: usize) -> Result<Option<Camera>> {
+    let Some(Some(info)) = ob.roles.camera_info.get(cam).copied() else {
+        return Ok(None);
+    };
+    let topic = ob.topic(info).clone();
+    let mut found: Option<Result<Camera>> = None;
+    ob.bag.messages(&|i| i == info, &mut |m| {
+        if matches!(found, Some(Ok(_))) {
+            return Ok(());
+        }
+        let r = cdr::decode::<cdr::CameraInfo>(m.data, topic.serialization)
+            .and_then(|ci| ci.model())
+            .map_err(|e| Error::Input(format!("{} message {}: {e}", topic.name, m.index)));
+        found = Some(r);
+        Ok(())
+    })?;
+    match found {
+        None => Ok(None),
+        Some(r) => r.map(Some),
     }
 }
 
@@ -238,10 +197,9 @@ mod tests {
         let m = info("plumb_bob", &[-0.25, 0.1, 0.001, -0.002, 0.0])
             .model()
             .unwrap();
-        assert_eq!((m.fx, m.fy, m.cx, m.cy), (500.0, 501.0, 320.0, 240.0));
+        assert_eq!((m.fu, m.fv, m.pu, m.pv), (500.0, 501.0, 320.0, 240.0));
         assert_eq!(m.distortion.coeffs(), [-0.25, 0.1, 0.001, -0.002]);
         assert_eq!(m.distortion.kalibr_name(), "radtan");
-        assert!(!m.rectified);
         let m = info(
             "rational_polynomial",
             &[0.1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
@@ -252,14 +210,17 @@ mod tests {
         let m = info("fisheye", &[0.1, 0.2, 0.3, 0.4]).model().unwrap();
         assert_eq!(
             m.distortion,
-            DistortionModel::Equidistant {
+            Distortion::Equidistant {
                 k1: 0.1,
                 k2: 0.2,
                 k3: 0.3,
                 k4: 0.4
             }
         );
-        assert!(info("plumb_bob", &[0.0; 5]).model().unwrap().rectified);
+        // All-zero coefficients: the images are already undistorted, a radtan lens without
+        // distortion.
+        let m = info("plumb_bob", &[0.0; 5]).model().unwrap();
+        assert_eq!(m.distortion.coeffs(), [0.0; 4]);
     }
 
     #[test]

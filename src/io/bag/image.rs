@@ -24,20 +24,16 @@
 //!
 //! `sensor_msgs/CompressedImage` ([`compressed_to_gray`]): JPEG and PNG, recognised by the
 //! data's first bytes whatever `format` says (`jpeg`, `png`, or image_transport's
-//! `bgr8; jpeg compressed bgr8`), and decoded with the `image` crate exactly as the image
+//! `bgr8; jpeg compressed bgr8`), and decoded by [`crate::io::image`] exactly as the image
 //! files of a dataset folder are, so the same file gives the same grey pixels either way.
 //! `compressedDepth` (depth images) and any other data are errors.
 
-use std::io::Cursor;
-
-use ::image::{DynamicImage, GrayImage, ImageFormat, ImageReader, Limits, RgbImage};
+use ::image::{DynamicImage, GrayImage, RgbImage};
 
 use super::Serialization;
 use super::cdr::{CompressedImage, CompressedImageView, Image, ImageView};
 use crate::error::{Error, Result};
-
-/// The largest image width or height accepted, in pixels.
-pub const MAX_SIDE: u32 = 20_000;
+use crate::io::image::{MAX_SIDE, decode_compressed};
 
 /// The `sensor_msgs/Image` encodings [`image_to_gray`] converts.
 pub const SUPPORTED_ENCODINGS: &[&str] = &[
@@ -273,75 +269,15 @@ fn demosaic(raw: &[u8], w: usize, h: usize, pattern: [Channel; 4]) -> Vec<u8> {
     out
 }
 
-/// The first bytes of a JPEG file.
-const JPEG_MAGIC: &[u8] = &[0xFF, 0xD8, 0xFF];
-/// The first bytes of a PNG file.
-const PNG_MAGIC: &[u8] = b"\x89PNG\r\n\x1a\n";
-
 /// Converts a `sensor_msgs/CompressedImage` holding a JPEG or PNG file to an 8-bit grey image,
-/// decoded as the image files of a dataset folder are.
+/// decoded as the image files of a dataset folder are ([`crate::io::image::decode_compressed`]).
 pub fn compressed_to_gray(msg: &CompressedImage) -> Result<GrayImage> {
     compressed_view_to_gray(&msg.view())
 }
 
 /// [`compressed_to_gray`] of an image whose bytes are borrowed from its message.
 pub fn compressed_view_to_gray(msg: &CompressedImageView<'_>) -> Result<GrayImage> {
-    let data = msg.data;
-    if msg.format.to_ascii_lowercase().contains("compresseddepth") {
-        return Err(Error::Input(format!(
-            "compressed image format {:?}: depth images (compressedDepth) are not supported, \
-             only JPEG and PNG camera images",
-            msg.format
-        )));
-    }
-    let format = if data.starts_with(JPEG_MAGIC) {
-        if !jpeg_complete(data) {
-            return Err(Error::Input(format!(
-                "compressed image ({:?}): the JPEG is cut short (no end-of-image marker after {} \
-                 bytes)",
-                msg.format,
-                data.len()
-            )));
-        }
-        ImageFormat::Jpeg
-    } else if data.starts_with(PNG_MAGIC) {
-        ImageFormat::Png
-    } else {
-        let head: Vec<String> = data.iter().take(8).map(|b| format!("{b:02x}")).collect();
-        return Err(Error::Input(format!(
-            "compressed image format {:?}: the data ({} bytes, starting {}) is neither a JPEG \
-             nor a PNG file, the formats supported",
-            msg.format,
-            data.len(),
-            if head.is_empty() {
-                "with nothing".to_string()
-            } else {
-                head.join(" ")
-            }
-        )));
-    };
-    let mut reader = ImageReader::with_format(Cursor::new(data), format);
-    let mut limits = Limits::default();
-    limits.max_image_width = Some(MAX_SIDE);
-    limits.max_image_height = Some(MAX_SIDE);
-    reader.limits(limits);
-    let img = reader.decode().map_err(|e| {
-        Error::Input(format!(
-            "compressed image ({:?}): cannot decode the {format:?} data: {e}",
-            msg.format
-        ))
-    })?;
-    Ok(img.into_luma8())
-}
-
-/// Whether a JPEG ends with its end-of-image marker (`FF D9`), allowing the zero or `FF`
-/// padding some cameras write after it (the check the image files of a folder get).
-fn jpeg_complete(bytes: &[u8]) -> bool {
-    let end = bytes
-        .iter()
-        .rposition(|&b| b != 0x00 && b != 0xFF)
-        .map_or(0, |k| k + 1);
-    end >= 2 && bytes.get(end - 2..end) == Some(&[0xFF, 0xD9][..])
+    decode_compressed(msg.data, &msg.format)
 }
 
 /// Decodes a serialised image message of type `type_name` (`sensor_msgs/Image` or
@@ -430,13 +366,5 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("\"32FC1\"") && e.contains("bayer_grbg8"), "{e}");
-    }
-
-    #[test]
-    fn jpeg_end_marker() {
-        assert!(jpeg_complete(&[0xFF, 0xD8, 0xFF, 0xD9]));
-        assert!(jpeg_complete(&[0xFF, 0xD8, 0xFF, 0xD9, 0, 0xFF]));
-        assert!(!jpeg_complete(&[0xFF, 0xD8, 0xFF, 0xE0]));
-        assert!(!jpeg_complete(&[]));
     }
 }

@@ -5,11 +5,19 @@
 //!
 //! A ROS 2 bag is a folder with `metadata.yaml` and its storage files, or one bare `.mcap` or
 //! `.db3` file; [`Bag::open`] takes any of these, and a ROS 1 `.bag`.
+//!
+//! A bag as a dataset: [`open`] gives its topics their parts ([`roles`]), [`frames`] plans its
+//! image topics as stereo frames, [`poses`] reads a pose topic, [`camera_info`] a camera model,
+//! [`image`] turns image messages into grey images, and [`info`] lists it for `dvlcal bag-info`.
 
 pub mod camera_info;
 pub mod cdr;
+pub mod frames;
 pub mod image;
+pub mod info;
 pub mod mcap;
+pub mod open;
+pub mod poses;
 pub mod roles;
 pub mod ros1;
 pub mod sqlite;

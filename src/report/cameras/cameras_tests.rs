@@ -12,7 +12,7 @@ use super::*;
 use crate::camcal::quality::coverage as grid_coverage;
 use crate::camcal::{CamCalResult, CameraModel, CameraStd, Coverage, FrameFit, Residual};
 use crate::lie::{Se3, so3};
-use crate::vision::camera::{Camchain, Camera, Distortion};
+use crate::types::camera::{Camchain, Camera, Distortion};
 
 /// A small deterministic generator of numbers in [-1, 1).
 struct Lcg(u64);

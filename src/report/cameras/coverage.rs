@@ -9,7 +9,7 @@ use crate::camcal::quality::{MIN_RADIAL_REACH, empty_regions};
 use crate::camcal::{CamCalResult, Coverage};
 use crate::report::html::{join_words, put, section};
 use crate::report::svg::escape;
-use crate::vision::camera::Camera;
+use crate::types::camera::Camera;
 
 /// The sentence on one camera's coverage.
 fn coverage_words(c: usize, g: &Coverage) -> String {

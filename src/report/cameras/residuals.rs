@@ -9,7 +9,7 @@ use super::shared::{REJECTED, grid_ok};
 use crate::camcal::{CamCalResult, Residual};
 use crate::report::html::{put, robust_half_range, section};
 use crate::report::svg::{Histogram, Plot, Series, escape, format_tick};
-use crate::vision::camera::Camera;
+use crate::types::camera::Camera;
 
 const NOISE: &str = "#2a9d3a";
 const X_COLOR: &str = "#1a63c2";

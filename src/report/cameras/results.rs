@@ -10,7 +10,7 @@ use crate::camcal::CamCalResult;
 use crate::lie::{Se3, so3};
 use crate::report::html::{put, section};
 use crate::report::svg::escape;
-use crate::vision::camera::{Camchain, Distortion};
+use crate::types::camera::{Camchain, Distortion};
 
 /// Decimals that show a standard deviation with two significant digits (at most 9).
 fn decimals_for(sd: f64) -> usize {

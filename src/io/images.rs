@@ -1,4 +1,5 @@
-//! Folders of calibration images, paired across the cameras of a chain by time stamp.
+//! Folders of calibration images, paired across the cameras of a chain by time stamp (and the
+//! pairing of any time-stamped image lists, a bag's image topics' too: [`pair_frames`]).
 //!
 //! Two layouts are read:
 //! - kalibr_bagcreater's: `DIR/cam0/<t_ns>.png` (or `.jpg`, `.jpeg`, `.pgm`), `DIR/cam1/...`;
@@ -221,6 +222,30 @@ pub fn scan_images(
         .collect();
     let frames = pair_frames(lists, tolerance_ns, &labels, &mut stats);
     Ok((frames, stats))
+}
+
+/// The image size of each of `cams` cameras, read from the header of its first image file that
+/// opens; the error names the last file that did not.
+pub fn image_sizes(frames: &[StereoFrame], cams: usize) -> Result<Vec<(u32, u32)>> {
+    (0..cams)
+        .map(|c| {
+            let mut last_err = None;
+            for p in frames
+                .iter()
+                .filter_map(|f| f.images.get(c).cloned().flatten())
+                .filter_map(|r| r.path().map(Path::to_path_buf))
+            {
+                match image::image_dimensions(&p) {
+                    Ok(d) => return Ok(d),
+                    Err(e) => last_err = Some(format!("{}: {e}", p.display())),
+                }
+            }
+            Err(Error::Input(format!(
+                "cam{c}: no readable image{}",
+                last_err.map_or(String::new(), |e| format!(" (last: {e})"))
+            )))
+        })
+        .collect()
 }
 
 /// Frames from the time-sorted image lists of each camera (cam0 first, each list without

@@ -1,4 +1,8 @@
-//! Typed values passed between the stages of the pipeline.
+//! Typed values passed between the stages of the pipeline, and the models the stages share: the
+//! camera model ([`camera`]) and the board geometry ([`board`]). Pure values and math; no files.
+
+pub mod board;
+pub mod camera;
 
 use nalgebra::{Matrix3, Matrix6, Vector3};
 
