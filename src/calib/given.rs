@@ -42,7 +42,9 @@ pub(crate) fn check_given(opts: &CalibOptions, warnings: &mut Vec<String>) -> Re
         lever_arm(&g.lever_arm_cam_m(), opts.name(Setting::Guess), warnings)?;
         let (lo, hi) = GIVEN_SCALE_RANGE;
         let s = g.velocity_scale;
-        if !(s >= lo && s <= hi) {
+        // A negative scale is a half-turn in the guessed rotation (a flipped axis), which the
+        // refinement mirrors back; only its size says whether the units are right.
+        if !(s.abs() >= lo && s.abs() <= hi) {
             return Err(Error::option(
                 opts.name(Setting::Guess),
                 format!(
@@ -53,7 +55,12 @@ pub(crate) fn check_given(opts: &CalibOptions, warnings: &mut Vec<String>) -> Re
             ));
         }
         let (lo, hi) = opts.sanity.scale_range;
-        if !(s >= lo && s <= hi) {
+        if s < 0.0 {
+            warnings.push(format!(
+                "the velocity scale {s} of {} is negative: read as a rotation half a turn away                  from the one given (an axis flipped in the measurement)",
+                opts.name(Setting::Guess)
+            ));
+        } else if !(s >= lo && s <= hi) {
             warnings.push(format!(
                 "the velocity scale {s} of {} is outside the range water allows ({lo} to {hi})",
                 opts.name(Setting::Guess)
