@@ -40,6 +40,9 @@ pub(crate) enum Weighted {
 
 /// What stage 1 gives the later stages besides the trajectory.
 pub(crate) struct CoSensorFit {
+    /// The factor the measurements' variances are multiplied by in the joint problem (1: as
+    /// stated; set by the noise estimate, `calib::noise`).
+    pub variance_scale: f64,
     /// The measurements as weighted.
     pub measurements: Weighted,
     /// What the loss found.
@@ -72,6 +75,7 @@ impl CoSensor<'_> {
             CoSensor::Poses(poses) => {
                 let (weighted, trajectory, robust, weights) = robust_pose_fit(poses, opts)?;
                 let fit = CoSensorFit {
+                    variance_scale: 1.0,
                     measurements: Weighted::Poses(weighted),
                     robust,
                     weights,
@@ -104,10 +108,18 @@ impl CoSensor<'_> {
 
 impl CoSensorFit {
     /// The weighted measurements' factors on the knots of `traj` (a trajectory of the same
-    /// knots: the fit's, or one the refinement moved).
+    /// knots: the fit's, or one the refinement moved), their variances times
+    /// `variance_scale`.
     pub(crate) fn factors(&self, traj: &Trajectory) -> Result<Box<dyn CoSensorFactors>> {
         match &self.measurements {
-            Weighted::Poses(poses) => pose_factors(poses, traj),
+            Weighted::Poses(poses) if self.variance_scale == 1.0 => pose_factors(poses, traj),
+            Weighted::Poses(poses) => {
+                let info = measurement_information(poses, traj.report().pose_sigma)?;
+                Ok(Box::new(PoseFactors::new(
+                    poses.iter().map(|m| m.pose).collect(),
+                    info.into_iter().map(|w| w / self.variance_scale).collect(),
+                )))
+            }
         }
     }
 

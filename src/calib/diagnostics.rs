@@ -201,13 +201,14 @@ pub(crate) fn judge(
 pub(crate) fn status(
     p: &CalibrationParams,
     normalized_cost: f64,
+    dvl_noise_applied: f64,
     init: Option<&InitReport>,
     free: FreeParams,
     robust: &RobustSummary,
     contradicted: &[Contradiction],
     opts: &CalibOptions,
 ) -> Status {
-    let mut status = sanity(p, normalized_cost, init, free, opts);
+    let mut status = sanity(p, normalized_cost, dvl_noise_applied, init, free, opts);
     if !contradicted.is_empty() {
         // The parameter the data contradict is the cause the other reasons only guess at.
         let mut reasons: Vec<String> = contradicted.iter().map(Contradiction::reason).collect();
@@ -311,6 +312,7 @@ pub(crate) fn uncertainty(
 fn sanity(
     p: &CalibrationParams,
     normalized_cost: f64,
+    dvl_noise_applied: f64,
     init: Option<&InitReport>,
     free: FreeParams,
     opts: &CalibOptions,
@@ -318,12 +320,26 @@ fn sanity(
     let lim = &opts.sanity;
     let mut reasons = Vec::new();
     let poor_match = init.is_some_and(|i| i.offset.alignment.is_poor());
-    if normalized_cost.is_nan() || normalized_cost > lim.max_normalized_cost {
+    // The cost against the noise the reports state, before any variance component was applied.
+    let stated_cost = normalized_cost * dvl_noise_applied;
+    if normalized_cost.is_nan()
+        || normalized_cost > lim.max_normalized_cost
+        || stated_cost > lim.max_noise_ratio * lim.max_noise_ratio
+    {
         reasons.push(format!(
-            "the DVL residuals are {normalized_cost:.1} times the stated DVL noise after the \
-             refinement (at most {} is credible): the camera and the DVL do not describe the same \
-             motion. Likely causes: {}",
-            lim.max_normalized_cost,
+            "the DVL residuals are {stated_cost:.1} times the stated DVL noise (variance) after \
+             the refinement (at most {} is credible{}): the camera and the DVL do not describe \
+             the same motion. Likely causes: {}",
+            if dvl_noise_applied == 1.0 {
+                lim.max_normalized_cost
+            } else {
+                lim.max_noise_ratio * lim.max_noise_ratio
+            },
+            if dvl_noise_applied == 1.0 {
+                ""
+            } else {
+                ", the DVL's noise misstated by a factor of 20 at most"
+            },
             if poor_match {
                 "a DVL log of another recording, or clocks that do not overlap (the speeds \
                  correlate poorly at every clock offset)"

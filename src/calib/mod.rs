@@ -28,6 +28,7 @@ pub mod halves;
 pub mod init;
 pub(crate) mod joint;
 pub mod model;
+pub mod noise;
 pub mod offset;
 pub mod options;
 pub mod outcome;
@@ -118,15 +119,7 @@ pub fn calibrate_against(
 
     // 4. The refinement by least squares (a lever arm the motion cannot see held at its
     //    prior), then with the DVL reports reweighted by the robust loss.
-    let refinement::Refinement {
-        jp: least_squares,
-        refined,
-        free,
-        start,
-        lever_held,
-        pose_only,
-        priors,
-    } = refinement::refine(
+    let mut pass = refinement::run(
         &fit,
         traj,
         &obs,
@@ -134,20 +127,67 @@ pub fn calibrate_against(
         start,
         init.as_ref(),
         opts,
+        &mut clock,
         &mut warnings,
     )?;
-    clock.done("refinement");
-    let reweighted = refinement::reweigh(
-        &fit,
-        &least_squares,
-        refined,
+    // Each sensor's noise as the joint estimate shows it (variance components); far from the
+    // stated noise, the groups are reweighed and the refinement runs again from where it ended.
+    let mut fit = fit;
+    let mut noise = noise_components(&fit, &pass, &idx, (1.0, 1.0), 0)?;
+    clock.done("noise");
+    let mut obs_scaled = None;
+    // With the extrinsics held, a misfit is the given values' error, not the sensors' noise:
+    // the components are reported but not applied (the contradiction check names the cause).
+    let engaged = if pass.free.rotation {
+        noise.far()
+    } else {
+        (false, false)
+    };
+    if engaged.0 || engaged.1 {
+        let first_start = pass.start;
+        let (mut dvl_applied, mut cos_applied) = (1.0, 1.0);
+        for round in 1..=noise::ROUNDS {
+            if engaged.0 {
+                dvl_applied *= noise.dvl.scale;
+            }
+            if engaged.1 {
+                cos_applied *= noise.cosensor.scale;
+            }
+            fit.variance_scale = cos_applied;
+            let scaled = noise::scaled(&obs, dvl_applied);
+            let refined = pass.reweighted.refined;
+            let mut again = refinement::run(
+                &fit,
+                refined.trajectory,
+                &scaled,
+                &idx,
+                refined.params,
+                init.as_ref(),
+                opts,
+                &mut clock,
+                &mut Vec::new(),
+            )?;
+            again.start = first_start;
+            again.pose_only = pass.pose_only;
+            pass = again;
+            noise = noise_components(&fit, &pass, &idx, (dvl_applied, cos_applied), round)?;
+            obs_scaled = Some(scaled);
+            if noise.settled(engaged) {
+                break;
+            }
+        }
+        warnings.extend(noise.warnings());
+    }
+    let obs = obs_scaled.unwrap_or(obs);
+    let refinement::Pass {
         free,
-        &obs,
-        &idx,
-        opts,
-        &mut warnings,
-    )?;
-    clock.done("reweighting");
+        start,
+        lever_held,
+        pose_only,
+        priors,
+        reweighted,
+        storage,
+    } = pass;
     counts.dvl_downweighted = reweighted.robust.outliers;
     let refinement::Reweighted {
         refined,
@@ -169,10 +209,11 @@ pub fn calibrate_against(
         opts,
         &mut warnings,
     )?;
+    let cosensor = fit.factors(&traj)?;
     // ... the joint system at the result, which serves the covariance and both halves, ...
-    let mut jp = JointProblem::new(fit.factors(&traj)?, &traj, &weighted, &idx)?;
+    let mut jp = JointProblem::new(cosensor, &traj, &weighted, &idx)?;
     jp.priors = priors;
-    jp.keep_storage(least_squares.take_storage());
+    jp.keep_storage(storage);
     let assembled = assemble_joint(&jp, traj.knots(), &params)?;
     clock.done("joint system");
     let halves = halves::estimate(
@@ -238,6 +279,7 @@ pub fn calibrate_against(
     let status = diagnostics::status(
         &params,
         normalized_cost,
+        noise.dvl.applied,
         init.as_ref(),
         free,
         &dvl_robust,
@@ -245,7 +287,7 @@ pub fn calibrate_against(
         opts,
     );
     let drift = diagnostics::drift(
-        pose_only.as_ref(),
+        free.time_offset.then_some(&pose_only),
         &obs,
         &idx,
         &params,
@@ -256,7 +298,6 @@ pub fn calibrate_against(
     clock.done("checks and verdicts");
     // The problems borrow the observations that the outcome keeps.
     drop(jp);
-    drop(least_squares);
     Ok(CalibrationOutcome {
         params,
         covariance,
@@ -289,6 +330,28 @@ pub fn calibrate_against(
         priors,
         lever_arm_from_default_prior: roles.lever_arm_from_default_prior,
         contradicted,
+        noise,
         stage_seconds: clock.stages,
     })
+}
+
+/// The variance components at the end of a refinement `pass` (see [`noise`]), the co-sensor's
+/// and the DVL's variances already multiplied by `applied`.
+fn noise_components(
+    fit: &cosensor::CoSensorFit,
+    pass: &refinement::Pass,
+    idx: &[usize],
+    applied: (f64, f64),
+    rounds: usize,
+) -> Result<noise::NoiseCheck> {
+    let r = &pass.reweighted.refined;
+    let mut jp = JointProblem::new(
+        fit.factors(&r.trajectory)?,
+        &r.trajectory,
+        &pass.reweighted.weighted,
+        idx,
+    )?;
+    jp.priors = pass.priors;
+    let free = pass.free.mask().iter().filter(|&&f| f).count();
+    noise::components(&jp, &r.trajectory, &r.params, free, applied, rounds)
 }

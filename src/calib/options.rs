@@ -87,6 +87,10 @@ impl Default for WeakThresholds {
 pub struct SanityLimits {
     /// Largest DVL cost per degree of freedom (1 when the residuals match the stated noise).
     pub max_normalized_cost: f64,
+    /// Largest ratio of the DVL's noise as its residuals show it to the noise stated (standard
+    /// deviations). Within it a misstated noise is estimated and weighed by (`calib::noise`);
+    /// beyond it the camera and the DVL do not describe the same motion.
+    pub max_noise_ratio: f64,
     /// Physical range of the velocity scale: the ratio of the sound speed the DVL assumes to the
     /// water's (0.9..1.1 covers water from 0 to 35 C, fresh to salt).
     pub scale_range: (f64, f64),
@@ -101,6 +105,7 @@ impl Default for SanityLimits {
     fn default() -> Self {
         SanityLimits {
             max_normalized_cost: 10.0,
+            max_noise_ratio: 20.0,
             scale_range: (0.9, 1.1),
             max_outlier_fraction: 0.25,
         }

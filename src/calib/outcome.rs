@@ -7,6 +7,7 @@ use nalgebra::Vector3;
 use super::closed_form::ClosedForm;
 use super::given::Contradiction;
 use super::model::{DvlObs, NPARAM};
+use super::noise::NoiseCheck;
 use super::offset::OffsetResult;
 use super::options::Method;
 use super::prior::Priors;
@@ -226,6 +227,9 @@ pub struct CalibrationOutcome {
     pub lever_arm_from_default_prior: bool,
     /// The held parameters the data contradict (fixed extrinsics only), most explaining first.
     pub contradicted: Vec<Contradiction>,
+    /// The DVL's noise as the recording shows it, against the stated noise; when applied, the
+    /// reports (and `observations`) carry the stated covariances scaled by it.
+    pub noise: NoiseCheck,
     /// Wall time of each stage of the run, in order (a profile of the run; not part of the
     /// result, and different on every run).
     pub stage_seconds: Vec<(&'static str, f64)>,

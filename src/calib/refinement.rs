@@ -8,11 +8,11 @@ use nalgebra::Matrix3;
 
 use super::cosensor::CoSensorFit;
 use super::joint::covariance::joint_covariance;
-use super::joint::problem::JointProblem;
+use super::joint::problem::{JointProblem, JointStorage};
 use super::joint::steps::{joint_cost, joint_step, state_update};
 use super::model::{DvlObs, predict};
 use super::options::CalibOptions;
-use super::outcome::{InitReport, IterationRecord};
+use super::outcome::{InitReport, IterationRecord, StageClock};
 use super::prior::{LeverArmPrior, Priors};
 use super::robust::{self, RobustSummary};
 use super::setting::Setting;
@@ -34,10 +34,9 @@ pub(crate) struct Refinement<'a> {
     /// The lever arm held at the broad default prior: the data's standard deviation of it
     /// (infinite when the rotation is noise) and the prior.
     pub lever_held: Option<(f64, LeverArmPrior)>,
-    /// The trajectory fitted to the co-sensor alone, for the drift check (kept when the offset
-    /// is estimated): the refined one has absorbed part of the DVL's misfit under a constant
-    /// offset.
-    pub pose_only: Option<Trajectory>,
+    /// The trajectory fitted to the co-sensor alone, for the noise and drift checks: the
+    /// refined one has absorbed part of the DVL's misfit.
+    pub pose_only: Trajectory,
     /// The priors of the problem: the user's, and the broad default on the lever arm.
     pub priors: Priors,
 }
@@ -67,7 +66,7 @@ pub(crate) fn refine<'a>(
     if let Some(storage) = traj.take_covariance_storage() {
         jp.keep_system(storage);
     }
-    let pose_only = free.time_offset.then(|| traj.clone());
+    let pose_only = traj.clone();
     let mut start = start;
     let lever_held = match (opts.priors.lever_arm, priors.lever_arm) {
         // With a closed form its excitation decides (the linearised std cannot see the runaway
@@ -214,6 +213,60 @@ pub(crate) fn reweigh(
         weights: dvl_weights,
         weighted,
         robust: dvl_robust,
+    })
+}
+
+/// A whole refinement: least squares, then reweighted, with the storage its systems used.
+pub(crate) struct Pass {
+    /// The parameters estimated.
+    pub free: FreeParams,
+    /// The calibration the rounds started from.
+    pub start: CalibrationParams,
+    /// The lever arm held at the broad default prior, if it was (see [`Refinement`]).
+    pub lever_held: Option<(f64, LeverArmPrior)>,
+    /// The trajectory fitted to the co-sensor alone.
+    pub pose_only: Trajectory,
+    /// The priors of the problem.
+    pub priors: Priors,
+    /// The result.
+    pub reweighted: Reweighted,
+    /// The storage of the joint systems, for the next problem of the same knots.
+    pub storage: JointStorage,
+}
+
+/// [`refine`] then [`reweigh`], the clock marking each.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn run(
+    cos: &CoSensorFit,
+    traj: Trajectory,
+    obs: &[DvlObs],
+    idx: &[usize],
+    start: CalibrationParams,
+    init: Option<&InitReport>,
+    opts: &CalibOptions,
+    clock: &mut StageClock,
+    warnings: &mut Vec<String>,
+) -> Result<Pass> {
+    let Refinement {
+        jp,
+        refined,
+        free,
+        start,
+        lever_held,
+        pose_only,
+        priors,
+    } = refine(cos, traj, obs, idx, start, init, opts, warnings)?;
+    clock.done("refinement");
+    let reweighted = reweigh(cos, &jp, refined, free, obs, idx, opts, warnings)?;
+    clock.done("reweighting");
+    Ok(Pass {
+        free,
+        start,
+        lever_held,
+        pose_only,
+        priors,
+        reweighted,
+        storage: jp.take_storage(),
     })
 }
 

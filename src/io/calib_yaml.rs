@@ -211,6 +211,21 @@ run_figures! {
     dvl_residual_rms_mps: [f64; 3],
     /// Weighted squared residuals per degree of freedom.
     dvl_normalized_cost: f64,
+    /// The DVL's variance as the joint estimate shows it over the variance its reports state
+    /// (its variance component: 1 when stated right).
+    dvl_variance_component: f64,
+    /// Its standard deviation.
+    dvl_variance_component_std: f64,
+    /// The factor the DVL's stated variances were multiplied by before the final refinement.
+    dvl_variance_applied: f64,
+    /// The camera poses' variance as the joint estimate shows it over the variance stated.
+    pose_variance_component: f64,
+    /// Its standard deviation.
+    pose_variance_component_std: f64,
+    /// The factor the poses' stated variances were multiplied by before the final refinement.
+    pose_variance_applied: f64,
+    /// How many times the refinement ran again with the noise rescaled.
+    noise_rounds: usize,
     /// The joint cost after each round.
     cost_per_iteration: Vec<f64>,
     /// RMS angular speed of the camera over the reports used, rad/s.

@@ -95,6 +95,23 @@ pub(super) fn summary(s: &mut String, input: &ReportInput, d: &Derived) {
         o.counts.dvl_samples,
         o.counts.poses
     );
+    let noise = &o.noise;
+    if noise.dvl.rescaled() {
+        let _ = write!(
+            words,
+            " The noise the DVL's reports stated was {:.2} times this: the variance components of \
+             the joint estimate found it misstated, and the reports are weighed by the noise the \
+             data show.",
+            1.0 / noise.dvl.applied.sqrt()
+        );
+    }
+    if noise.cosensor.rescaled() {
+        let _ = write!(
+            words,
+            " The camera poses' covariances were scaled by {:.2} (variance) for the same reason.",
+            noise.cosensor.applied
+        );
+    }
     put!(s, "<p>{}</p></section>\n", escape(&words));
 }
 

@@ -90,6 +90,9 @@ pub trait CoSensorFactors: Sync {
         0.0
     }
 
+    /// The number of scalar measurements the factors hold (their residuals' dimension).
+    fn dimension(&self) -> usize;
+
     /// The factors of the knots `range` alone, renumbered from zero (for a problem on part of
     /// the recording).
     fn restricted(&self, range: Range<usize>) -> Box<dyn CoSensorFactors + '_>;
@@ -142,6 +145,10 @@ impl CoSensorFactors for PoseFactors {
     fn knot_cost(&self, knots: &[Knot], k: usize) -> f64 {
         let e = (self.meas[k].inverse() * knots[k].pose).log();
         (e.transpose() * self.info[k] * e)[0]
+    }
+
+    fn dimension(&self) -> usize {
+        6 * self.meas.len()
     }
 
     fn restricted(&self, range: Range<usize>) -> Box<dyn CoSensorFactors + '_> {

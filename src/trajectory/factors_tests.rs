@@ -74,6 +74,10 @@ impl CoSensorFactors for PosesAndTwists {
             .sum()
     }
 
+    fn dimension(&self) -> usize {
+        self.poses.dimension() + 6 * self.samples.len()
+    }
+
     fn restricted(&self, range: Range<usize>) -> Box<dyn CoSensorFactors + '_> {
         let (a, b) = (self.times[range.start], self.times[range.end - 1]);
         Box::new(PosesAndTwists {
