@@ -200,7 +200,16 @@ proptest! {
         let _ = detect_format(&text);
         let opts = DvlReadOptions { strict, ..Default::default() };
         if let Ok(log) = read_dvl_text(Path::new("fuzz"), &text, &opts) {
-            prop_assert!(log.samples.windows(2).all(|w| w[0].t <= w[1].t));
+            // Time-ordered within each clock segment; the segments cover the samples in turn.
+            let mut next = 0;
+            for c in &log.clock_segments {
+                prop_assert_eq!(c.samples.start, next);
+                next = c.samples.end;
+                let seg = &log.samples[c.samples.clone()];
+                prop_assert!(seg.windows(2).all(|w| w[0].t <= w[1].t));
+            }
+            prop_assert_eq!(next, log.samples.len());
+            prop_assert!(log.clock_segments.len() <= log.stats.clock_steps.len() + 1);
             prop_assert!(log.samples.iter().all(|s| s.t.is_finite() && s.valid));
             let st = &log.stats;
             prop_assert_eq!(st.valid + st.invalid, st.velocity_reports);

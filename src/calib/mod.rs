@@ -15,6 +15,9 @@
 //!    recording that disagree ([`halves`]); what the priors ([`prior`]) determined; a verdict per
 //!    parameter, the sanity checks and the clock's drift ([`outcome`] holds what a run gives).
 //!
+//! A DVL clock that stepped is calibrated segment by segment, the extrinsics shared
+//! ([`segments`]).
+//!
 //! [`calibrate`] runs the stages in this order, with the settings of [`options`] (whose messages
 //! name the settings as [`setting`] words them) on the samples of [`samples`].
 
@@ -36,6 +39,7 @@ pub mod prior;
 pub mod refinement;
 pub mod robust;
 pub mod samples;
+pub mod segments;
 pub mod setting;
 pub(crate) mod update;
 pub mod whiteness;

@@ -116,6 +116,26 @@ pub struct WorstResidual {
     pub weight: f64,
 }
 
+/// One clock segment of a DVL log whose clock stepped ([`RunFigures::clock_segments`]).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ClockSegmentFigure {
+    /// The first and last line (bag: message number) of its reports in the log.
+    pub lines: [usize; 2],
+    /// Its reports.
+    pub samples: usize,
+    /// Its span on its own clock, s.
+    pub duration_s: f64,
+    /// Its clock offset (`t_cam = t_dvl + time_offset_s` for its reports), when it was used.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub time_offset_s: Option<f64>,
+    /// That offset's standard deviation, s.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub time_offset_std_s: Option<f64>,
+    /// Why it was left out, when it was.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub left_out: Option<String>,
+}
+
 /// Declares [`RunFigures`]: one optional field per key of `info`, named as the key.
 macro_rules! run_figures {
     ($( $(#[$doc:meta])* $key:ident: $ty:ty, )*) => {
@@ -260,6 +280,8 @@ run_figures! {
     poses_downweighted: usize,
     /// The worst DVL reports.
     dvl_worst_residuals: Vec<WorstResidual>,
+    /// The DVL clock's segments when it stepped or restarted (one clock offset each).
+    clock_segments: Vec<ClockSegmentFigure>,
     /// The worst poses.
     poses_worst_residuals: Vec<WorstResidual>,
     /// The DVL noise the residuals show, over the stated variance.

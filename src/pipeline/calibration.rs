@@ -8,13 +8,14 @@ use std::time::Instant;
 use nalgebra::{Matrix4, Vector3};
 
 use crate::calib::offset::OffsetMethod;
+use crate::calib::segments::calibrate_segments;
 use crate::calib::{
     CalibOptions, CalibrationOutcome, DeterminedBy, Method, Status, Verdict, calibrate,
 };
 use crate::error::{Error, Result};
 use crate::io::calib_yaml::{
-    CalibrationFile, CalibrationInfo, CalibrationStd, Observability, ObservabilityFlags,
-    ResultStatus, RunFigures, WorstResidual, write_calib_yaml,
+    CalibrationFile, CalibrationInfo, CalibrationStd, ClockSegmentFigure, Observability,
+    ObservabilityFlags, ResultStatus, RunFigures, WorstResidual, write_calib_yaml,
 };
 use crate::io::camchain::kalibr_entry;
 use crate::io::dataset::DatasetFiles;
@@ -27,6 +28,7 @@ use crate::io::write_atomic;
 use crate::report::{
     FailureReportInput, ReportInput, frame_stats, render_failure_html, render_html,
 };
+use crate::types::DvlSample;
 
 use super::cameras::{CameraCalRun, SEPARATE_CAMERA_RECORDING};
 use super::dataset::Dataset;
@@ -52,9 +54,46 @@ pub fn calibrate_dataset(
 ) -> Result<CalibrationRun> {
     let workers = crate::parallel::worker_pool(threads)?;
     let start = Instant::now();
-    let outcome = workers.install(|| calibrate(&data.poses, &data.log.samples, opts))?;
+    let log = &data.log;
+    let (outcome, segments) = if log.clock_segments.len() > 1 {
+        // A clock that stepped: one offset per clock segment.
+        let parts: Vec<&[DvlSample]> = log
+            .clock_segments
+            .iter()
+            .map(|c| log.samples.get(c.samples.clone()).unwrap_or(&[]))
+            .collect();
+        let names: Vec<String> = log
+            .clock_segments
+            .iter()
+            .map(|c| format!("{}:{}-{}", log.stats.path.display(), c.lines.0, c.lines.1))
+            .collect();
+        workers.install(|| calibrate_segments(&data.poses, &parts, &names, opts))?
+    } else {
+        (
+            workers.install(|| calibrate(&data.poses, &log.samples, opts))?,
+            Vec::new(),
+        )
+    };
     let elapsed_s = start.elapsed().as_secs_f64();
     let mut file = result_file(&outcome, &data.log);
+    if !segments.is_empty()
+        && let Some(info) = file.info.as_mut()
+    {
+        info.figures.clock_segments = Some(
+            segments
+                .iter()
+                .zip(&log.clock_segments)
+                .map(|(s, c)| ClockSegmentFigure {
+                    lines: [c.lines.0, c.lines.1],
+                    samples: s.samples,
+                    duration_s: s.duration_s,
+                    time_offset_s: s.time_offset_s,
+                    time_offset_std_s: s.time_offset_std_s,
+                    left_out: s.left_out.clone(),
+                })
+                .collect(),
+        );
+    }
     if let Some(cams) = &data.cameras {
         note_cameras(&mut file, cams);
     }

@@ -143,6 +143,50 @@ pub struct TimeProblem {
     pub step_s: f64,
 }
 
+/// How a DVL clock jumped between two consecutive reports.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub enum ClockStepKind {
+    /// The time went back (an NTP correction, a clock set by hand).
+    Back,
+    /// The time went forward by more than the reports' own `time` increments allow.
+    Forward,
+    /// The time restarted near the Unix epoch (the DVL rebooted without a time source).
+    Restart,
+}
+
+impl ClockStepKind {
+    /// Words for messages.
+    pub fn words(self) -> &'static str {
+        match self {
+            ClockStepKind::Back => "steps back",
+            ClockStepKind::Forward => "steps forward",
+            ClockStepKind::Restart => "restarts (a reboot)",
+        }
+    }
+}
+
+/// A discontinuity of the DVL clock: where one clock segment ends and the next begins.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ClockStep {
+    /// 1-based line (bag: message number) of the first report after the step.
+    pub line: usize,
+    /// The line of the report before it.
+    pub previous_line: usize,
+    /// The time of the report after the step minus the one before, seconds.
+    pub step_s: f64,
+    /// What kind of jump it is.
+    pub kind: ClockStepKind,
+}
+
+/// A stretch of a DVL log whose clock runs without a step.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ClockSegment {
+    /// Its samples in [`DvlLog::samples`] (time-ordered within the segment).
+    pub samples: std::ops::Range<usize>,
+    /// The first and last source line of its reports (file order).
+    pub lines: (usize, usize),
+}
+
 /// Everything counted while reading a DVL log.
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct DvlLogStats {
@@ -193,6 +237,8 @@ pub struct DvlLogStats {
     pub time_repeats: usize,
     /// The first [`MAX_LISTED`] of those.
     pub time_problems: Vec<TimeProblem>,
+    /// Steps and restarts of the DVL clock, in file order (each starts a new clock segment).
+    pub clock_steps: Vec<ClockStep>,
     /// Things a user should know (rebuilt time line, fallback time source, damaged bag, ...).
     pub warnings: Vec<String>,
     /// First and last sample time, seconds relative to the epoch.
@@ -250,6 +296,9 @@ pub struct DvlLog {
     pub samples: Vec<DvlSample>,
     /// The 1-based source line (bag: message number) of each sample.
     pub lines: Vec<usize>,
+    /// The clock segments, in file order: one unless the clock stepped ([`ClockStep`]). The
+    /// samples are time-ordered within each segment, the segments follow one another.
+    pub clock_segments: Vec<ClockSegment>,
     /// Everything counted on the way.
     pub stats: DvlLogStats,
 }

@@ -35,8 +35,8 @@ use crate::types::DvlSample;
 pub use detect::detect_format;
 pub use json::parse_line as parse_json_line;
 pub use log::{
-    DvlFormat, DvlGap, DvlLog, DvlLogStats, DvlReadOptions, DvlTimeSource, GAP_MIN_INTERVALS,
-    GAP_MIN_S, MAX_LISTED, RejectedLine, TimeProblem, text_lines,
+    ClockSegment, ClockStep, ClockStepKind, DvlFormat, DvlGap, DvlLog, DvlLogStats, DvlReadOptions,
+    DvlTimeSource, GAP_MIN_INTERVALS, GAP_MIN_S, MAX_LISTED, RejectedLine, TimeProblem, text_lines,
 };
 pub use record::{RecordOptions, RecordStats, add_host_time, record_tcp};
 pub use report::{Parsed, Reject, VelocityReport};
@@ -319,6 +319,16 @@ impl Accumulator {
                 .map(|t| Epoch::at(*t))
                 .unwrap_or_default(),
         };
+        // The clock's steps, over every report with a time (valid or not) in file order.
+        let stamped: Vec<(usize, f64, f64, Option<f64>)> = self
+            .reports
+            .iter()
+            .zip(&times)
+            .filter_map(|((line, r), t)| {
+                t.map(|t| (*line, epoch.rel(t), t.sec as f64 + t.frac, r.time_ms))
+            })
+            .collect();
+        stats.clock_steps = clock_steps(&stamped);
         let mut samples: Vec<(usize, DvlSample)> = Vec::with_capacity(self.reports.len());
         for ((line, r), t) in self.reports.iter().zip(&times) {
             let Some(t) = t else { continue };
@@ -336,10 +346,14 @@ impl Accumulator {
                 },
             ));
         }
-        // Time order as found in the file.
+        // Time order as found in the file, within each clock segment.
+        let starts: Vec<usize> = stats.clock_steps.iter().map(|c| c.line).collect();
         for w in 1..samples.len() {
             let step = samples[w].1.t - samples[w - 1].1.t;
-            if step <= 0.0 {
+            let new_segment = starts
+                .iter()
+                .any(|&l| samples[w - 1].0 < l && samples[w].0 >= l);
+            if step <= 0.0 && !new_segment {
                 if step < 0.0 {
                     stats.time_backwards += 1;
                 } else {
@@ -365,9 +379,41 @@ impl Accumulator {
                 stats.time_repeats
             ));
         }
-        samples.sort_by(|a, b| a.1.t.total_cmp(&b.1.t));
-        stats.first_time_s = samples.first().map(|s| s.1.t);
-        stats.last_time_s = samples.last().map(|s| s.1.t);
+        // Each segment sorted by time on its own: across a step the times of different clocks
+        // do not compare.
+        let segment_of = |line: usize| starts.iter().filter(|&&l| l <= line).count();
+        samples.sort_by(|a, b| {
+            segment_of(a.0)
+                .cmp(&segment_of(b.0))
+                .then(a.1.t.total_cmp(&b.1.t))
+        });
+        let mut clock_segments: Vec<ClockSegment> = Vec::new();
+        for (i, (line, _)) in samples.iter().enumerate() {
+            match clock_segments.last_mut() {
+                Some(c) if segment_of(*line) == segment_of(c.lines.0) => {
+                    c.samples.end = i + 1;
+                    c.lines.0 = c.lines.0.min(*line);
+                    c.lines.1 = c.lines.1.max(*line);
+                }
+                _ => clock_segments.push(ClockSegment {
+                    samples: i..i + 1,
+                    lines: (*line, *line),
+                }),
+            }
+        }
+        for c in &stats.clock_steps {
+            stats.warnings.push(format!(
+                "{}:{}: the DVL clock {} by {:.3} s after line {}: the log is split into clock \
+                 segments there, each with its own clock offset",
+                path.display(),
+                c.line,
+                c.kind.words(),
+                c.step_s,
+                c.previous_line
+            ));
+        }
+        stats.first_time_s = samples.iter().map(|s| s.1.t).min_by(f64::total_cmp);
+        stats.last_time_s = samples.iter().map(|s| s.1.t).max_by(f64::total_cmp);
         // An A50 reports at 2-26 Hz; a rate far outside that is a time unit read wrongly.
         if let Some(rate) = stats.rate_hz(samples.len())
             && samples.len() >= 10
@@ -389,9 +435,58 @@ impl Accumulator {
             epoch,
             samples,
             lines,
+            clock_segments,
             stats,
         })
     }
+}
+
+/// The least jump of the DVL clock, seconds, that counts as a step (back, or forward beyond the
+/// reports' own `time` increments): ten times the A50's slowest ping interval's jitter.
+pub const CLOCK_STEP_MIN_S: f64 = 1.0;
+/// A clock that jumps back to before this Unix time, seconds (1971), restarted from zero.
+const RESTART_BEFORE_UNIX_S: f64 = 365.0 * 86_400.0;
+
+/// The steps of a clock from its reports in file order: `(line, time relative to the epoch,
+/// absolute Unix time, the report's `time` increment in ms)`. A step back of more than
+/// [`CLOCK_STEP_MIN_S`] is always one; a step forward only when the reports' `time` increments
+/// around it (the DVL's own count of milliseconds between reports) say that far less time went by:
+/// without them a jump forward cannot be told from a pause of the DVL.
+fn clock_steps(stamped: &[(usize, f64, f64, Option<f64>)]) -> Vec<ClockStep> {
+    let mut out = Vec::new();
+    for k in 1..stamped.len() {
+        let (line0, t0, _, _) = stamped[k - 1];
+        let (line, t, abs, _) = stamped[k];
+        let step = t - t0;
+        let kind = if step < -CLOCK_STEP_MIN_S {
+            Some(if abs < RESTART_BEFORE_UNIX_S {
+                ClockStepKind::Restart
+            } else {
+                ClockStepKind::Back
+            })
+        } else if step > CLOCK_STEP_MIN_S {
+            // The `time` of a report and of its neighbours (the field's alignment to the ping
+            // interval differs between firmware versions).
+            let lo = k.saturating_sub(1);
+            let hi = (k + 1).min(stamped.len() - 1);
+            let increments: Vec<f64> = stamped[lo..=hi].iter().filter_map(|s| s.3).collect();
+            (increments.len() == hi - lo + 1)
+                .then(|| increments.iter().copied().fold(0.0, f64::max) / 1000.0)
+                .filter(|&elapsed| step > elapsed + CLOCK_STEP_MIN_S)
+                .map(|_| ClockStepKind::Forward)
+        } else {
+            None
+        };
+        if let Some(kind) = kind {
+            out.push(ClockStep {
+                line,
+                previous_line: line0,
+                step_s: step,
+                kind,
+            });
+        }
+    }
+    out
 }
 
 /// The raw time of every kept report (`None`: the report lacks the chosen stamp and is dropped).

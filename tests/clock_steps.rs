@@ -1,0 +1,218 @@
+//! A DVL clock that steps back, forward, or restarts mid-log: the step is found and named by
+//! file:line, the log is split into clock segments with an offset each, and the extrinsics and
+//! scale come out as without the step.
+
+mod tmp_common;
+mod truth_common;
+
+use std::path::{Path, PathBuf};
+
+use dvlcal::io::calib_yaml::ResultStatus;
+use dvlcal::io::dvl::{ClockStepKind, DvlReadOptions, read_dvl_log};
+use tmp_common::{TmpDir, dvlcal, s};
+use truth_common::{NAMES, against_truth};
+
+const SAMPLE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/sample_data/poses");
+/// The first report (1-based line) on the stepped clock.
+const STEP_LINE: usize = 351;
+const TRUE_OFFSET_S: f64 = 0.07;
+
+/// A copy of the poses sample whose DVL log's clock is changed from `STEP_LINE` on by
+/// `change(time_of_validity_us) -> new time_us`, both stamps alike; the `time` increments are
+/// kept, as the DVL reports them whatever its clock does.
+fn stepped(tmp: &TmpDir, name: &str, change: impl Fn(i64) -> i64) -> PathBuf {
+    let dir = tmp.0.join(name);
+    std::fs::create_dir_all(dir.join("truth")).unwrap();
+    for f in ["poses.txt", "truth/calibration.yaml"] {
+        std::fs::copy(Path::new(SAMPLE).join(f), dir.join(f)).unwrap();
+    }
+    let log = std::fs::read_to_string(Path::new(SAMPLE).join("dvl.jsonl")).unwrap();
+    let mut out = String::new();
+    for (i, line) in log.lines().enumerate() {
+        let mut v: serde_json::Value = serde_json::from_str(line).unwrap();
+        if i + 1 >= STEP_LINE {
+            for key in ["time_of_validity", "time_of_transmission"] {
+                let t = v[key].as_i64().unwrap();
+                v[key] = serde_json::Value::from(change(t));
+            }
+        }
+        out.push_str(&v.to_string());
+        out.push('\n');
+    }
+    std::fs::write(dir.join("dvl.jsonl"), out).unwrap();
+    dir
+}
+
+/// Calibrates `dir` and checks the result against the truth: every parameter within 3 std (the
+/// offset of the first segment), the second segment's offset `expected_second` within 3 std.
+fn calibrates_with_two_segments(dir: &Path, kind: ClockStepKind, expected_second: f64) {
+    let log = read_dvl_log(&dir.join("dvl.jsonl"), &DvlReadOptions::default()).unwrap();
+    assert_eq!(
+        log.stats.clock_steps.len(),
+        1,
+        "{:?}",
+        log.stats.clock_steps
+    );
+    let step = &log.stats.clock_steps[0];
+    assert_eq!(
+        (step.line, step.previous_line, step.kind),
+        (STEP_LINE, STEP_LINE - 1, kind)
+    );
+    assert_eq!(log.clock_segments.len(), 2);
+    assert_eq!(log.clock_segments[1].lines.0, STEP_LINE);
+
+    let out_yaml = dir.join("out/calibration.yaml");
+    let out = dvlcal(&["calibrate", s(dir), "--out", s(&out_yaml)]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stdout}\n{stderr}");
+    // Named by file and line.
+    let named = format!("dvl.jsonl:{STEP_LINE}: the DVL clock {}", kind.words());
+    assert!(
+        stdout.contains(&named) || stderr.contains(&named),
+        "{stdout}\n{stderr}"
+    );
+    assert!(
+        stdout.contains("clock segments calibrated together"),
+        "{stdout}"
+    );
+
+    let t = against_truth(dir, &out_yaml);
+    eprintln!("{}", t.table);
+    assert_eq!(t.file.status, Some(ResultStatus::Ok));
+    for k in 0..8 {
+        assert!(
+            t.err[k].abs() < 3.0 * t.std[k],
+            "{}: error {} std {}",
+            NAMES[k],
+            t.err[k],
+            t.std[k]
+        );
+    }
+    let segs = t
+        .file
+        .info
+        .as_ref()
+        .and_then(|i| i.figures.clock_segments.clone())
+        .expect("clock_segments in the result");
+    assert_eq!(segs.len(), 2);
+    assert_eq!(segs[1].lines[0], STEP_LINE);
+    let (o1, s1) = (
+        segs[0].time_offset_s.unwrap(),
+        segs[0].time_offset_std_s.unwrap(),
+    );
+    let (o2, s2) = (
+        segs[1].time_offset_s.unwrap(),
+        segs[1].time_offset_std_s.unwrap(),
+    );
+    assert!((o1 - TRUE_OFFSET_S).abs() < 3.0 * s1, "{o1} +- {s1}");
+    assert!((o2 - expected_second).abs() < 3.0 * s2, "{o2} +- {s2}");
+    assert!(s1 < 0.01 && s2 < 0.01, "{s1} {s2}");
+}
+
+#[test]
+fn a_dvl_clock_stepping_back_10_s_is_split_at_its_line() {
+    let tmp = TmpDir::new("clock-step-back");
+    let dir = stepped(&tmp, "back", |t| t - 10_000_000);
+    // The DVL clock reads 10 s less: t_cam = t_dvl + 10.07 s there.
+    calibrates_with_two_segments(&dir, ClockStepKind::Back, TRUE_OFFSET_S + 10.0);
+}
+
+#[test]
+fn a_dvl_clock_stepping_forward_10_s_is_split_at_its_line() {
+    let tmp = TmpDir::new("clock-step-forward");
+    let dir = stepped(&tmp, "forward", |t| t + 10_000_000);
+    calibrates_with_two_segments(&dir, ClockStepKind::Forward, TRUE_OFFSET_S - 10.0);
+}
+
+#[test]
+fn a_dvl_reboot_restarting_its_clock_near_zero_is_split_at_its_line() {
+    let tmp = TmpDir::new("clock-restart");
+    // After the reboot the clock counts from 5 s after the Unix epoch.
+    let first_after = 1_700_000_000_000_197 + 35_000_000;
+    let dir = stepped(&tmp, "restart", move |t| t - first_after + 5_000_000);
+    let shift = (first_after - 5_000_000) as f64 * 1e-6;
+    calibrates_with_two_segments(&dir, ClockStepKind::Restart, TRUE_OFFSET_S + shift);
+}
+
+#[test]
+fn a_short_segment_is_left_out_with_a_warning() {
+    let tmp = TmpDir::new("clock-short");
+    // A step back at line 351, and another 5 s later: the middle segment is too short.
+    let dir = tmp.0.join("short");
+    std::fs::create_dir_all(dir.join("truth")).unwrap();
+    for f in ["poses.txt", "truth/calibration.yaml"] {
+        std::fs::copy(Path::new(SAMPLE).join(f), dir.join(f)).unwrap();
+    }
+    let log = std::fs::read_to_string(Path::new(SAMPLE).join("dvl.jsonl")).unwrap();
+    let mut out = String::new();
+    for (i, line) in log.lines().enumerate() {
+        let mut v: serde_json::Value = serde_json::from_str(line).unwrap();
+        let shift = if i + 1 >= STEP_LINE + 50 {
+            -20_000_000
+        } else if i + 1 >= STEP_LINE {
+            -10_000_000
+        } else {
+            0
+        };
+        for key in ["time_of_validity", "time_of_transmission"] {
+            let t = v[key].as_i64().unwrap();
+            v[key] = serde_json::Value::from(t + shift);
+        }
+        out.push_str(&v.to_string());
+        out.push('\n');
+    }
+    std::fs::write(dir.join("dvl.jsonl"), out).unwrap();
+    let out_yaml = dir.join("out/calibration.yaml");
+    let r = dvlcal(&["calibrate", s(&dir), "--out", s(&out_yaml)]);
+    let stdout = String::from_utf8_lossy(&r.stdout);
+    assert!(r.status.success(), "{stdout}");
+    assert!(stdout.contains("is left out: too short"), "{stdout}");
+    let t = against_truth(&dir, &out_yaml);
+    let segs = t
+        .file
+        .info
+        .as_ref()
+        .and_then(|i| i.figures.clock_segments.clone())
+        .unwrap();
+    assert_eq!(segs.len(), 3);
+    assert!(segs[1].left_out.is_some() && segs[1].time_offset_s.is_none());
+    assert!(segs[0].time_offset_s.is_some() && segs[2].time_offset_s.is_some());
+}
+
+#[test]
+fn a_steady_clock_with_a_pause_is_one_segment() {
+    // Reports missing for 10 s (the `time` increment says so) are a pause, not a step.
+    let tmp = TmpDir::new("clock-pause");
+    let dir = tmp.0.join("pause");
+    std::fs::create_dir_all(&dir).unwrap();
+    let log = std::fs::read_to_string(Path::new(SAMPLE).join("dvl.jsonl")).unwrap();
+    let mut out = String::new();
+    for (i, line) in log.lines().enumerate() {
+        let mut v: serde_json::Value = serde_json::from_str(line).unwrap();
+        if (STEP_LINE..STEP_LINE + 100).contains(&(i + 1)) {
+            continue;
+        }
+        if i + 1 == STEP_LINE + 100 {
+            v["time"] = serde_json::Value::from(10_100.0);
+        }
+        out.push_str(&v.to_string());
+        out.push('\n');
+    }
+    std::fs::write(dir.join("dvl.jsonl"), out).unwrap();
+    let log = read_dvl_log(&dir.join("dvl.jsonl"), &DvlReadOptions::default()).unwrap();
+    assert!(
+        log.stats.clock_steps.is_empty(),
+        "{:?}",
+        log.stats.clock_steps
+    );
+    assert_eq!(log.clock_segments.len(), 1);
+    // The sample itself has one segment too.
+    let log = read_dvl_log(
+        &Path::new(SAMPLE).join("dvl.jsonl"),
+        &DvlReadOptions::default(),
+    )
+    .unwrap();
+    assert_eq!(log.clock_segments.len(), 1);
+    assert_eq!(log.clock_segments[0].samples, 0..log.samples.len());
+}
