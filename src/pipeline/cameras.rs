@@ -386,7 +386,10 @@ impl CameraCalRun {
             |n| n.to_string_lossy().into_owned(),
         );
         format!(
-            "the baselines are measured in units of the board: a board printed at 97 % of the              size {name} states gives baselines 3 % short, and no check with these cameras can              see it (the DVL calibration's stereo measure of the board compares the board with              these baselines); measure a printed tag against tagSize with a ruler"
+            "the baselines are measured in units of the board: a board printed at 97 % of the \
+             size {name} states gives baselines 3 % short, and no check with these cameras can \
+             see it (the DVL calibration's stereo measure of the board compares the board with \
+             these baselines); measure a printed tag against tagSize with a ruler"
         )
     }
 
