@@ -201,6 +201,12 @@ run_figures! {
     poses: usize,
     /// Where the poses' covariances came from.
     pose_covariances: String,
+    /// The board's printed size over the size its file states, as the stereo pair measured it.
+    board_scale: f64,
+    /// Its standard deviation.
+    board_scale_std: f64,
+    /// Whether the poses were solved with the board at the measured size.
+    board_scale_applied: bool,
     /// The DVL log read.
     dvl_log: String,
     /// The A50 time stamp used.

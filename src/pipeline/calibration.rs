@@ -98,6 +98,7 @@ pub fn calibrate_dataset(
         note_cameras(&mut file, cams);
     }
     note_pose_covariances(&mut file, data);
+    note_board_size(&mut file, data);
     Ok(CalibrationRun {
         outcome,
         file,
@@ -117,6 +118,28 @@ fn note_pose_covariances(file: &mut CalibrationFile, data: &Dataset) {
     };
     let info = file.info.get_or_insert_with(CalibrationInfo::default);
     info.figures.pose_covariances = Some(source);
+}
+
+/// Records in the result file what the image pipeline found of the board's printed size: the
+/// measured scale (`info.board_scale`, `board_scale_std`, `board_scale_applied`), with a warning
+/// when it differs from the file's size, or a note on why it was not measured.
+fn note_board_size(file: &mut CalibrationFile, data: &Dataset) {
+    let Some(run) = &data.vision else { return };
+    let words = run.board_size_words();
+    let info = file.info.get_or_insert_with(CalibrationInfo::default);
+    match run.board_size.measured() {
+        Some(b) => {
+            info.figures.board_scale = Some(b.scale);
+            info.figures.board_scale_std = Some(b.std);
+            info.figures.board_scale_applied = Some(b.applied);
+            if b.significant() {
+                info.warnings.push(words);
+            } else {
+                info.notes.push(words);
+            }
+        }
+        None => info.notes.push(words),
+    }
 }
 
 /// Records in the result file that the camchain was calibrated from the same images, and warns

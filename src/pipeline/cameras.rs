@@ -370,7 +370,27 @@ impl CameraCalRun {
         for w in &r.warnings {
             let _ = writeln!(s, "warning: {w}");
         }
+        if r.chain.cams.len() > 1 {
+            let _ = writeln!(s, "note: {}", self.baseline_note());
+        }
         s
+    }
+
+    /// What a stereo chain calibrated from a board cannot know: the board's printed size. Its
+    /// baselines are in the board's units, so a misprinted board scales them by its own error,
+    /// and the DVL calibration's stereo check of the board's size, which compares the board with
+    /// the baseline, cannot see it.
+    pub fn baseline_note(&self) -> String {
+        let name = self.target.file_name().map_or_else(
+            || self.target.display().to_string(),
+            |n| n.to_string_lossy().into_owned(),
+        );
+        format!(
+            "the baselines are measured in units of the board: a board printed at 97 % of the \
+             size {name} states gives baselines 3 % short, and no check with these cameras can \
+             see it (the DVL calibration's stereo measure of the board compares the board with \
+             these baselines); measure a printed tag against tagSize with a ruler"
+        )
     }
 
     /// Whether the calibration has weak points (warnings): then a separate camera recording is

@@ -14,6 +14,7 @@ use crate::io::dvl::{DvlLog, DvlReadOptions, read_dvl_log};
 use crate::io::frames_csv::{frames_csv_path, read_tum_with_covariances};
 use crate::types::PoseMeasurement;
 use crate::types::camera::Camchain;
+use crate::vision::scale::BoardSize;
 
 use super::cameras::{
     CameraCalOptions, CameraCalRun, calibrate_cameras_from_bag, calibrate_cameras_from_images,
@@ -96,6 +97,15 @@ pub fn describe_files(f: &DatasetFiles) -> String {
     s
 }
 
+/// Marks the board's size as unmeasurable when the chain was calibrated from the same images
+/// (`calibrated`): its baseline is then in the board's units. A scale that was applied stays
+/// (the poses were solved with it).
+fn baseline_from_board(run: &mut VisionRun, calibrated: bool) {
+    if calibrated && !run.board_size.measured().is_some_and(|b| b.applied) {
+        run.board_size = BoardSize::BaselineFromBoard;
+    }
+}
+
 /// A dataset read into memory: the camera poses and the DVL log on one epoch.
 #[derive(Debug)]
 pub struct Dataset {
@@ -176,7 +186,7 @@ impl Dataset {
                 let Some(target) = &files.target else {
                     return Err(Error::dataset(dir, "images need a target (board YAML)"));
                 };
-                let run = match &files.camchain {
+                let mut run = match &files.camchain {
                     Some(chain) => poses_from_images(dir, chain, target, vision)?,
                     None => {
                         let opts = CameraCalOptions {
@@ -195,6 +205,7 @@ impl Dataset {
                         poses_from_images_with_chain(dir, chain, target, vision)?
                     }
                 };
+                baseline_from_board(&mut run, cameras.is_some());
                 on_vision(&run);
                 run.require_poses()?;
                 (run.epoch, run.poses_as_read_back(), Some(run), dir.clone())
@@ -248,7 +259,8 @@ impl Dataset {
                         },
                     };
                     camera_frame = plan.frame_ids.first().cloned().flatten();
-                    let run = poses_from_bag(&ob, &plan, chain, target, vision)?;
+                    let mut run = poses_from_bag(&ob, &plan, chain, target, vision)?;
+                    baseline_from_board(&mut run, cameras.is_some());
                     on_vision(&run);
                     run.require_poses()?;
                     (run.epoch, run.poses_as_read_back(), Some(run), bag.clone())

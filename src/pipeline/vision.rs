@@ -22,6 +22,7 @@ use crate::types::camera::Camchain;
 use crate::vision::detect::DetectorSettings;
 use crate::vision::frames::{DetectStats, FrameResult, detect_source};
 use crate::vision::pnp::PnpOptions;
+use crate::vision::scale::{BoardSize, estimate_board_scale, frame_scales};
 
 /// Detection and PnP settings (the options `dvlcal detect` and `dvlcal calibrate` share).
 #[derive(Clone, Debug, PartialEq)]
@@ -88,6 +89,12 @@ pub struct VisionRun {
     pub images: PathBuf,
     /// The camera chain the poses were solved with.
     pub chain: Camchain,
+    /// The board file.
+    pub target: PathBuf,
+    /// The board's printed size as the stereo pair measured it; when it differs from the file's
+    /// ([`crate::vision::scale::BoardScale::significant`]) the poses were solved with the board
+    /// scaled to the measured size (`applied`).
+    pub board_size: BoardSize,
     /// The epoch of the pose times: the whole second of the first frame.
     pub epoch: Epoch,
     /// One per posed frame, in time order, with covariances (`T_board_cam0` on the camera
@@ -136,7 +143,7 @@ pub fn poses_from_images_with_chain(
         scan,
         &[],
         chain,
-        &board,
+        (target, &board),
         opts,
     )
 }
@@ -181,23 +188,29 @@ pub fn poses_from_bag(
         plan.scan.clone(),
         &plan.unreadable,
         chain,
-        &board,
+        (target, &board),
         opts,
     )
 }
 
 /// The poses of the frames of `src` (a folder or a bag, `name`): detection and stereo PnP on a
 /// pool of `opts.threads` workers. `unreadable` names the images the planning could not read;
-/// they head the run's problems.
+/// they head the run's problems. `target` is the board's file and the board it holds.
+///
+/// With two or more cameras the frames measure the board's printed size
+/// ([`crate::vision::scale`]); when it differs from the file's, the frames are read, detected
+/// and solved again with the board scaled to the measured size (a second pass, which only a
+/// misprinted board costs).
 fn solve_poses(
     name: &Path,
     src: FrameSource<'_>,
     scan: ScanStats,
     unreadable: &[String],
     chain: Camchain,
-    board: &Board,
+    target: (&Path, &Board),
     opts: &VisionOptions,
 ) -> Result<VisionRun> {
+    let (target, board) = target;
     let det = detector_settings(board, opts);
     let pnp = PnpOptions {
         min_corners: opts.min_corners,
@@ -206,8 +219,24 @@ fn solve_poses(
     };
     let pool = crate::parallel::worker_pool(opts.threads)?;
     let start = Instant::now();
-    let (results, mut stats) =
+    let (mut results, mut stats) =
         pool.install(|| detect_source(src, board, &chain, &det, &pnp, opts.progress))?;
+    let mut board_size = if chain.cams.len() < 2 {
+        BoardSize::OneCamera
+    } else {
+        match estimate_board_scale(&frame_scales(&results)) {
+            Some(b) => BoardSize::Measured(b),
+            None => BoardSize::TooFewStereoFrames,
+        }
+    };
+    if let BoardSize::Measured(b) = &mut board_size
+        && b.significant()
+    {
+        let scaled = board.scaled(b.scale);
+        (results, stats) =
+            pool.install(|| detect_source(src, &scaled, &chain, &det, &pnp, opts.progress))?;
+        b.applied = true;
+    }
     stats.problems.splice(0..0, unreadable.iter().cloned());
     let seconds = start.elapsed().as_secs_f64();
     let epoch = Epoch::at(raw_time(src.frames().first().map_or(0, |f| f.t_ns)));
@@ -215,6 +244,8 @@ fn solve_poses(
     Ok(VisionRun {
         images: name.to_path_buf(),
         chain,
+        target: target.to_path_buf(),
+        board_size,
         epoch,
         poses,
         results,
@@ -292,7 +323,7 @@ impl VisionRun {
         Ok(())
     }
 
-    /// Three lines on what was read, detected and skipped.
+    /// Four lines on what was read, detected and skipped, and the board's size.
     pub fn summary(&self) -> String {
         let sc = &self.scan;
         let st = &self.stats;
@@ -340,7 +371,17 @@ impl VisionRun {
              ({} unreadable images, {} of the wrong size)",
             st.too_few_corners, st.no_solution, st.no_image, st.unreadable, st.wrong_size
         );
+        let _ = writeln!(s, "board size: {}", self.board_size_words());
         s
+    }
+
+    /// [`BoardSize::words`] with the board file's name.
+    pub fn board_size_words(&self) -> String {
+        let name = self.target.file_name().map_or_else(
+            || self.target.display().to_string(),
+            |n| n.to_string_lossy().into_owned(),
+        );
+        self.board_size.words(&name)
     }
 
     /// The per-frame table written beside a TUM file of the poses: one row per pose, same order

@@ -8,3 +8,4 @@ pub mod frames;
 pub mod kalibr;
 pub mod pnp;
 pub(crate) mod refine;
+pub mod scale;

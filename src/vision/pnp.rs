@@ -12,6 +12,10 @@
 //!    solved again, until no observation exceeds the threshold.
 //! 4. The covariance of the pose, `sigma_px^2 (J^T J)^-1`, with `sigma_px` estimated from the
 //!    residuals (`sqrt(SSR / (m - 6))`, `m` residuals) unless fixed in the options.
+//! 5. With two or more cameras, the board's print scale this frame measures
+//!    ([`FramePose::board_scale`]): the same observations fitted once more with a factor on the
+//!    board's corners as a seventh unknown, which the baseline makes observable. The pose above
+//!    is not changed by it.
 //!
 //! The pose is `T_board_cam0` (= `T_world_cam0`, the board frame being the world) and its
 //! covariance belongs to the right perturbation `T = T_hat * exp(n)`, `n = [rho; phi]`
@@ -87,6 +91,20 @@ pub struct FramePose {
     /// [`CORNER_SAMPLE_PER_CAMERA`], evenly spaced through that camera's corners in board order
     /// (all of them when there are fewer), so that memory stays small per frame.
     pub corner_sample: Vec<CornerResidual>,
+    /// The board's print scale this frame measures with the chain's baseline (`None` unless two
+    /// cameras saw the board, or when the fit failed). It does not change the pose.
+    pub board_scale: Option<FrameScale>,
+}
+
+/// The size of the board as one frame's cameras measure it: the factor its corners must be
+/// multiplied by to fit the images best with the chain's baseline, pose and scale fitted
+/// together (see [`solve_stereo`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrameScale {
+    /// The scale (1: the board is the size its file says).
+    pub scale: f64,
+    /// Its standard deviation, from the corner noise of the fit.
+    pub std: f64,
 }
 
 /// Most corners per camera and frame kept in [`FramePose::corner_sample`].
@@ -320,6 +338,7 @@ pub fn solve_stereo(
         ));
     }
     let used = active.iter().filter(|&&a| a).count();
+    let board_scale = scale_fit(chain, &obs, &active, &t_b_c0, opts);
     Ok(PoseOutcome::Pose(FramePose {
         t_board_cam0: t_b_c0,
         cov,
@@ -331,7 +350,118 @@ pub fn solve_stereo(
         tags_unknown: unknown,
         rms_px_per_cam,
         corner_sample,
+        board_scale,
     }))
+}
+
+type Matrix7 = nalgebra::SMatrix<f64, 7, 7>;
+type Vector7 = nalgebra::SVector<f64, 7>;
+type Matrix2x7 = nalgebra::SMatrix<f64, 2, 7>;
+
+/// Largest Levenberg-Marquardt steps of [`scale_fit`].
+const SCALE_FIT_ITERATIONS: usize = 20;
+
+/// The board's scale that one frame measures: the pose and a factor `s` on every board corner
+/// (`p_board = s b`) fitted together to the reprojection errors of the active observations,
+/// from `t_b_c0` and `s = 1`. With one camera `s` and the distance cannot be told apart; with
+/// two or more, the baseline fixes the distance. `None` unless at least two cameras have active
+/// observations, and when the fit does not converge to finite values. Its standard deviation is
+/// `sigma_px sqrt((J^T J)^-1)` at the solution, `sigma_px` as for the pose.
+fn scale_fit(
+    chain: &Camchain,
+    obs: &[Obs],
+    active: &[bool],
+    t_b_c0: &Se3,
+    opts: &PnpOptions,
+) -> Option<FrameScale> {
+    let mut seen = vec![false; chain.cams.len()];
+    for (o, _) in obs.iter().zip(active).filter(|(_, a)| **a) {
+        *seen.get_mut(o.cam)? = true;
+    }
+    if seen.iter().filter(|&&s| s).count() < 2 {
+        return None;
+    }
+    let normal = |t: &Se3, s: f64| -> Option<(f64, Matrix7, Vector7, usize)> {
+        let mut h = Matrix7::zeros();
+        let mut g = Vector7::zeros();
+        let mut c = 0.0;
+        let mut m = 0;
+        for (o, _) in obs.iter().zip(active).filter(|(_, a)| **a) {
+            for k in 0..4 {
+                let (r, j) = scaled_residual(chain, o, k, t, s)?;
+                h += j.transpose() * j;
+                g += j.transpose() * r;
+                c += r.norm_squared();
+                m += 2;
+            }
+        }
+        Some((c, h, g, m))
+    };
+    let mut t = *t_b_c0;
+    let mut s = 1.0;
+    let (mut c, mut h, mut g, mut m) = normal(&t, s)?;
+    let mut lambda = 1e-6;
+    for _ in 0..SCALE_FIT_ITERATIONS {
+        let mut a = h;
+        for i in 0..7 {
+            a[(i, i)] += lambda * h[(i, i)].max(1e-12);
+        }
+        let d = -a.cholesky()?.solve(&g);
+        let cand_t = t.retract(&Vector6::from_iterator(d.iter().take(6).copied()));
+        let cand_s = s + d[6];
+        match normal(&cand_t, cand_s) {
+            Some((cc, hh, gg, mm)) if cc <= c => {
+                let small = d.norm() < 1e-12 || c - cc <= 1e-14 * c.max(1e-300);
+                (t, s, c, h, g, m) = (cand_t, cand_s, cc, hh, gg, mm);
+                lambda = (lambda * 0.1).max(1e-12);
+                if small {
+                    break;
+                }
+            }
+            _ => {
+                lambda *= 10.0;
+                if lambda > 1e8 {
+                    break;
+                }
+            }
+        }
+    }
+    let sigma = match opts.sigma_px {
+        Some(sp) => sp,
+        None => (c / (m.saturating_sub(7).max(1)) as f64)
+            .sqrt()
+            .max(opts.min_sigma_px),
+    };
+    let var = h.try_inverse()?[(6, 6)] * sigma * sigma;
+    (s.is_finite() && s > 0.0 && var.is_finite() && var > 0.0).then(|| FrameScale {
+        scale: s,
+        std: var.sqrt(),
+    })
+}
+
+/// Residual of corner `k` of `o` with the board scaled by `s`, and its Jacobian with respect to
+/// the right perturbation of `T_board_cam0` (first six columns) and to `s` (the last).
+fn scaled_residual(
+    chain: &Camchain,
+    o: &Obs,
+    k: usize,
+    t_b_c0: &Se3,
+    s: f64,
+) -> Option<(Vector2<f64>, Matrix2x7)> {
+    let r_b_c0 = &t_b_c0.rot;
+    let b = o.board[k];
+    let p_c0 = r_b_c0.transpose() * (b * s - t_b_c0.trans);
+    let t_cn = &chain.t_cn_c0[o.cam];
+    let p_cn = t_cn.transform_point(&p_c0);
+    let (px, jp) = chain.cams[o.cam].project_jacobian(&p_cn)?;
+    let jr: Matrix2x3<f64> = jp * t_cn.rot;
+    let mut j = Matrix2x7::zeros();
+    j.fixed_view_mut::<2, 3>(0, 0).copy_from(&(-jr));
+    j.fixed_view_mut::<2, 3>(0, 3).copy_from(&(jr * hat(&p_c0)));
+    j.fixed_view_mut::<2, 1>(0, 6)
+        .copy_from(&(jr * (r_b_c0.transpose() * b)));
+    let r = px - o.px[k];
+    (r.x.is_finite() && r.y.is_finite()).then_some((r, j))
 }
 
 /// Residual (projected minus detected pixel) of corner `k` of `o` and its Jacobian with respect
