@@ -310,6 +310,15 @@ pub fn result_file(o: &CalibrationOutcome, log: &DvlLog) -> CalibrationFile {
     };
     let mut warnings = st.warnings.clone();
     warnings.extend(o.warnings.iter().cloned());
+    if o.verdicts.velocity_scale.by != DeterminedBy::Fixed
+        && let Some(w) = crate::report::implausible_water(
+            o.params.velocity_scale,
+            o.std.velocity_scale,
+            st.sound_speed_mps,
+        )
+    {
+        warnings.push(w);
+    }
     for (name, vd) in [
         ("rotation", &o.verdicts.rotation),
         ("lever arm", &o.verdicts.lever_arm),

@@ -45,7 +45,7 @@ pub use cameras::{
 };
 pub use failure::{FAILURE_PLOT_IDS, FAILURE_SECTION_IDS, FailureReportInput, render_failure_html};
 pub use input::{FrameStat, ReportInput, frame_stats};
-pub use words::sound_speed_words;
+pub use words::{WATER_SOUND_SPEED_MPS, implausible_water, sound_speed_words};
 
 use crate::error::Result;
 
