@@ -17,9 +17,9 @@ use crate::error::{Error, Result};
 use crate::types::{DvlSample, PoseMeasurement};
 
 /// A clock segment shorter than this, seconds, is left out.
-pub const MIN_SEGMENT_S: f64 = 15.0;
+pub const MIN_SEGMENT_S: f64 = 5.0;
 /// A clock segment with fewer reports than this is left out.
-pub const MIN_SEGMENT_SAMPLES: usize = 50;
+pub const MIN_SEGMENT_SAMPLES: usize = 30;
 
 /// What became of one clock segment.
 #[derive(Clone, Debug, PartialEq)]
@@ -90,9 +90,10 @@ pub fn calibrate_segments(
         .max_by(|&a, &b| out[a].duration_s.total_cmp(&out[b].duration_s))
     else {
         return Err(Error::Input(format!(
-            "the DVL clock stepped {} times and no clock segment is long enough to calibrate \
-             (each needs {MIN_SEGMENT_SAMPLES} reports over {MIN_SEGMENT_S} s)",
-            segments.len() - 1
+            "the DVL clock stepped, and none of its {} clock segments ({}) is long enough to \
+             calibrate (each needs {MIN_SEGMENT_SAMPLES} reports over {MIN_SEGMENT_S} s)",
+            segments.len(),
+            (0..segments.len()).map(name).collect::<Vec<_>>().join(", ")
         )));
     };
     let first = calibrate_against(CoSensor::Poses(poses), segments[main], opts)?;
@@ -149,7 +150,9 @@ pub fn calibrate_segments(
             )),
         };
         let why = match found {
-            Ok(o) if o.status.is_ok() => {
+            // Its residuals, not the contradiction check, decide: the extrinsics it is held at
+            // are an estimate (the whole recording is calibrated again below).
+            Ok(o) if o.normalized_cost <= opts.sanity.max_normalized_cost => {
                 let shift = o.params.time_offset_s - offset0;
                 merged.extend(segments[k].iter().map(|s| DvlSample {
                     t: s.t + shift,
@@ -159,12 +162,12 @@ pub fn calibrate_segments(
                 out[k].time_offset_std_s = Some(o.std.time_offset_s);
                 continue;
             }
-            Ok(o) => match o.status {
-                super::outcome::Status::Failed(r) => {
-                    format!("its clock offset could not be found: {}", r.join("; "))
-                }
-                super::outcome::Status::Ok => String::new(),
-            },
+            Ok(o) => format!(
+                "at its best clock offset ({:.3} s) its DVL residuals are {:.1} times the stated \
+                 noise with the other segment's extrinsics (at most {} is credible): it does not \
+                 fit this recording",
+                o.params.time_offset_s, o.normalized_cost, opts.sanity.max_normalized_cost
+            ),
             Err(e) => format!("its clock offset could not be found: {e}"),
         };
         warnings.push(format!("clock segment {} is left out: {why}", name(k)));

@@ -415,7 +415,16 @@ impl Accumulator {
         stats.first_time_s = samples.iter().map(|s| s.1.t).min_by(f64::total_cmp);
         stats.last_time_s = samples.iter().map(|s| s.1.t).max_by(f64::total_cmp);
         // An A50 reports at 2-26 Hz; a rate far outside that is a time unit read wrongly.
-        if let Some(rate) = stats.rate_hz(samples.len())
+        // (over the clock segments: across a step the times do not compare)
+        let spans: f64 = clock_segments
+            .iter()
+            .filter_map(|c| {
+                Some(samples.get(c.samples.end - 1)?.1.t - samples.get(c.samples.start)?.1.t)
+            })
+            .sum();
+        let intervals = samples.len().saturating_sub(clock_segments.len());
+        let segment_rate = (spans > 0.0).then(|| intervals as f64 / spans);
+        if let Some(rate) = segment_rate
             && samples.len() >= 10
             && !(0.5..=100.0).contains(&rate)
         {
