@@ -142,7 +142,11 @@ pub fn calibrate_against(
     let mut obs_scaled = None;
     // With the extrinsics held, a misfit is the given values' error, not the sensors' noise:
     // the components are reported but not applied (the contradiction check names the cause).
-    let engaged = if pass.free.rotation {
+    // So is a misfit the robust loss finds in a large share of the reports (a DVL that does not
+    // describe the camera's motion): rescaled, it would hide among them.
+    let first_robust = &pass.reweighted.robust;
+    let outlier_share = first_robust.outliers as f64 / first_robust.factors.max(1) as f64;
+    let engaged = if pass.free.rotation && outlier_share <= opts.sanity.max_outlier_fraction {
         noise.far()
     } else {
         (false, false)
