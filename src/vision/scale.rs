@@ -65,10 +65,19 @@ impl BoardScale {
 
     /// "the board measures 97.0 +- 0.1 % of target.yaml" (`target`: the board file's name).
     pub fn measures(&self, target: &str) -> String {
+        // As many decimals as the standard deviation needs to show (one at least).
+        let pct = 100.0 * self.std;
+        let decimals = if pct > 0.0 && pct.is_finite() {
+            ((-pct.log10()).ceil().max(0.0) as usize).clamp(1, 3)
+        } else {
+            1
+        };
         format!(
-            "the board measures {:.1} +- {:.1} % of {target}",
+            "the board measures {:.*} +- {:.*} % of {target}",
+            decimals,
             100.0 * self.scale,
-            100.0 * self.std
+            decimals,
+            pct
         )
     }
 
