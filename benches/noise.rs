@@ -15,7 +15,6 @@ mod common;
 use common::par_map;
 use dvlcal::calib::model::{NPARAM, difference};
 use dvlcal::calib::{CalibOptions, calibrate};
-use dvlcal::rng::Rng;
 use dvlcal::sim::{MotionKind, SimConfig, simulate};
 
 const TRUE_SIGMA: f64 = 0.01;
@@ -67,24 +66,12 @@ fn run(seed: u64, duration: f64, factor: f64) -> Option<Run> {
 
 /// RMS of `err / std` over the runs and the group's components, with a 95 % percentile-bootstrap
 /// interval over the runs.
-fn rms_z(runs: &[Run], range: &std::ops::Range<usize>, seed: u64) -> (f64, f64, f64) {
+fn rms_z(runs: &[Run], range: &std::ops::Range<usize>) -> [f64; 3] {
     let sq: Vec<f64> = runs
         .iter()
         .map(|r| range.clone().map(|k| r.z[k] * r.z[k]).sum::<f64>() / range.len() as f64)
         .collect();
-    let n = sq.len();
-    let point = (sq.iter().sum::<f64>() / n as f64).sqrt();
-    let mut rng = Rng::stream(seed, 77);
-    let mut boot: Vec<f64> = (0..2000)
-        .map(|_| {
-            let s: f64 = (0..n)
-                .map(|_| sq[((rng.uniform_in(0.0, 1.0) * n as f64) as usize).min(n - 1)])
-                .sum();
-            (s / n as f64).sqrt()
-        })
-        .collect();
-    boot.sort_by(f64::total_cmp);
-    (point, boot[50], boot[1949])
+    common::rms_bootstrap(&sq, 11)
 }
 
 fn main() {
@@ -113,7 +100,7 @@ fn main() {
         let cells: Vec<String> = GROUPS
             .iter()
             .map(|(_, range)| {
-                let (p, lo, hi) = rms_z(&runs, range, 11);
+                let [p, lo, hi] = rms_z(&runs, range);
                 format!("{p:.2} [{lo:.2}, {hi:.2}]")
             })
             .collect();

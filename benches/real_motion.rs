@@ -23,7 +23,6 @@ use dvlcal::calib::model::difference;
 use dvlcal::calib::{CalibOptions, calibrate, jerk_density_evidence};
 use dvlcal::eval::spline_baseline::{BaselineOptions, spline_baseline};
 use dvlcal::io::tum::read_tum;
-use dvlcal::rng::Rng;
 use dvlcal::sim::{
     Corruption, SimConfig, TrackMotion, TrackOptions, corrupt, replay_track, simulate_with,
 };
@@ -123,19 +122,7 @@ fn rmse(runs: &[Run], pick: fn(&Run) -> [f64; 8], range: &std::ops::Range<usize>
         .iter()
         .map(|r| range.clone().map(|k| pick(r)[k].powi(2)).sum())
         .collect();
-    let n = sq.len();
-    let point = (sq.iter().sum::<f64>() / n as f64).sqrt();
-    let mut rng = Rng::stream(range.start as u64, 77);
-    let mut boot: Vec<f64> = (0..2000)
-        .map(|_| {
-            let s: f64 = (0..n)
-                .map(|_| sq[((rng.uniform_in(0.0, 1.0) * n as f64) as usize).min(n - 1)])
-                .sum();
-            (s / n as f64).sqrt()
-        })
-        .collect();
-    boot.sort_by(f64::total_cmp);
-    [point, boot[50], boot[1949]]
+    common::rms_bootstrap(&sq, range.start as u64)
 }
 
 fn main() {

@@ -17,10 +17,10 @@ const SAMPLE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/sample_data/poses");
 const STEP_LINE: usize = 351;
 const TRUE_OFFSET_S: f64 = 0.07;
 
-/// A copy of the poses sample whose DVL log's clock is changed from `STEP_LINE` on by
-/// `change(time_of_validity_us) -> new time_us`, both stamps alike; the `time` increments are
-/// kept, as the DVL reports them whatever its clock does.
-fn stepped(tmp: &TmpDir, name: &str, change: impl Fn(i64) -> i64) -> PathBuf {
+/// A copy of the poses sample whose DVL log's clock is changed by `change(line, time_us) -> new
+/// time_us` (1-based line), both stamps alike; the `time` increments are kept, as the DVL reports
+/// them whatever its clock does.
+fn stepped(tmp: &TmpDir, name: &str, change: impl Fn(usize, i64) -> i64) -> PathBuf {
     let dir = tmp.0.join(name);
     std::fs::create_dir_all(dir.join("truth")).unwrap();
     for f in ["poses.txt", "truth/calibration.yaml"] {
@@ -30,17 +30,20 @@ fn stepped(tmp: &TmpDir, name: &str, change: impl Fn(i64) -> i64) -> PathBuf {
     let mut out = String::new();
     for (i, line) in log.lines().enumerate() {
         let mut v: serde_json::Value = serde_json::from_str(line).unwrap();
-        if i + 1 >= STEP_LINE {
-            for key in ["time_of_validity", "time_of_transmission"] {
-                let t = v[key].as_i64().unwrap();
-                v[key] = serde_json::Value::from(change(t));
-            }
+        for key in ["time_of_validity", "time_of_transmission"] {
+            let t = v[key].as_i64().unwrap();
+            v[key] = serde_json::Value::from(change(i + 1, t));
         }
         out.push_str(&v.to_string());
         out.push('\n');
     }
     std::fs::write(dir.join("dvl.jsonl"), out).unwrap();
     dir
+}
+
+/// `changed` from `STEP_LINE` on, `t` before.
+fn after(line: usize, t: i64, changed: i64) -> i64 {
+    if line >= STEP_LINE { changed } else { t }
 }
 
 /// Calibrates `dir` and checks the result against the truth: every parameter within 3 std (the
@@ -113,7 +116,7 @@ fn calibrates_with_two_segments(dir: &Path, kind: ClockStepKind, expected_second
 #[test]
 fn a_dvl_clock_stepping_back_10_s_is_split_at_its_line() {
     let tmp = TmpDir::new("clock-step-back");
-    let dir = stepped(&tmp, "back", |t| t - 10_000_000);
+    let dir = stepped(&tmp, "back", |l, t| after(l, t, t - 10_000_000));
     // The DVL clock reads 10 s less: t_cam = t_dvl + 10.07 s there.
     calibrates_with_two_segments(&dir, ClockStepKind::Back, TRUE_OFFSET_S + 10.0);
 }
@@ -121,7 +124,7 @@ fn a_dvl_clock_stepping_back_10_s_is_split_at_its_line() {
 #[test]
 fn a_dvl_clock_stepping_forward_10_s_is_split_at_its_line() {
     let tmp = TmpDir::new("clock-step-forward");
-    let dir = stepped(&tmp, "forward", |t| t + 10_000_000);
+    let dir = stepped(&tmp, "forward", |l, t| after(l, t, t + 10_000_000));
     calibrates_with_two_segments(&dir, ClockStepKind::Forward, TRUE_OFFSET_S - 10.0);
 }
 
@@ -130,7 +133,9 @@ fn a_dvl_reboot_restarting_its_clock_near_zero_is_split_at_its_line() {
     let tmp = TmpDir::new("clock-restart");
     // After the reboot the clock counts from 5 s after the Unix epoch.
     let first_after = 1_700_000_000_000_197 + 35_000_000;
-    let dir = stepped(&tmp, "restart", move |t| t - first_after + 5_000_000);
+    let dir = stepped(&tmp, "restart", move |l, t| {
+        after(l, t, t - first_after + 5_000_000)
+    });
     let shift = (first_after - 5_000_000) as f64 * 1e-6;
     calibrates_with_two_segments(&dir, ClockStepKind::Restart, TRUE_OFFSET_S + shift);
 }
@@ -139,30 +144,13 @@ fn a_dvl_reboot_restarting_its_clock_near_zero_is_split_at_its_line() {
 fn a_short_segment_is_left_out_with_a_warning() {
     let tmp = TmpDir::new("clock-short");
     // A step back at line 351, and another 2 s later: the middle segment is too short.
-    let dir = tmp.0.join("short");
-    std::fs::create_dir_all(dir.join("truth")).unwrap();
-    for f in ["poses.txt", "truth/calibration.yaml"] {
-        std::fs::copy(Path::new(SAMPLE).join(f), dir.join(f)).unwrap();
-    }
-    let log = std::fs::read_to_string(Path::new(SAMPLE).join("dvl.jsonl")).unwrap();
-    let mut out = String::new();
-    for (i, line) in log.lines().enumerate() {
-        let mut v: serde_json::Value = serde_json::from_str(line).unwrap();
-        let shift = if i + 1 >= STEP_LINE + 20 {
-            -20_000_000
-        } else if i + 1 >= STEP_LINE {
-            -10_000_000
+    let dir = stepped(&tmp, "short", |l, t| {
+        if l >= STEP_LINE + 20 {
+            t - 20_000_000
         } else {
-            0
-        };
-        for key in ["time_of_validity", "time_of_transmission"] {
-            let t = v[key].as_i64().unwrap();
-            v[key] = serde_json::Value::from(t + shift);
+            after(l, t, t - 10_000_000)
         }
-        out.push_str(&v.to_string());
-        out.push('\n');
-    }
-    std::fs::write(dir.join("dvl.jsonl"), out).unwrap();
+    });
     let out_yaml = dir.join("out/calibration.yaml");
     let r = dvlcal(&["calibrate", s(&dir), "--out", s(&out_yaml)]);
     let stdout = String::from_utf8_lossy(&r.stdout);

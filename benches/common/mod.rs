@@ -36,3 +36,25 @@ pub fn par_map<T: Send>(n: usize, f: impl Fn(u64) -> T + Sync) -> Vec<T> {
     assert!(results.iter().all(Option::is_some), "every seed ran");
     results.into_iter().flatten().collect()
 }
+
+/// The RMS over runs of `sq` (one mean square per run) with a 95 % percentile-bootstrap interval
+/// over the runs (2000 resamples, seeded by `seed`): `[rms, low, high]`.
+#[allow(dead_code)]
+pub fn rms_bootstrap(sq: &[f64], seed: u64) -> [f64; 3] {
+    let n = sq.len();
+    if n == 0 {
+        return [f64::NAN; 3];
+    }
+    let point = (sq.iter().sum::<f64>() / n as f64).sqrt();
+    let mut rng = dvlcal::rng::Rng::stream(seed, 77);
+    let mut boot: Vec<f64> = (0..2000)
+        .map(|_| {
+            let s: f64 = (0..n)
+                .map(|_| sq[((rng.uniform_in(0.0, 1.0) * n as f64) as usize).min(n - 1)])
+                .sum();
+            (s / n as f64).sqrt()
+        })
+        .collect();
+    boot.sort_by(f64::total_cmp);
+    [point, boot[50], boot[1949]]
+}
