@@ -146,13 +146,13 @@ pub fn calibrate_against(
     // describe the camera's motion): rescaled, it would hide among them.
     let first_robust = &pass.reweighted.robust;
     let outlier_share = first_robust.outliers as f64 / first_robust.factors.max(1) as f64;
-    let engaged = if pass.free.rotation && outlier_share <= opts.sanity.max_outlier_fraction {
+    let engaged = if pass.setup.free.rotation && outlier_share <= opts.sanity.max_outlier_fraction {
         noise.far()
     } else {
         (false, false)
     };
     if engaged.0 || engaged.1 {
-        let first_start = pass.start;
+        let first_start = pass.setup.start;
         let (mut dvl_applied, mut cos_applied) = (1.0, 1.0);
         for round in 1..=noise::ROUNDS {
             if engaged.0 {
@@ -175,8 +175,9 @@ pub fn calibrate_against(
                 &mut clock,
                 &mut Vec::new(),
             )?;
-            again.start = first_start;
-            again.pose_only = pass.pose_only;
+            // The first pass's start and co-sensor-only trajectory stay the run's.
+            again.setup.start = first_start;
+            again.setup.pose_only = pass.setup.pose_only;
             pass = again;
             noise = noise_components(&fit, &pass, &idx, (dvl_applied, cos_applied), round)?;
             obs_scaled = Some(scaled);
@@ -188,11 +189,14 @@ pub fn calibrate_against(
     }
     let obs = obs_scaled.unwrap_or(obs);
     let refinement::Pass {
-        free,
-        start,
-        lever_held,
-        pose_only,
-        priors,
+        setup:
+            refinement::Setup {
+                free,
+                start,
+                lever_held,
+                pose_only,
+                priors,
+            },
         reweighted,
         storage,
     } = pass;
@@ -359,7 +363,7 @@ fn noise_components(
         &pass.reweighted.weighted,
         idx,
     )?;
-    jp.priors = pass.priors;
-    let free = pass.free.mask().iter().filter(|&&f| f).count();
+    jp.priors = pass.setup.priors;
+    let free = pass.setup.free.mask().iter().filter(|&&f| f).count();
     noise::components(&jp, &r.trajectory, &r.params, free, applied, rounds)
 }

@@ -21,12 +21,8 @@ use crate::error::Result;
 use crate::trajectory::Trajectory;
 use crate::types::CalibrationParams;
 
-/// What the least-squares refinement gives the later stages.
-pub(crate) struct Refinement<'a> {
-    /// The joint problem of the DVL samples used (its storage serves every later system).
-    pub jp: JointProblem<'a>,
-    /// The trajectory, calibration and rounds it ended with.
-    pub refined: Refined,
+/// What a refinement settled before its rounds, which the later stages use.
+pub(crate) struct Setup {
     /// The parameters estimated (the lever arm is not when it is held).
     pub free: FreeParams,
     /// The calibration the rounds started from (the lever arm at its prior when held).
@@ -39,6 +35,16 @@ pub(crate) struct Refinement<'a> {
     pub pose_only: Trajectory,
     /// The priors of the problem: the user's, and the broad default on the lever arm.
     pub priors: Priors,
+}
+
+/// What the least-squares refinement gives the later stages.
+pub(crate) struct Refinement<'a> {
+    /// The joint problem of the DVL samples used (its storage serves every later system).
+    pub jp: JointProblem<'a>,
+    /// The trajectory, calibration and rounds it ended with.
+    pub refined: Refined,
+    /// What it settled before its rounds.
+    pub setup: Setup,
 }
 
 /// The least-squares refinement from `start`, with the trajectory `traj` fitted to the
@@ -118,11 +124,13 @@ pub(crate) fn refine<'a>(
     Ok(Refinement {
         jp,
         refined,
-        free,
-        start,
-        lever_held,
-        pose_only,
-        priors,
+        setup: Setup {
+            free,
+            start,
+            lever_held,
+            pose_only,
+            priors,
+        },
     })
 }
 
@@ -218,16 +226,8 @@ pub(crate) fn reweigh(
 
 /// A whole refinement: least squares, then reweighted, with the storage its systems used.
 pub(crate) struct Pass {
-    /// The parameters estimated.
-    pub free: FreeParams,
-    /// The calibration the rounds started from.
-    pub start: CalibrationParams,
-    /// The lever arm held at the broad default prior, if it was (see [`Refinement`]).
-    pub lever_held: Option<(f64, LeverArmPrior)>,
-    /// The trajectory fitted to the co-sensor alone.
-    pub pose_only: Trajectory,
-    /// The priors of the problem.
-    pub priors: Priors,
+    /// What the refinement settled before its rounds.
+    pub setup: Setup,
     /// The result.
     pub reweighted: Reweighted,
     /// The storage of the joint systems, for the next problem of the same knots.
@@ -247,24 +247,13 @@ pub(crate) fn run(
     clock: &mut StageClock,
     warnings: &mut Vec<String>,
 ) -> Result<Pass> {
-    let Refinement {
-        jp,
-        refined,
-        free,
-        start,
-        lever_held,
-        pose_only,
-        priors,
-    } = refine(cos, traj, obs, idx, start, init, opts, warnings)?;
+    let Refinement { jp, refined, setup } =
+        refine(cos, traj, obs, idx, start, init, opts, warnings)?;
     clock.done("refinement");
-    let reweighted = reweigh(cos, &jp, refined, free, obs, idx, opts, warnings)?;
+    let reweighted = reweigh(cos, &jp, refined, setup.free, obs, idx, opts, warnings)?;
     clock.done("reweighting");
     Ok(Pass {
-        free,
-        start,
-        lever_held,
-        pose_only,
-        priors,
+        setup,
         reweighted,
         storage: jp.take_storage(),
     })
