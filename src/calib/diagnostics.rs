@@ -198,6 +198,7 @@ pub(crate) fn judge(
 /// Whether the result can be trusted: no held parameter the data contradict, the sanity checks
 /// of [`sanity`], and a share of outliers among the DVL reports that a few bad reports can
 /// explain.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn status(
     p: &CalibrationParams,
     normalized_cost: f64,

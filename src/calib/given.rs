@@ -198,7 +198,8 @@ pub(crate) fn contradicted(
             .clone()
             .map(|k| d[k].abs() / cov[(k, k)].max(1e-300).sqrt())
             .fold(0.0, f64::max);
-        if !(z > CONTRADICTED_STD) {
+        // (a NaN z, no information, contradicts nothing)
+        if z.is_nan() || z <= CONTRADICTED_STD {
             continue;
         }
         let after = linearize(traj, obs, idx, &up.params)?.cost / dof;

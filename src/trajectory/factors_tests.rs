@@ -188,18 +188,17 @@ fn interval_factors_are_assembled_into_the_blocks_their_jacobians_give() {
         dx[col / 18][col % 18] = h;
         let plus = residuals(&cos, &step(&knots, &dx, 1.0));
         let minus = residuals(&cos, &step(&knots, &dx, -1.0));
-        for s in 0..m {
-            jac[s][col] = (plus[s] - minus[s]) / (2.0 * h);
+        for ((row, p), q) in jac.iter_mut().zip(&plus).zip(&minus) {
+            row[col] = (p - q) / (2.0 * h);
         }
     }
     // J^T W J and -J^T W e of the twist factors, by knot blocks.
     let block = |a: usize, b: usize| -> M18 {
         let mut out = M18::zeros();
-        for s in 0..m {
+        for row in &jac {
             for i in 0..18 {
                 for j in 0..18 {
-                    out[(i, j)] +=
-                        (jac[s][18 * a + i].transpose() * cos.info * jac[s][18 * b + j])[0];
+                    out[(i, j)] += (row[18 * a + i].transpose() * cos.info * row[18 * b + j])[0];
                 }
             }
         }
