@@ -107,17 +107,6 @@ pub fn calibrate_segments(
         return Ok((o, out));
     }
     let offset0 = first.params.time_offset_s;
-    let held = CalibOptions {
-        method: Method::Fixed {
-            guess: first.params,
-            estimate_offset: true,
-        },
-        offset: super::offset::OffsetOptions {
-            range: None,
-            ..opts.offset.clone()
-        },
-        ..opts.clone()
-    };
     let mut merged: Vec<DvlSample> = segments[main].to_vec();
     let mut shifts = vec![None; segments.len()];
     shifts[main] = Some(0.0);
@@ -141,7 +130,7 @@ pub fn calibrate_segments(
                         range: Some((lag - LAG_SEARCH_S, lag + LAG_SEARCH_S)),
                         ..opts.offset.clone()
                     },
-                    ..held.clone()
+                    ..opts.clone()
                 };
                 calibrate_against(CoSensor::Poses(poses), segments[k], &held)
             }
@@ -173,8 +162,13 @@ pub fn calibrate_segments(
         warnings.push(format!("clock segment {} is left out: {why}", name(k)));
         out[k].left_out = Some(why);
     }
-    merged.sort_by(|a, b| a.t.total_cmp(&b.t));
-    let mut result = calibrate_against(CoSensor::Poses(poses), &merged, opts)?;
+    // With only the longest segment left, its calibration is the result.
+    let mut result = if merged.len() == segments[main].len() {
+        first
+    } else {
+        merged.sort_by(|a, b| a.t.total_cmp(&b.t));
+        calibrate_against(CoSensor::Poses(poses), &merged, opts)?
+    };
     let offset = result.params.time_offset_s;
     let offset_std = result.std.time_offset_s;
     for (k, o) in out.iter_mut().enumerate() {
@@ -222,7 +216,7 @@ fn vector_lag(
     let (s0, s1) = (seg.first()?.t, seg.last()?.t);
     let (lo, hi) = (c0 - s1, c1 - s0);
     let steps = ((hi - lo) / LAG_STEP_S).ceil();
-    if !(steps.is_finite() && steps >= 0.0 && steps < 1e7) {
+    if !(0.0..1e7).contains(&steps) {
         return None;
     }
     let mut best: Option<(f64, f64)> = None;
