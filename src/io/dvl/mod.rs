@@ -347,12 +347,13 @@ impl Accumulator {
             ));
         }
         // Time order as found in the file, within each clock segment.
+        // The clock segment of a line: the number of steps at or before it (the steps are in
+        // file order).
         let starts: Vec<usize> = stats.clock_steps.iter().map(|c| c.line).collect();
+        let segment_of = |line: usize| starts.partition_point(|&l| l <= line);
         for w in 1..samples.len() {
             let step = samples[w].1.t - samples[w - 1].1.t;
-            let new_segment = starts
-                .iter()
-                .any(|&l| samples[w - 1].0 < l && samples[w].0 >= l);
+            let new_segment = segment_of(samples[w].0) != segment_of(samples[w - 1].0);
             if step <= 0.0 && !new_segment {
                 if step < 0.0 {
                     stats.time_backwards += 1;
@@ -381,7 +382,6 @@ impl Accumulator {
         }
         // Each segment sorted by time on its own: across a step the times of different clocks
         // do not compare.
-        let segment_of = |line: usize| starts.iter().filter(|&&l| l <= line).count();
         samples.sort_by(|a, b| {
             segment_of(a.0)
                 .cmp(&segment_of(b.0))
@@ -401,7 +401,7 @@ impl Accumulator {
                 }),
             }
         }
-        for c in &stats.clock_steps {
+        for c in stats.clock_steps.iter().take(MAX_LISTED) {
             stats.warnings.push(format!(
                 "{}:{}: the DVL clock {} by {:.3} s after line {}: the log is split into clock \
                  segments there, each with its own clock offset",
@@ -410,6 +410,13 @@ impl Accumulator {
                 c.kind.words(),
                 c.step_s,
                 c.previous_line
+            ));
+        }
+        if stats.clock_steps.len() > MAX_LISTED {
+            stats.warnings.push(format!(
+                "{}: {} more steps of the DVL clock after those listed",
+                path.display(),
+                stats.clock_steps.len() - MAX_LISTED
             ));
         }
         stats.first_time_s = samples.iter().map(|s| s.1.t).min_by(f64::total_cmp);
