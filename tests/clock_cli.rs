@@ -217,3 +217,99 @@ fn the_dvl_sound_speed_comes_from_its_configuration_reply() {
     let parsed = read_dvl_log(&serial, &DvlReadOptions::default()).expect("serial log");
     assert_eq!(parsed.stats.sound_speed_mps, Some(1480.0));
 }
+
+#[test]
+fn clock_drift_estimates_the_drift_into_the_result_and_against_the_simulators_truth() {
+    let tmp = TmpDir::new("clock-cli-drift");
+    let d = tmp.0.join("run");
+    let out = dvlcal(&[
+        "simulate",
+        "--out",
+        s(&d),
+        "--seed",
+        "3",
+        "--duration",
+        "300",
+        "--motion",
+        "sinusoid",
+        "--clock-drift",
+        "200",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let truth = read_calib_yaml(&d.join("truth/calibration.yaml")).expect("truth");
+    assert_eq!(truth.clock_drift_ppm, Some(200.0));
+
+    // Without the drift estimated, the warning says how to.
+    let plain = tmp.0.join("plain/calibration.yaml");
+    let out = dvlcal(&["calibrate", s(&d), "--out", s(&plain)]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = std::fs::read_to_string(&plain).expect("yaml");
+    assert!(
+        text.contains("estimate the drift with --clock-drift"),
+        "{text}"
+    );
+    assert!(!text.contains("clock_drift_ppm"), "{text}");
+
+    let res = tmp.0.join("drift/calibration.yaml");
+    let out = dvlcal(&["calibrate", s(&d), "--clock-drift", "--out", s(&res)]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = std::fs::read_to_string(&res).expect("yaml");
+    let f = read_calib_yaml(&res).expect("result");
+    let ppm = f.clock_drift_ppm.expect("clock_drift_ppm");
+    let std = f
+        .std
+        .as_ref()
+        .and_then(|s| s.clock_drift_ppm)
+        .expect("its std");
+    let reference = f.clock_reference_t_dvl_s.expect("clock_reference_t_dvl_s");
+    assert!((ppm - 200.0).abs() < 3.0 * std, "{ppm} +- {std}\n{text}");
+    // The offset at the estimator's reference, from the truth's at its own.
+    let truth_ref = truth.clock_reference_t_dvl_s.expect("truth reference");
+    let offset = truth.time_offset_s + 200e-6 * (reference - truth_ref);
+    let offset_std = f
+        .std
+        .as_ref()
+        .and_then(|s| s.time_offset_s)
+        .expect("offset std");
+    assert!(
+        (f.time_offset_s - offset).abs() < 3.0 * offset_std,
+        "{} vs {offset} (std {offset_std})",
+        f.time_offset_s
+    );
+    // The reference is on the log's own clock (Unix seconds for the simulator's A50 log), in
+    // the middle of the recording.
+    assert!(
+        reference > 1e9 && (reference - truth_ref - 150.0).abs() < 2.0,
+        "{reference}"
+    );
+    // The main keys in order, the drift after the scale.
+    let keys: Vec<&str> = text
+        .lines()
+        .filter(|l| !l.starts_with(['#', ' ', '-']))
+        .map(|l| l.split(':').next().unwrap_or(""))
+        .take(10)
+        .collect();
+    assert_eq!(
+        keys[6..],
+        [
+            "velocity_scale",
+            "clock_drift_ppm",
+            "clock_reference_t_dvl_s",
+            "std"
+        ],
+        "{text}"
+    );
+    assert!(!text.contains("the clock offset drifts"), "{text}");
+}

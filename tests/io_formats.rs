@@ -495,6 +495,7 @@ fn calib_yaml_round_trip() {
         lever_arm_m: Some([0.001, 0.002, 0.003]),
         time_offset_s: Some(0.0004),
         velocity_scale: None,
+        clock_drift_ppm: None,
     });
     file.observability = Some(ObservabilityFlags {
         rotation: Observability::Ok,

@@ -251,6 +251,7 @@ pub(crate) fn drift(
     idx: &[usize],
     params: &CalibrationParams,
     offset_std: f64,
+    opts: &CalibOptions,
     warnings: &mut Vec<String>,
 ) -> Result<Option<DriftCheck>> {
     let drift = match pose_only {
@@ -260,10 +261,22 @@ pub(crate) fn drift(
     if let Some(d) = &drift
         && d.significant
     {
+        // With the drift estimated, the DVL times were mapped by it: what is left is a drift
+        // that is not constant.
+        let assumed = if opts.clock_drift {
+            " beyond the drift estimated; the result assumes a constant drift (a clock that \
+             steps or wanders: synchronise the clocks, or calibrate shorter recordings)"
+                .to_owned()
+        } else {
+            format!(
+                "; the result assumes a constant offset (estimate the drift with {}, synchronise \
+                 the clocks, or calibrate shorter recordings)",
+                opts.name(Setting::ClockDrift)
+            )
+        };
         warnings.push(format!(
             "the clock offset drifts: {:.4} s in the first third of the recording and {:.4} s in \
-             the last ({:+.1} ms, {:.1} standard deviations), about {:+.0} ppm; the result assumes \
-             a constant offset (synchronise the clocks, or calibrate shorter recordings)",
+             the last ({:+.1} ms, {:.1} standard deviations), about {:+.0} ppm{assumed}",
             d.first_third_s,
             d.last_third_s,
             1e3 * (d.last_third_s - d.first_third_s),
@@ -274,20 +287,36 @@ pub(crate) fn drift(
     Ok(drift)
 }
 
-/// Stage 5: the covariance of the free parameters from the joint problem's information. When
-/// the DVL residuals exceed the stated noise by half or more (`normalized_cost`), the covariance
-/// is inflated by that factor and a warning says so (with a held guess, that the guess is the
-/// likely cause).
+/// The normalized cost beyond which the covariance is inflated by it.
+const COST_INFLATION_FROM: f64 = 1.5;
+
+/// The factor [`uncertainty`] inflates the covariance by at a normalized cost.
+pub(crate) fn cost_inflation(normalized_cost: f64) -> f64 {
+    if normalized_cost > COST_INFLATION_FROM {
+        normalized_cost
+    } else {
+        1.0
+    }
+}
+
+/// Stage 5: the covariance of the free parameters from the joint problem's information (with
+/// `added`, what marginalising a further parameter adds). When the DVL residuals exceed the
+/// stated noise by half or more (`normalized_cost`), the covariance is inflated by that factor
+/// and a warning says so (with a held guess, that the guess is the likely cause).
 pub(crate) fn uncertainty(
     jp: &JointProblem,
     assembled: AssembledJoint,
     free: FreeParams,
     normalized_cost: f64,
     opts: &CalibOptions,
+    added: Option<ParamMat>,
     warnings: &mut Vec<String>,
 ) -> Result<ParamMat> {
     let (mut covariance, _) = joint_covariance_of(jp, assembled, &free.mask())?;
-    if normalized_cost > 1.5 {
+    if let Some(a) = added {
+        covariance += a;
+    }
+    if normalized_cost > COST_INFLATION_FROM {
         warnings.push(if free.rotation {
             format!(
                 "DVL residuals are {:.1} times the stated DVL variance; the standard deviations \

@@ -16,13 +16,14 @@
 //!    parameter, the sanity checks and the clock's drift ([`outcome`] holds what a run gives).
 //!
 //! A DVL clock that stepped is calibrated segment by segment, the extrinsics shared
-//! ([`segments`]).
+//! ([`segments`]); one that drifts, with its drift estimated ([`clock_drift`]).
 //!
 //! [`calibrate`] runs the stages in this order, with the settings of [`options`] (whose messages
 //! name the settings as [`setting`] words them) on the samples of [`samples`].
 
 pub mod align;
 pub mod analysis;
+pub mod clock_drift;
 pub mod closed_form;
 pub mod cosensor;
 pub mod diagnostics;
@@ -56,8 +57,8 @@ pub use init::initialise;
 pub use model::PARAM_NAMES;
 pub use options::{CalibOptions, Method, SanityLimits, WeakThresholds};
 pub use outcome::{
-    CalibrationOutcome, Counts, DeterminedBy, DriftCheck, Excitation, HalvesCheck, InitReport,
-    IterationRecord, ParamStd, Robustness, Status, Verdict, Verdicts,
+    CalibrationOutcome, ClockDrift, Counts, DeterminedBy, DriftCheck, Excitation, HalvesCheck,
+    InitReport, IterationRecord, ParamStd, Robustness, Status, Verdict, Verdicts,
 };
 pub use samples::{pose_gap_threshold_s, pose_gaps, usable_covariance};
 pub use setting::{Setting, SettingNames};
@@ -65,6 +66,7 @@ pub use setting::{Setting, SettingNames};
 use crate::error::Result;
 use crate::types::{DvlSample, PoseMeasurement};
 use joint::covariance::assemble_joint;
+use joint::drift::{DriftAt, drift_solution};
 use joint::problem::JointProblem;
 use outcome::StageClock;
 
@@ -79,11 +81,27 @@ pub fn calibrate(
 }
 
 /// Calibrates the DVL against the co-sensor's measurements, in the stages of the module
-/// documentation. Each stage's warnings are written as its checks are made, in this order.
+/// documentation; with [`CalibOptions::clock_drift`], the drift too ([`clock_drift`]).
 pub fn calibrate_against(
     cosensor: CoSensor,
     dvl: &[DvlSample],
     opts: &CalibOptions,
+) -> Result<CalibrationOutcome> {
+    if opts.clock_drift {
+        clock_drift::calibrate_with_drift(dvl, |d, at| calibrate_stages(cosensor, d, opts, at))
+    } else {
+        calibrate_stages(cosensor, dvl, opts, None)
+    }
+}
+
+/// The stages of the module documentation, the DVL times mapped by the drift `drift_at`
+/// beforehand (whose correction the run then finds). Each stage's warnings are written as its
+/// checks are made, in this order.
+fn calibrate_stages(
+    cosensor: CoSensor,
+    dvl: &[DvlSample],
+    opts: &CalibOptions,
+    drift_at: Option<DriftAt>,
 ) -> Result<CalibrationOutcome> {
     opts.validate()?;
     let mut clock = StageClock::start();
@@ -227,6 +245,17 @@ pub fn calibrate_against(
     jp.priors = priors;
     jp.keep_storage(storage);
     let assembled = assemble_joint(&jp, traj.knots(), &params)?;
+    // ... the drift's correction and its covariance, when it is estimated, ...
+    let drift_solution = match drift_at {
+        Some(at) => Some(drift_solution(
+            &jp,
+            &assembled,
+            traj.knots(),
+            &free.mask(),
+            at,
+        )?),
+        None => None,
+    };
     clock.done("joint system");
     let halves = halves::estimate(
         &jp,
@@ -241,8 +270,19 @@ pub fn calibrate_against(
     clock.done("halves check");
     // ... the covariance (the drift check compares the thirds of the recording at the model's
     // offset variance: the halves would inflate it for the very drift it looks for), ...
-    let mut covariance =
-        diagnostics::uncertainty(&jp, assembled, free, normalized_cost, opts, &mut warnings)?;
+    let added = drift_solution.as_ref().map(|s| s.added_covariance());
+    let mut covariance = diagnostics::uncertainty(
+        &jp,
+        assembled,
+        free,
+        normalized_cost,
+        opts,
+        added,
+        &mut warnings,
+    )?;
+    let clock_drift = drift_at
+        .zip(drift_solution)
+        .map(|(at, s)| clock_drift::estimate(at, &s, diagnostics::cost_inflation(normalized_cost)));
     let model_offset_std = covariance[(7, 7)].max(0.0).sqrt();
     let halves = halves.map(|h| halves::compare_halves(h, free, &mut covariance));
     clock.done("covariance");
@@ -304,6 +344,7 @@ pub fn calibrate_against(
         &idx,
         &params,
         model_offset_std,
+        opts,
         &mut warnings,
     )?;
     let trajectory = traj.report().clone();
@@ -326,6 +367,7 @@ pub fn calibrate_against(
         warnings,
         status,
         drift,
+        clock_drift,
         start,
         fitted: traj,
         observations: obs,

@@ -147,6 +147,9 @@ pub struct CalibOptions {
     /// Inflate the covariance for correlated DVL residuals and for halves of the recording that
     /// disagree (on by default).
     pub honest_covariance: bool,
+    /// Estimate the DVL clock's drift with the calibration ([`super::clock_drift`]): `t_cam =
+    /// t_dvl + time_offset_s + 1e-6 ppm (t_dvl - t_ref)`. Off by default (a constant offset).
+    pub clock_drift: bool,
     /// The words for the settings in warnings, verdicts and errors ([`Setting::field`] by
     /// default).
     pub names: SettingNames,
@@ -173,6 +176,7 @@ impl Default for CalibOptions {
             loss: Loss::default(),
             default_lever_arm_sigma_m: Some(1.0),
             honest_covariance: true,
+            clock_drift: false,
             names: Setting::field,
         }
     }

@@ -50,6 +50,24 @@ pub struct DriftCheck {
     pub significant: bool,
 }
 
+/// The DVL clock's drift, estimated with the calibration: `t_cam = t_dvl + time_offset_s +
+/// 1e-6 ppm (t_dvl - reference_t_s)`, the offset being the one at the reference.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ClockDrift {
+    /// The drift, ppm (parts per million of DVL-clock time).
+    pub ppm: f64,
+    /// Its standard deviation, ppm (inflated as the other parameters' are for residuals beyond
+    /// the stated noise).
+    pub std_ppm: f64,
+    /// The reference DVL time, s (relative to the run's epoch): the middle of the valid reports.
+    pub reference_t_s: f64,
+    /// The last Gauss-Newton correction of the drift, ppm (the estimate has settled when it is
+    /// a small part of the standard deviation).
+    pub last_step_ppm: f64,
+    /// Calibrations run, each at the drift the one before it found.
+    pub rounds: usize,
+}
+
 /// What gave a parameter its value.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum DeterminedBy {
@@ -205,6 +223,8 @@ pub struct CalibrationOutcome {
     /// The clock offset of the first and the last third of the recording compared (when the
     /// offset was estimated and each third has enough samples).
     pub drift: Option<DriftCheck>,
+    /// The clock drift, when it was estimated ([`super::CalibOptions::clock_drift`]).
+    pub clock_drift: Option<ClockDrift>,
     /// Where the refinement started: the initialisation's parameters, or the user's guess.
     pub start: CalibrationParams,
     /// The final camera trajectory (refitted with the DVL factors).

@@ -12,7 +12,7 @@
 
 use super::options::{CalibOptions, Method};
 use super::outcome::CalibrationOutcome;
-use super::{CoSensor, calibrate_against};
+use super::{CoSensor, Setting, calibrate_against};
 use crate::error::{Error, Result};
 use crate::types::{DvlSample, PoseMeasurement};
 
@@ -51,6 +51,17 @@ pub fn calibrate_segments(
             calibrate_against(CoSensor::Poses(poses), dvl, opts)?,
             Vec::new(),
         ));
+    }
+    if opts.clock_drift {
+        // One drift per clock needs one clock: a log whose clock stepped has several.
+        return Err(Error::Input(format!(
+            "{} with a DVL clock that steps ({} clock segments, the first {}): a drift is \
+             estimated on one clock; calibrate each segment's reports on their own, or without \
+             the drift",
+            opts.name(Setting::ClockDrift),
+            segments.len(),
+            names.first().map_or("?", String::as_str)
+        )));
     }
     let span = |s: &[DvlSample]| match (s.first(), s.last()) {
         (Some(a), Some(b)) => b.t - a.t,

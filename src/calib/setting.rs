@@ -41,11 +41,13 @@ pub enum Setting {
     EstimateOffset,
     /// The guess of `Method::Bcd` or `Method::Fixed`.
     Guess,
+    /// The clock drift's estimate, `CalibOptions::clock_drift`.
+    ClockDrift,
 }
 
 impl Setting {
     /// Every setting, for tables that name each of them.
-    pub const ALL: [Setting; 15] = [
+    pub const ALL: [Setting; 16] = [
         Setting::DvlSigma,
         Setting::DefaultDvlSigma,
         Setting::DefaultLeverArmSigma,
@@ -61,6 +63,7 @@ impl Setting {
         Setting::RefineGuess,
         Setting::EstimateOffset,
         Setting::Guess,
+        Setting::ClockDrift,
     ];
 
     /// The setting as the library's option structs name it.
@@ -81,6 +84,7 @@ impl Setting {
             Setting::RefineGuess => "method Method::Bcd with a guess",
             Setting::EstimateOffset => "Method::Fixed's estimate_offset",
             Setting::Guess => "the method's guess",
+            Setting::ClockDrift => "clock_drift",
         }
     }
 

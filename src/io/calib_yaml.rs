@@ -3,8 +3,10 @@
 //! Keys, in order: `status` (`ok` or `failed`) and `failure` (the reasons, when failed), then
 //! `T_cam_dvl` (4x4, rows), `T_dvl_cam` (its inverse),
 //! `quaternion_cam_dvl_xyzw`, `lever_arm_cam_m` (the translation of `T_cam_dvl`),
-//! `time_offset_s` (`t_cam = t_dvl + time_offset_s`), `velocity_scale`, then the optional
-//! `std`, `observability`, `info` and `provenance` sections.
+//! `time_offset_s` (`t_cam = t_dvl + time_offset_s`), `velocity_scale`, with `--clock-drift`
+//! `clock_drift_ppm` and `clock_reference_t_dvl_s` (`t_cam = t_dvl + time_offset_s + 1e-6
+//! clock_drift_ppm (t_dvl - clock_reference_t_dvl_s)`), then the optional `std`,
+//! `observability`, `info` and `provenance` sections.
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -40,6 +42,9 @@ pub struct CalibrationStd {
     /// fixed.
     #[serde(default)]
     pub velocity_scale: Option<f64>,
+    /// Standard deviation of `clock_drift_ppm`, ppm, when the drift was estimated.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub clock_drift_ppm: Option<f64>,
 }
 
 /// What determined a quantity, and how well.
@@ -364,6 +369,14 @@ pub struct CalibrationFile {
     pub time_offset_s: f64,
     /// DVL velocity scale factor.
     pub velocity_scale: f64,
+    /// The DVL clock's drift, ppm, when it was estimated: `t_cam = t_dvl + time_offset_s +
+    /// 1e-6 clock_drift_ppm (t_dvl - clock_reference_t_dvl_s)`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub clock_drift_ppm: Option<f64>,
+    /// The drift's reference time on the DVL clock, s (the log's own time base, e.g. Unix
+    /// seconds): `time_offset_s` is the offset there.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub clock_reference_t_dvl_s: Option<f64>,
     /// Standard deviations of the estimated quantities (optional `std` section).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub std: Option<CalibrationStd>,
@@ -438,6 +451,8 @@ impl CalibrationFile {
             lever_arm_cam_m: [t.trans.x, t.trans.y, t.trans.z],
             time_offset_s: p.time_offset_s,
             velocity_scale: p.velocity_scale,
+            clock_drift_ppm: None,
+            clock_reference_t_dvl_s: None,
             std: None,
             observability: None,
             info: None,
@@ -549,6 +564,12 @@ fn to_yaml(path: &Path, c: &CalibrationFile) -> Result<String> {
     let _ = writeln!(s, "lever_arm_cam_m: {}", flow(&c.lever_arm_cam_m));
     let _ = writeln!(s, "time_offset_s: {:?}", c.time_offset_s);
     let _ = writeln!(s, "velocity_scale: {:?}", c.velocity_scale);
+    if let Some(d) = c.clock_drift_ppm {
+        let _ = writeln!(s, "clock_drift_ppm: {d:?}");
+    }
+    if let Some(t) = c.clock_reference_t_dvl_s {
+        let _ = writeln!(s, "clock_reference_t_dvl_s: {t:?}");
+    }
 
     #[derive(Serialize)]
     struct Optional<'a> {

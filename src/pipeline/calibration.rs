@@ -215,7 +215,12 @@ pub fn result_file(o: &CalibrationOutcome, log: &DvlLog) -> CalibrationFile {
         lever_arm_m: unless_fixed(&vd.lever_arm, v(&o.std.lever_arm_m)),
         time_offset_s: unless_fixed(&vd.time_offset, o.std.time_offset_s),
         velocity_scale: unless_fixed(&vd.velocity_scale, o.std.velocity_scale),
+        clock_drift_ppm: o.clock_drift.as_ref().map(|d| d.std_ppm),
     });
+    if let Some(d) = &o.clock_drift {
+        f.clock_drift_ppm = Some(d.ppm);
+        f.clock_reference_t_dvl_s = Some(log.epoch.sec as f64 + d.reference_t_s);
+    }
     f.observability = Some(ObservabilityFlags {
         rotation: flag(&o.verdicts.rotation),
         lever_arm: flag(&o.verdicts.lever_arm),
@@ -333,7 +338,19 @@ pub fn result_file(o: &CalibrationOutcome, log: &DvlLog) -> CalibrationFile {
         method: Some(method_name(&o.method).into()),
         iterations: Some(o.iterations.len() as u64),
         warnings,
-        notes: Vec::new(),
+        notes: o
+            .clock_drift
+            .as_ref()
+            .map(|d| {
+                format!(
+                    "the DVL clock drifts {:+.2} ppm: time_offset_s is the offset at \
+                     clock_reference_t_dvl_s, and the exports (one time shift each) carry it \
+                     alone",
+                    d.ppm
+                )
+            })
+            .into_iter()
+            .collect(),
         figures,
     });
     f

@@ -143,6 +143,12 @@ pub fn write_simulated_dataset(
         &a50_reports(&ds.dvl, ds.epoch, ALTITUDE_M),
     )?;
     let mut file = CalibrationFile::from_params(&ds.truth);
+    let ppm = req.config.clock_drift_ppm;
+    if ppm != 0.0 {
+        // The simulator's drift runs from the DVL time of the first pose (camera time 0).
+        file.clock_drift_ppm = Some(ppm);
+        file.clock_reference_t_dvl_s = Some(ds.epoch.sec as f64 - offset);
+    }
     file.info = Some(CalibrationInfo {
         method: Some("simulation truth".into()),
         notes: vec![req.note.clone()],

@@ -112,6 +112,24 @@ pub(super) fn summary(s: &mut String, input: &ReportInput, d: &Derived) {
             noise.cosensor.applied
         );
     }
+    if let Some(c) = &o.clock_drift {
+        let times = o
+            .used
+            .iter()
+            .filter_map(|&i| o.observations.get(i).map(|x| x.t));
+        let (lo, hi) = times.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), t| {
+            (lo.min(t), hi.max(t))
+        });
+        let span_s = if hi > lo { hi - lo } else { 0.0 };
+        let _ = write!(
+            words,
+            " The DVL clock drifts {:+.2} +- {:.2} ppm against the camera's ({:+.1} ms over the \
+             recording); the clock offset given is the one at the middle of the DVL log.",
+            c.ppm,
+            c.std_ppm,
+            1e-3 * c.ppm * span_s
+        );
+    }
     put!(s, "<p>{}</p></section>\n", escape(&words));
 }
 

@@ -120,6 +120,12 @@ impl SimConfig {
         non_negative("pose_sigma_rot_rad", self.pose_sigma_rot_rad)?;
         non_negative("dvl_sigma", self.dvl_sigma)?;
         non_negative("dvl_time_jitter_s", self.dvl_time_jitter_s)?;
+        if !(self.clock_drift_ppm.is_finite() && self.clock_drift_ppm.abs() < 1e5) {
+            return Err(Error::Input(format!(
+                "clock_drift_ppm must be finite and below 1e5 ppm in size, got {}",
+                self.clock_drift_ppm
+            )));
+        }
         if self.dvl_time_jitter_s >= 0.5 / self.dvl_rate_hz {
             return Err(Error::Input(format!(
                 "dvl_time_jitter_s ({}) must be less than half the DVL period",

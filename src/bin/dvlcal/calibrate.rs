@@ -64,6 +64,9 @@ pub struct EstimatorArgs {
     /// correlated DVL residuals or for halves of the recording that disagree.
     #[arg(long)]
     pub model_covariance: bool,
+    /// Estimate the DVL clock's drift (clock_drift_ppm, about the middle of the log: docs/method.md)
+    #[arg(long)]
+    pub clock_drift: bool,
 }
 
 impl EstimatorArgs {
@@ -168,6 +171,7 @@ pub fn options(
         loss: Loss::parse(&est.loss).map_err(flagged)?,
         default_lever_arm_sigma_m: est.default_lever_arm_sigma.0,
         honest_covariance: !est.model_covariance,
+        clock_drift: est.clock_drift,
         names: flag,
         ..CalibOptions::default()
     };
@@ -190,6 +194,7 @@ fn flag(s: Setting) -> &'static str {
         Setting::RefineGuess => "--method bcd --init",
         Setting::EstimateOffset => "--estimate-offset",
         Setting::Guess => "--init",
+        Setting::ClockDrift => "--clock-drift",
         // Settings without a flag keep their field names.
         Setting::DefaultDvlSigma
         | Setting::OffsetWindow

@@ -69,6 +69,9 @@ pub struct SimulateArgs {
     /// Override the velocity scale of the truth (no unit; 1: the DVL's speeds are right).
     #[arg(long)]
     pub velocity_scale: Option<f64>,
+    /// Drift of the DVL clock, ppm, from the first pose on (clock_drift_ppm in the truth)
+    #[arg(long, default_value_t = 0.0, value_name = "PPM")]
+    pub clock_drift: f64,
     /// Also render the stereo images of a board at every camera pose time.
     #[arg(long)]
     pub images: bool,
@@ -121,6 +124,7 @@ pub fn run(a: SimulateArgs) -> Result<()> {
         pose_sigma_pos_m: a.pose_sigma_pos,
         pose_sigma_rot_rad: a.pose_sigma_rot,
         dvl_sigma: a.dvl_sigma,
+        clock_drift_ppm: a.clock_drift,
         motion: match motion {
             MotionArg::Prior => MotionKind::Prior,
             MotionArg::CalmThenRotate => MotionKind::CalmThenRotate,

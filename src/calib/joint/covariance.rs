@@ -28,10 +28,10 @@ pub(super) struct JointSystem {
 /// The joint system at `(traj, p)` as assembled, before the fixed parameters are decoupled
 /// and before the factorisation: what the covariance and the halves check share.
 pub struct AssembledJoint {
-    sys: BlockTridiagonal,
-    a: Assembled,
+    pub(super) sys: BlockTridiagonal,
+    pub(super) a: Assembled,
     /// The calibration the system was linearised at.
-    params: CalibrationParams,
+    pub(super) params: CalibrationParams,
 }
 
 impl AssembledJoint {
@@ -87,7 +87,7 @@ pub(super) fn finish(
 
 /// A block of `H_x theta` with the fixed parameters' columns zero: the trajectory does not
 /// couple to a parameter that is held.
-fn decouple_columns(m: &mut CrossBlock, free: &[bool; NPARAM]) {
+pub(super) fn decouple_columns(m: &mut CrossBlock, free: &[bool; NPARAM]) {
     for (c, _) in free.iter().enumerate().filter(|(_, f)| !**f) {
         m.column_mut(c).fill(0.0);
     }

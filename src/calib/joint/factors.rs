@@ -93,6 +93,18 @@ pub(super) struct Assembled {
     pub(super) gradient: ParamVec,
 }
 
+/// The clock drift's terms of the joint normal equations ([`DvlFactors::drift_terms`]).
+pub(super) struct DriftTerms {
+    /// `H_x d`, one column per knot.
+    pub(super) cross: Vec<V18>,
+    /// `H_theta d`.
+    pub(super) theta: ParamVec,
+    /// `H_dd`.
+    pub(super) information: f64,
+    /// The drift's right-hand side `J_d^T W r`.
+    pub(super) gradient: f64,
+}
+
 /// One chunk of knots of the joint assembly.
 pub(super) struct JointChunk<'s> {
     pub(super) sys: AssemblyChunk<'s>,
@@ -261,6 +273,41 @@ impl<'a> DvlFactors<'a> {
             gradient += g;
         }
         (theta, gradient)
+    }
+
+    /// The drift's column of the joint normal equations at `knots`: with `scale(t)` the derivative
+    /// of a sample's camera time with respect to the clock drift (its DVL time from the drift's
+    /// reference, in the drift's unit), the drift's Jacobian of a sample is the clock offset's
+    /// times `scale(t)`. Returns `H_x d` per knot, `H_theta d`, `H_dd` and the drift's
+    /// right-hand side, summed in the order of the knots.
+    pub(super) fn drift_terms(&self, knots: &[Knot], scale: impl Fn(f64) -> f64) -> DriftTerms {
+        let p = &self.params;
+        let view = self.jp.view(knots);
+        let n = knots.len();
+        let mut out = DriftTerms {
+            cross: vec![V18::zeros(); n],
+            theta: ParamVec::zeros(),
+            information: 0.0,
+            gradient: 0.0,
+        };
+        for k in (0..n.saturating_sub(1)).filter(|&k| !self.samples(k).is_empty()) {
+            let ls = crate::trajectory::gp::local_state(&knots[k], &knots[k + 1]);
+            for &pos in self.samples(k) {
+                let i = self.jp.idx[pos];
+                let (o, w) = (&self.jp.obs[i], &self.jp.dvl_info[i]);
+                let t = o.t + p.time_offset_s;
+                let (state, j1, j2) = view.projected_twist_jacobian_in(k, t, &ls, &self.dh);
+                let r = o.v - predict(p, &state.twist);
+                let jt = d_predict_d_params(p, &state.twist, &state.rate);
+                let wjd = w * (jt.column(7) * scale(o.t));
+                out.cross[k] += j1.transpose() * wjd;
+                out.cross[k + 1] += j2.transpose() * wjd;
+                out.theta += jt.transpose() * wjd;
+                out.information += (jt.column(7) * scale(o.t)).dot(&wjd);
+                out.gradient += wjd.dot(&r);
+            }
+        }
+        out
     }
 
     /// Assembles the knots of `chunk` alone (as [`DvlFactors::assemble`] forms them).
