@@ -212,6 +212,11 @@ run_figures! {
     board_scale_std: f64,
     /// Whether the poses were solved with the board at the measured size.
     board_scale_applied: bool,
+    /// Per camera, its focal length as the recording measures it over the camchain's (null
+    /// when too few frames measured it).
+    focal_length_scale: Vec<Option<f64>>,
+    /// Their standard deviations.
+    focal_length_scale_std: Vec<Option<f64>>,
     /// The DVL log read.
     dvl_log: String,
     /// The A50 time stamp used.

@@ -99,6 +99,7 @@ pub fn calibrate_dataset(
     }
     note_pose_covariances(&mut file, data);
     note_board_size(&mut file, data);
+    note_focal_lengths(&mut file, data);
     Ok(CalibrationRun {
         outcome,
         file,
@@ -139,6 +140,51 @@ fn note_board_size(file: &mut CalibrationFile, data: &Dataset) {
             }
         }
         None => info.notes.push(words),
+    }
+}
+
+/// Records in the result file each camera's focal length as the recording measures it
+/// (`info.focal_length_scale`, `focal_length_scale_std`), with a warning when it contradicts the
+/// camchain, or a note when the views did not vary enough to check it. Not for a camchain
+/// calibrated from the same images (it fits them by construction).
+fn note_focal_lengths(file: &mut CalibrationFile, data: &Dataset) {
+    let Some(run) = &data.vision else { return };
+    if data.cameras.is_some() || run.focal.iter().all(Option::is_none) {
+        return;
+    }
+    let name = data
+        .files
+        .camchain
+        .as_ref()
+        .and_then(|p| p.file_name())
+        .map_or_else(
+            || "the camchain".to_owned(),
+            |n| n.to_string_lossy().into_owned(),
+        );
+    let info = file.info.get_or_insert_with(CalibrationInfo::default);
+    info.figures.focal_length_scale = Some(
+        run.focal
+            .iter()
+            .map(|f| f.as_ref().map(|f| f.scale))
+            .collect(),
+    );
+    info.figures.focal_length_scale_std = Some(
+        run.focal
+            .iter()
+            .map(|f| f.as_ref().map(|f| f.std))
+            .collect(),
+    );
+    for f in run.focal.iter().flatten() {
+        if f.significant() {
+            info.warnings.push(f.warning(&name));
+        } else if !f.useful() {
+            info.notes.push(format!(
+                "{} (from {} frames): the views of the board vary too little in angle to check \
+                 it",
+                f.measures(&name),
+                f.frames
+            ));
+        }
     }
 }
 

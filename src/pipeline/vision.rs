@@ -20,6 +20,7 @@ use crate::types::PoseMeasurement;
 use crate::types::board::{Board, TagPrint};
 use crate::types::camera::Camchain;
 use crate::vision::detect::DetectorSettings;
+use crate::vision::focal::{FocalScale, focal_scales};
 use crate::vision::frames::{DetectStats, FrameResult, detect_source};
 use crate::vision::pnp::PnpOptions;
 use crate::vision::scale::{BoardSize, estimate_board_scale, frame_scales};
@@ -95,6 +96,9 @@ pub struct VisionRun {
     /// ([`crate::vision::scale::BoardScale::significant`]) the poses were solved with the board
     /// scaled to the measured size (`applied`).
     pub board_size: BoardSize,
+    /// Per camera, its focal length as the frames measure it ([`crate::vision::focal`]; `None`
+    /// for a camera too few frames measured).
+    pub focal: Vec<Option<FocalScale>>,
     /// The epoch of the pose times: the whole second of the first frame.
     pub epoch: Epoch,
     /// One per posed frame, in time order, with covariances (`T_board_cam0` on the camera
@@ -237,6 +241,7 @@ fn solve_poses(
             pool.install(|| detect_source(src, &scaled, &chain, &det, &pnp, opts.progress))?;
         b.applied = true;
     }
+    let focal = focal_scales(&results, chain.cams.len());
     stats.problems.splice(0..0, unreadable.iter().cloned());
     let seconds = start.elapsed().as_secs_f64();
     let epoch = Epoch::at(raw_time(src.frames().first().map_or(0, |f| f.t_ns)));
@@ -246,6 +251,7 @@ fn solve_poses(
         chain,
         target: target.to_path_buf(),
         board_size,
+        focal,
         epoch,
         poses,
         results,

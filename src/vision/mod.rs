@@ -4,6 +4,7 @@
 pub mod board_svg;
 pub mod detect;
 pub mod family;
+pub mod focal;
 pub mod frames;
 pub mod kalibr;
 pub mod pnp;

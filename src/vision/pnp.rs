@@ -16,6 +16,10 @@
 //!    ([`FramePose::board_scale`]): the same observations fitted once more with a factor on the
 //!    board's corners as a seventh unknown, which the baseline makes observable. The pose above
 //!    is not changed by it.
+//! 6. Per camera, the factor on its focal lengths this frame measures
+//!    ([`FramePose::focal_scale`]): the camera's own observations fitted with the pose and the
+//!    factor together (the perspective of a tilted board tells the focal length from the
+//!    distance). The pose is not changed by it either.
 //!
 //! The pose is `T_board_cam0` (= `T_world_cam0`, the board frame being the world) and its
 //! covariance belongs to the right perturbation `T = T_hat * exp(n)`, `n = [rho; phi]`
@@ -94,6 +98,10 @@ pub struct FramePose {
     /// The board's print scale this frame measures with the chain's baseline (`None` unless two
     /// cameras saw the board, or when the fit failed). It does not change the pose.
     pub board_scale: Option<FrameScale>,
+    /// Per camera, the factor on its focal lengths that this frame's view measures
+    /// ([`crate::vision::focal`]; `None` for a camera with too few tags). It does not change
+    /// the pose.
+    pub focal_scale: Vec<Option<FrameScale>>,
 }
 
 /// The size of the board as one frame's cameras measure it: the factor its corners must be
@@ -339,6 +347,7 @@ pub fn solve_stereo(
     }
     let used = active.iter().filter(|&&a| a).count();
     let board_scale = scale_fit(chain, &obs, &active, &t_b_c0, opts);
+    let focal_scale = focal_fit(chain, &obs, &active, &t_b_c0, opts);
     Ok(PoseOutcome::Pose(FramePose {
         t_board_cam0: t_b_c0,
         cov,
@@ -351,6 +360,7 @@ pub fn solve_stereo(
         rms_px_per_cam,
         corner_sample,
         board_scale,
+        focal_scale,
     }))
 }
 
@@ -381,22 +391,98 @@ fn scale_fit(
     if seen.iter().filter(|&&s| s).count() < 2 {
         return None;
     }
-    let normal = |t: &Se3, s: f64| -> Option<(f64, Matrix7, Vector7, usize)> {
-        let mut h = Matrix7::zeros();
-        let mut g = Vector7::zeros();
-        let mut c = 0.0;
-        let mut m = 0;
-        for (o, _) in obs.iter().zip(active).filter(|(_, a)| **a) {
-            for k in 0..4 {
-                let (r, j) = scaled_residual(chain, o, k, t, s)?;
-                h += j.transpose() * j;
-                g += j.transpose() * r;
-                c += r.norm_squared();
-                m += 2;
+    let used: Vec<&Obs> = obs
+        .iter()
+        .zip(active)
+        .filter(|(_, a)| **a)
+        .map(|(o, _)| o)
+        .collect();
+    fit_with_factor(t_b_c0, opts, |t, s| {
+        normal7(&used, |o, k| scaled_residual(chain, o, k, t, s))
+    })
+}
+
+/// Fewest tag observations of one camera for its focal length's factor in a frame.
+const MIN_FOCAL_TAGS: usize = 4;
+
+/// The focal length each camera's view of one frame measures, as a factor on the camchain's
+/// (`fu` and `fv` multiplied by it, the principal point and the distortion kept): per camera
+/// with at least [`MIN_FOCAL_TAGS`] active observations, the pose and the factor fitted
+/// together to that camera's reprojection errors alone. A view of the board straight on cannot
+/// tell the focal length from the distance; the perspective of a tilted board can, and the
+/// factor's standard deviation (as for the board's scale) says how well. A factor on the focal
+/// length does not depend on the board's printed size (which one camera cannot see).
+fn focal_fit(
+    chain: &Camchain,
+    obs: &[Obs],
+    active: &[bool],
+    t_b_c0: &Se3,
+    opts: &PnpOptions,
+) -> Vec<Option<FrameScale>> {
+    (0..chain.cams.len())
+        .map(|cam| {
+            let used: Vec<&Obs> = obs
+                .iter()
+                .zip(active)
+                .filter(|(o, a)| **a && o.cam == cam)
+                .map(|(o, _)| o)
+                .collect();
+            if used.len() < MIN_FOCAL_TAGS {
+                return None;
             }
+            // One Gauss-Newton step from the frame's pose and the camchain's focal length:
+            // linear in the residuals, so that the frames' factors average without the bias a
+            // weight taken at each frame's own optimum would bring.
+            let (c, h, g, m) = normal7(&used, |o, k| focal_residual(chain, o, k, t_b_c0, 1.0))?;
+            let chol = h.cholesky()?;
+            let d = -chol.solve(&g);
+            let left = (c + g.dot(&d)).max(0.0);
+            let sigma = match opts.sigma_px {
+                Some(sp) => sp,
+                None => (left / (m.saturating_sub(7).max(1)) as f64)
+                    .sqrt()
+                    .max(opts.min_sigma_px),
+            };
+            let var = chol.inverse()[(6, 6)] * sigma * sigma;
+            let scale = 1.0 + d[6];
+            (scale.is_finite() && scale > 0.0 && var.is_finite() && var > 0.0).then(|| FrameScale {
+                scale,
+                std: var.sqrt(),
+            })
+        })
+        .collect()
+}
+
+/// Cost, normal matrix, gradient and number of residuals of the corners of `used` under the
+/// residual function `res` (a residual and its Jacobian over the pose and a factor).
+fn normal7(
+    used: &[&Obs],
+    res: impl Fn(&Obs, usize) -> Option<(Vector2<f64>, Matrix2x7)>,
+) -> Option<(f64, Matrix7, Vector7, usize)> {
+    let mut h = Matrix7::zeros();
+    let mut g = Vector7::zeros();
+    let mut c = 0.0;
+    let mut m = 0;
+    for o in used {
+        for k in 0..4 {
+            let (r, j) = res(o, k)?;
+            h += j.transpose() * j;
+            g += j.transpose() * r;
+            c += r.norm_squared();
+            m += 2;
         }
-        Some((c, h, g, m))
-    };
+    }
+    Some((c, h, g, m))
+}
+
+/// Levenberg-Marquardt over a pose (from `t_b_c0`) and a factor (from 1) with the normal
+/// equations `normal`; the factor and its standard deviation `sigma_px sqrt((J^T J)^-1)`, or
+/// `None` when the fit does not end at finite values.
+fn fit_with_factor(
+    t_b_c0: &Se3,
+    opts: &PnpOptions,
+    normal: impl Fn(&Se3, f64) -> Option<(f64, Matrix7, Vector7, usize)>,
+) -> Option<FrameScale> {
     let mut t = *t_b_c0;
     let mut s = 1.0;
     let (mut c, mut h, mut g, mut m) = normal(&t, s)?;
@@ -437,6 +523,39 @@ fn scale_fit(
         scale: s,
         std: var.sqrt(),
     })
+}
+
+/// Residual of corner `k` of `o` with the focal lengths of its camera multiplied by `f`, and
+/// its Jacobian with respect to the right perturbation of `T_board_cam0` (first six columns)
+/// and to `f` (the last).
+fn focal_residual(
+    chain: &Camchain,
+    o: &Obs,
+    k: usize,
+    t_b_c0: &Se3,
+    f: f64,
+) -> Option<(Vector2<f64>, Matrix2x7)> {
+    let r_b_c0 = &t_b_c0.rot;
+    let p_c0 = r_b_c0.transpose() * (o.board[k] - t_b_c0.trans);
+    let t_cn = &chain.t_cn_c0[o.cam];
+    let p_cn = t_cn.transform_point(&p_c0);
+    let base = chain.cams.get(o.cam)?;
+    let cam = crate::types::camera::Camera {
+        fu: base.fu * f,
+        fv: base.fv * f,
+        ..base.clone()
+    };
+    let (px, jp) = cam.project_jacobian(&p_cn)?;
+    let jr: Matrix2x3<f64> = jp * t_cn.rot;
+    let mut j = Matrix2x7::zeros();
+    j.fixed_view_mut::<2, 3>(0, 0).copy_from(&(-jr));
+    j.fixed_view_mut::<2, 3>(0, 3).copy_from(&(jr * hat(&p_c0)));
+    // px = f fu x_d + pu: d px / d f = (px - principal point) / f.
+    let centre = Vector2::new(cam.pu, cam.pv);
+    j.fixed_view_mut::<2, 1>(0, 6)
+        .copy_from(&((px - centre) / f));
+    let r = px - o.px[k];
+    (r.x.is_finite() && r.y.is_finite()).then_some((r, j))
 }
 
 /// Residual of corner `k` of `o` with the board scaled by `s`, and its Jacobian with respect to

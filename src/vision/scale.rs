@@ -109,12 +109,40 @@ pub fn frame_scales(results: &[FrameResult]) -> Vec<FrameScale> {
 /// The board's scale over the frames' scales (see the module documentation), not yet applied;
 /// `None` with fewer than [`MIN_STEREO_FRAMES`] usable frames.
 pub fn estimate_board_scale(fits: &[FrameScale]) -> Option<BoardScale> {
+    let c = combine(fits, MIN_STEREO_FRAMES, SYSTEMATIC_STD)?;
+    Some(BoardScale {
+        scale: c.value,
+        std: c.std,
+        frames: c.frames,
+        rejected: c.rejected,
+        applied: false,
+    })
+}
+
+/// A factor measured over the frames of a recording ([`combine`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Combined {
+    /// The weighted mean of the frames' factors.
+    pub value: f64,
+    /// Its standard deviation.
+    pub std: f64,
+    /// Frames it rests on.
+    pub frames: usize,
+    /// Frames left out as outliers.
+    pub rejected: usize,
+}
+
+/// Per-frame factors combined as the module documentation describes for the board's scale:
+/// outliers by their distance from the median, the inverse-variance weighted mean, its standard
+/// deviation from the frames' spread with `systematic` added in quadrature. `None` with fewer
+/// than `min_frames` usable frames.
+pub fn combine(fits: &[FrameScale], min_frames: usize, systematic: f64) -> Option<Combined> {
     let fits: Vec<FrameScale> = fits
         .iter()
         .copied()
         .filter(|f| f.scale.is_finite() && f.std.is_finite() && f.std > 0.0)
         .collect();
-    if fits.len() < MIN_STEREO_FRAMES {
+    if fits.len() < min_frames.max(2) {
         return None;
     }
     let median = |mut v: Vec<f64>| {
@@ -136,7 +164,7 @@ pub fn estimate_board_scale(fits: &[FrameScale]) -> Option<BoardScale> {
         .map(|(f, _)| f)
         .collect();
     let n = keep.len();
-    if n < MIN_STEREO_FRAMES {
+    if n < min_frames.max(2) {
         return None;
     }
     let sw: f64 = keep.iter().map(|f| f.std.powi(-2)).sum();
@@ -145,13 +173,12 @@ pub fn estimate_board_scale(fits: &[FrameScale]) -> Option<BoardScale> {
         .iter()
         .map(|f| (f.scale - mean).powi(2) * f.std.powi(-2))
         .sum();
-    let std = (ss / ((n - 1) as f64 * sw) + SYSTEMATIC_STD * SYSTEMATIC_STD).sqrt();
-    (mean.is_finite() && std.is_finite()).then_some(BoardScale {
-        scale: mean,
+    let std = (ss / ((n - 1) as f64 * sw) + systematic * systematic).sqrt();
+    (mean.is_finite() && std.is_finite()).then_some(Combined {
+        value: mean,
         std,
         frames: n,
         rejected: fits.len() - n,
-        applied: false,
     })
 }
 
