@@ -336,3 +336,58 @@ fn too_few_corners_unknown_ids_and_bad_input() {
         .unwrap();
     assert!(error(&t, &p.t_board_cam0).norm() < 1e-8);
 }
+
+#[test]
+fn each_frame_measures_each_cameras_focal_length() {
+    use dvlcal::vision::scale::combine;
+    // The images come from a pair whose cam1 has a focal length 2 % longer than the chain the
+    // frames are solved with says.
+    let b = board();
+    let given = stereo(radtan());
+    let mut truth = given.clone();
+    truth.cams[1].fu *= 1.02;
+    truth.cams[1].fv *= 1.02;
+    let mut rng = Rng::new(11);
+    let expect = [1.0, 1.02];
+    for sigma in [0.0, 0.3] {
+        let mut fits = [Vec::new(), Vec::new()];
+        let mut z2 = [0.0, 0.0];
+        for _ in 0..200 {
+            let t = pose(&mut rng, 1.0);
+            let dets = detections(&b, &truth, &t, sigma, &mut rng);
+            let opts = PnpOptions {
+                sigma_px: (sigma > 0.0).then_some(sigma),
+                ..PnpOptions::default()
+            };
+            let p = stereo_pose(&b, &given, &dets, &opts)
+                .unwrap()
+                .expect("a pose");
+            assert_eq!(p.focal_scale.len(), 2);
+            for cam in 0..2 {
+                let f = p.focal_scale[cam].expect("a factor");
+                if sigma == 0.0 {
+                    // One Gauss-Newton step from the stereo pose: exact up to the step's
+                    // second-order term.
+                    assert!((f.scale - expect[cam]).abs() < 2e-3, "cam{cam}: {f:?}");
+                } else {
+                    z2[cam] += ((f.scale - expect[cam]) / f.std).powi(2);
+                }
+                fits[cam].push(f);
+            }
+        }
+        if sigma > 0.0 {
+            for cam in 0..2 {
+                let rms = (z2[cam] / 200.0).sqrt();
+                let c = combine(&fits[cam], 10, 0.0).expect("combined");
+                println!("cam{cam}: RMS error/std {rms:.2}, combined {c:?}");
+                // The frames' std are honest, and the recording's factor is the truth's.
+                assert!((rms - 1.0).abs() < 0.2, "cam{cam}: RMS error/std {rms}");
+                assert!(
+                    (c.value - expect[cam]).abs() < 3.0 * c.std,
+                    "cam{cam}: {c:?}"
+                );
+                assert!(c.std < 2e-3, "{c:?}");
+            }
+        }
+    }
+}
