@@ -54,6 +54,7 @@ open(d+'/dvl.jsonl','w').write('\n'.join(out)+'\n')
 P
 }
 for k in back forward restart drift; do d=$(mk clock_$k); dvlmod $d $k; run clock_$k; done
+d=$(mk clock_drift_est); dvlmod $d drift; run clock_drift_est --clock-drift
 # One line per case: exit status and the comparison with the truth.
 for d in "$W"/*/; do
   k=$(basename "$d")
