@@ -41,13 +41,11 @@ const ALL_CAUSES: &[&str] = &[
     "the clock offset drifts",
 ];
 
+/// A file of a sample and how to rewrite its text.
+type Edit<'a> = (&'a str, &'a dyn Fn(&str) -> String);
+
 /// A copy of the sample `src` (its parts symlinked, except those `edit` rewrites).
-fn sample(
-    tmp: &TmpDir,
-    src: &str,
-    name: &str,
-    edit: &[(&str, &dyn Fn(&str) -> String)],
-) -> PathBuf {
+fn sample(tmp: &TmpDir, src: &str, name: &str, edit: &[Edit]) -> PathBuf {
     let d = tmp.path(name);
     std::fs::create_dir_all(&d).unwrap();
     for entry in std::fs::read_dir(src).unwrap() {
