@@ -228,3 +228,80 @@ fn the_real_a50_logs_and_bags_have_a_steady_clock() {
     }
     assert_eq!(read, 8);
 }
+
+/// A copy of the poses sample whose camera clock steps by `step_s` from pose line `from` on
+/// (1-based, the header being line 1).
+fn camera_stepped(tmp: &TmpDir, name: &str, from: usize, step_s: f64) -> PathBuf {
+    let dir = tmp.0.join(name);
+    std::fs::create_dir_all(dir.join("truth")).unwrap();
+    for f in ["dvl.jsonl", "truth/calibration.yaml"] {
+        std::fs::copy(Path::new(SAMPLE).join(f), dir.join(f)).unwrap();
+    }
+    let text = std::fs::read_to_string(Path::new(SAMPLE).join("poses.txt")).unwrap();
+    let mut out = String::new();
+    for (i, line) in text.lines().enumerate() {
+        let mut fields: Vec<String> = line.split(' ').map(str::to_owned).collect();
+        if i + 1 >= from && !line.starts_with('#') {
+            // Whole nanoseconds: the stamp keeps its nine decimals.
+            let (sec, frac) = fields[0].split_once('.').unwrap();
+            let ns: i128 = sec.parse::<i128>().unwrap() * 1_000_000_000
+                + frac.parse::<i128>().unwrap()
+                + (step_s * 1e9).round() as i128;
+            fields[0] = format!(
+                "{}.{:09}",
+                ns.div_euclid(1_000_000_000),
+                ns.rem_euclid(1_000_000_000)
+            );
+        }
+        out.push_str(&fields.join(" "));
+        out.push('\n');
+    }
+    std::fs::write(dir.join("poses.txt"), out).unwrap();
+    dir
+}
+
+#[test]
+fn a_camera_clock_stepping_back_is_split_at_its_line_and_each_segment_keeps_its_offset() {
+    let tmp = TmpDir::new("camera-clock-step");
+    // From line 352 (pose 351, 35 s into the minute) the camera clock reads 10 s earlier.
+    let dir = camera_stepped(&tmp, "back", 352, -10.0);
+    let out_yaml = dir.join("out/calibration.yaml");
+    let out = dvlcal(&["calibrate", s(&dir), "--out", s(&out_yaml)]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stdout}\n{stderr}");
+    let named = "poses.txt:352: the camera clock steps back by 10.000 s after line 351";
+    assert!(
+        stdout.contains(named) || stderr.contains(named),
+        "{stdout}\n{stderr}"
+    );
+    let t = against_truth(&dir, &out_yaml);
+    assert_eq!(t.file.status, Some(ResultStatus::Ok));
+    truth_common::assert_within(&t, 3.0);
+    let segs = t
+        .file
+        .info
+        .as_ref()
+        .and_then(|i| i.figures.clock_segments.clone())
+        .expect("clock_segments in the result");
+    assert_eq!(segs.len(), 2, "{segs:?}");
+    assert_eq!(segs[0].camera_lines, Some([2, 351]));
+    assert_eq!(segs[1].camera_lines.map(|l| l[0]), Some(352));
+    // On its own camera clock the second segment's offset is 10 s smaller.
+    for (seg, expected) in segs.iter().zip([TRUE_OFFSET_S, TRUE_OFFSET_S - 10.0]) {
+        let (o, sd) = (seg.time_offset_s.unwrap(), seg.time_offset_std_s.unwrap());
+        assert!(
+            (o - expected).abs() < 3.0 * sd && sd < 0.01,
+            "{o} +- {sd} vs {expected}"
+        );
+    }
+    // A stamp repeated, or a step back under a second, is still an error naming the line.
+    let dir = camera_stepped(&tmp, "shuffled", 352, -0.15);
+    let out = dvlcal(&["calibrate", s(&dir), "--out", s(&dir.join("out.yaml"))]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        stderr.contains("poses.txt:352") && stderr.contains("out of order"),
+        "{stderr}"
+    );
+}

@@ -139,6 +139,10 @@ pub struct ClockSegmentFigure {
     /// Why it was left out, when it was.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub left_out: Option<String>,
+    /// When the camera clock stepped: the first and last line of the segment's poses in the
+    /// pose file (its offset is then on that segment's own camera clock).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub camera_lines: Option<[usize; 2]>,
 }
 
 /// Declares [`RunFigures`]: one optional field per key of `info`, named as the key.

@@ -201,7 +201,7 @@ pub fn attach_covariances(
 ) -> Result<()> {
     let n = tum.poses.len();
     for (k, (row, line)) in table.rows.iter().zip(&table.lines).enumerate() {
-        let Some(pose) = tum.poses.get(k) else {
+        if k >= n {
             return Err(Error::parse(
                 frames_path,
                 *line,
@@ -212,8 +212,9 @@ pub fn attach_covariances(
                     tum_path.display()
                 ),
             ));
-        };
-        if (row.t - pose.t).abs() > TIME_MATCH_TOL_S {
+        }
+        let pose_t = tum.own_time(k);
+        if (row.t - pose_t).abs() > TIME_MATCH_TOL_S {
             return Err(Error::parse(
                 frames_path,
                 *line,
@@ -225,7 +226,7 @@ pub fn attach_covariances(
                     k + 1,
                     tum_path.display(),
                     tum.lines[k],
-                    tum.epoch.format_abs(pose.t, 9)
+                    tum.epoch.format_abs(pose_t, 9)
                 ),
             ));
         }

@@ -16,15 +16,60 @@ use crate::types::PoseMeasurement;
 /// normalised away.
 pub const QUATERNION_NORM_TOL: f64 = 1e-3;
 
+/// A camera clock that steps back by less than this, s, is a file out of order (an error); by
+/// more, a clock corrected mid-recording (NTP) or restarted.
+pub const CLOCK_STEP_MIN_S: f64 = 1.0;
+
+/// A step back of the camera clock between two lines of a TUM file.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CameraClockStep {
+    /// The 1-based line of the first pose on the new clock.
+    pub line: usize,
+    /// The line of the pose before it.
+    pub previous_line: usize,
+    /// The step, s (negative: back).
+    pub step_s: f64,
+}
+
+/// A stretch of a TUM file's poses on one camera clock.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CameraSegment {
+    /// Its poses (indices into [`TumPoses::poses`]).
+    pub poses: std::ops::Range<usize>,
+    /// Its first and last line.
+    pub lines: (usize, usize),
+    /// What was added to its times to make them follow the segment before it (0 for the
+    /// first): its poses' times are `t_own + shift_s`.
+    pub shift_s: f64,
+}
+
 /// Poses read from a TUM file.
 #[derive(Clone, Debug)]
 pub struct TumPoses {
     /// The epoch the pose times are relative to.
     pub epoch: Epoch,
-    /// The poses, in file order (strictly increasing time).
+    /// The poses, in file order, in strictly increasing time: the poses of a camera clock
+    /// segment after the first follow the one before it by the median interval between poses
+    /// (their times moved by the segment's `shift_s`).
     pub poses: Vec<PoseMeasurement>,
     /// The 1-based source line of each pose.
     pub lines: Vec<usize>,
+    /// The camera clock's steps back, in file order (none for a steady clock).
+    pub clock_steps: Vec<CameraClockStep>,
+    /// The camera clock's segments, one more than its steps.
+    pub segments: Vec<CameraSegment>,
+}
+
+impl TumPoses {
+    /// The time of pose `k` on its own camera clock (before its segment's shift).
+    pub fn own_time(&self, k: usize) -> f64 {
+        let shift = self
+            .segments
+            .iter()
+            .find(|s| s.poses.contains(&k))
+            .map_or(0.0, |s| s.shift_s);
+        self.poses.get(k).map_or(f64::NAN, |p| p.t - shift)
+    }
 }
 
 const FIELD_NAMES: [&str; 8] = ["timestamp", "tx", "ty", "tz", "qx", "qy", "qz", "qw"];
@@ -42,6 +87,9 @@ pub fn parse_tum(text: &str, path: &Path, epoch: Option<Epoch>) -> Result<TumPos
     let mut poses = Vec::new();
     let mut lines = Vec::new();
     let mut prev: Option<(RawTime, usize)> = None;
+    let mut clock_steps = Vec::new();
+    // The first pose of each camera clock segment.
+    let mut starts = vec![0usize];
 
     for (line, content) in content_lines(text) {
         let fields: Vec<&str> = content
@@ -72,17 +120,28 @@ pub fn parse_tum(text: &str, path: &Path, epoch: Option<Epoch>) -> Result<TumPos
                 format!("quaternion norm {norm} differs from 1 by more than {QUATERNION_NORM_TOL}"),
             ));
         }
-        if let Some((p, pline)) = prev {
-            if (t_raw.sec, t_raw.frac) <= (p.sec, p.frac) {
+        if let Some((p, pline)) = prev
+            && (t_raw.sec, t_raw.frac) <= (p.sec, p.frac)
+        {
+            let back = (p.sec - t_raw.sec) as f64 + (p.frac - t_raw.frac);
+            if back < CLOCK_STEP_MIN_S {
                 return Err(Error::parse(
                     path,
                     line,
                     format!(
-                        "time stamp {} is not after the one on line {pline}",
+                        "time stamp {} is not after the one on line {pline} (lines out of order \
+                         or repeated; a camera clock stepping back by {CLOCK_STEP_MIN_S} s or \
+                         more starts a new clock segment)",
                         fields[0]
                     ),
                 ));
             }
+            clock_steps.push(CameraClockStep {
+                line,
+                previous_line: pline,
+                step_s: -back,
+            });
+            starts.push(poses.len());
         }
         prev = Some((t_raw, line));
         let ep = *epoch.get_or_insert_with(|| Epoch::at(t_raw));
@@ -94,14 +153,56 @@ pub fn parse_tum(text: &str, path: &Path, epoch: Option<Epoch>) -> Result<TumPos
         lines.push(line);
     }
 
+    let segments = clock_segments(&mut poses, &lines, &starts);
     match epoch {
         Some(epoch) if !poses.is_empty() => Ok(TumPoses {
             epoch,
             poses,
             lines,
+            clock_steps,
+            segments,
         }),
         _ => Err(Error::parse(path, last_line(text), "no poses in file")),
     }
+}
+
+/// The camera clock segments starting at the poses `starts`, each after the first moved to
+/// follow the one before it by the median interval between poses within the segments (a clock
+/// corrected while the camera kept recording: the true interval across the step is one frame's).
+fn clock_segments(
+    poses: &mut [PoseMeasurement],
+    lines: &[usize],
+    starts: &[usize],
+) -> Vec<CameraSegment> {
+    let n = poses.len();
+    let ranges: Vec<std::ops::Range<usize>> = starts
+        .iter()
+        .enumerate()
+        .map(|(k, &a)| a..starts.get(k + 1).copied().unwrap_or(n))
+        .filter(|r| !r.is_empty())
+        .collect();
+    let mut gaps: Vec<f64> = ranges
+        .iter()
+        .flat_map(|r| poses[r.clone()].windows(2).map(|w| w[1].t - w[0].t))
+        .collect();
+    gaps.sort_by(f64::total_cmp);
+    let period = gaps.get(gaps.len() / 2).copied().unwrap_or(0.1);
+    let mut out: Vec<CameraSegment> = Vec::with_capacity(ranges.len());
+    for r in ranges {
+        let shift_s = match out.last() {
+            Some(before) => poses[before.poses.end - 1].t + period - poses[r.start].t,
+            None => 0.0,
+        };
+        for p in &mut poses[r.clone()] {
+            p.t += shift_s;
+        }
+        out.push(CameraSegment {
+            lines: (lines[r.start], lines[r.end - 1]),
+            poses: r,
+            shift_s,
+        });
+    }
+    out
 }
 
 /// The pose of a TUM line: the quaternion normalised, then turned into a rotation matrix.
@@ -135,4 +236,47 @@ pub fn write_tum(path: &Path, epoch: Epoch, poses: &[PoseMeasurement]) -> Result
         out.push('\n');
     }
     super::write_atomic(path, out.as_bytes())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_camera_clock_stepping_back_starts_a_segment_that_follows_by_one_frame() {
+        let text = "# t x y z qx qy qz qw\n\
+                    100.0 0 0 0 0 0 0 1\n\
+                    100.1 0 0 0 0 0 0 1\n\
+                    100.2 0 0 0 0 0 0 1\n\
+                    90.3 0 0 0 0 0 0 1\n\
+                    90.4 0 0 0 0 0 0 1\n";
+        let p = parse_tum(text, Path::new("p.txt"), None).unwrap();
+        assert_eq!(p.clock_steps.len(), 1);
+        assert_eq!(
+            (p.clock_steps[0].line, p.clock_steps[0].previous_line),
+            (5, 4)
+        );
+        assert!((p.clock_steps[0].step_s + 9.9).abs() < 1e-9);
+        assert_eq!(p.segments.len(), 2);
+        assert_eq!(
+            (p.segments[1].poses.clone(), p.segments[1].lines),
+            (3..5, (5, 6))
+        );
+        // Moved by 10 s: one frame after line 4, then the segment's own spacing.
+        assert!((p.segments[1].shift_s - 10.0).abs() < 1e-9);
+        let t: Vec<f64> = p.poses.iter().map(|x| x.t).collect();
+        for (a, b) in t.iter().zip([0.0, 0.1, 0.2, 0.3, 0.4]) {
+            assert!((a - b).abs() < 1e-9, "{t:?}");
+        }
+        assert!((p.own_time(3) - (-9.7)).abs() < 1e-9);
+        // Back by less than a second: lines out of order, an error naming the line.
+        let e = parse_tum(
+            "1.0 0 0 0 0 0 0 1\n1.5 0 0 0 0 0 0 1\n1.2 0 0 0 0 0 0 1\n",
+            Path::new("p.txt"),
+            None,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("p.txt:3") && e.contains("out of order"), "{e}");
+    }
 }

@@ -55,6 +55,9 @@ pub fn calibrate_dataset(
     let workers = crate::parallel::worker_pool(threads)?;
     let start = Instant::now();
     let log = &data.log;
+    if data.camera_segments.len() > 1 {
+        return calibrate_camera_segments(data, opts, &workers, start);
+    }
     let (outcome, segments) = if log.clock_segments.len() > 1 {
         // A clock that stepped: one offset per clock segment.
         let parts: Vec<&[DvlSample]> = log
@@ -90,6 +93,7 @@ pub fn calibrate_dataset(
                     time_offset_s: s.time_offset_s,
                     time_offset_std_s: s.time_offset_std_s,
                     left_out: s.left_out.clone(),
+                    camera_lines: None,
                 })
                 .collect(),
         );
@@ -100,6 +104,122 @@ pub fn calibrate_dataset(
     note_pose_covariances(&mut file, data);
     note_board_size(&mut file, data);
     note_focal_lengths(&mut file, data);
+    Ok(CalibrationRun {
+        outcome,
+        file,
+        elapsed_s,
+    })
+}
+
+/// [`calibrate_dataset`] for poses whose camera clock stepped back (a pose file read in file
+/// order): the poses of each later camera segment were moved to follow the one before it by a
+/// frame's interval, which holds to the frame's jitter when the camera kept recording. A first
+/// calibration of the whole finds the offset the junctions fall at on the DVL clock; the DVL
+/// reports are split there, and each stretch gets its own clock offset as a DVL clock segment
+/// does ([`calibrate_segments`]), the extrinsics shared. Each segment's offset is reported on
+/// its own camera clock, and so is the top-level one (the longest segment's).
+fn calibrate_camera_segments(
+    data: &Dataset,
+    opts: &CalibOptions,
+    workers: &rayon::ThreadPool,
+    start: Instant,
+) -> Result<CalibrationRun> {
+    let log = &data.log;
+    let cam = &data.camera_segments;
+    let poses_path = data.camera_source.display().to_string();
+    if log.clock_segments.len() > 1 {
+        return Err(Error::Input(format!(
+            "both clocks step: the camera's ({poses_path}:{}) and the DVL's ({}:{}); calibrate \
+             the stretches between the steps on their own",
+            data.camera_clock_steps.first().map_or(0, |s| s.line),
+            log.stats.path.display(),
+            log.clock_segments.get(1).map_or(0, |c| c.lines.0)
+        )));
+    }
+    let first = workers.install(|| calibrate(&data.poses, &log.samples, opts))?;
+    let offset = first.params.time_offset_s;
+    // Each junction, midway between the segments' poses, on the DVL clock.
+    let cuts: Vec<f64> = cam
+        .windows(2)
+        .map(|w| {
+            let before = data.poses[w[0].poses.end - 1].t;
+            let after = data.poses[w[1].poses.start].t;
+            0.5 * (before + after) - offset
+        })
+        .collect();
+    let mut bounds = vec![0usize];
+    bounds.extend(
+        cuts.iter()
+            .map(|&c| log.samples.partition_point(|x| x.t < c)),
+    );
+    bounds.push(log.samples.len());
+    let parts: Vec<&[DvlSample]> = bounds
+        .windows(2)
+        .map(|b| log.samples.get(b[0]..b[1].max(b[0])).unwrap_or(&[]))
+        .collect();
+    let line = |i: usize| log.lines.get(i).copied().unwrap_or(0);
+    let names: Vec<String> = cam
+        .iter()
+        .zip(bounds.windows(2))
+        .map(|(c, b)| {
+            format!(
+                "{}:{}-{} (camera clock segment {poses_path}:{}-{})",
+                log.stats.path.display(),
+                line(b[0]),
+                line(b[1].saturating_sub(1)),
+                c.lines.0,
+                c.lines.1
+            )
+        })
+        .collect();
+    let (outcome, segments) =
+        workers.install(|| calibrate_segments(&data.poses, &parts, &names, opts))?;
+    let elapsed_s = start.elapsed().as_secs_f64();
+    let mut file = result_file(&outcome, log);
+    // The longest segment's offset, on its own camera clock.
+    let main = (0..segments.len())
+        .filter(|&k| segments[k].time_offset_s.is_some())
+        .max_by(|&a, &b| segments[a].duration_s.total_cmp(&segments[b].duration_s));
+    if let Some(k) = main {
+        file.time_offset_s = outcome.params.time_offset_s - cam[k].shift_s;
+    }
+    if let Some(info) = file.info.as_mut() {
+        for (st, seg) in data.camera_clock_steps.iter().zip(cam.iter().skip(1)) {
+            // Its stamps step back by `-step_s` across one frame: the clock by one frame more.
+            info.warnings.push(format!(
+                "{poses_path}:{}: the camera clock steps back by {:.3} s after line {} (taking \
+                 one frame, {:.3} s, between the two lines): the poses from there on are moved to \
+                 follow, and the DVL reports of each camera clock segment get their own clock \
+                 offset (clock_segments)",
+                st.line,
+                seg.shift_s,
+                st.previous_line,
+                seg.shift_s + st.step_s
+            ));
+        }
+        info.figures.clock_segments = Some(
+            segments
+                .iter()
+                .zip(cam)
+                .zip(bounds.windows(2))
+                .map(|((s, c), b)| ClockSegmentFigure {
+                    lines: [line(b[0]), line(b[1].saturating_sub(1))],
+                    samples: s.samples,
+                    duration_s: s.duration_s,
+                    time_offset_s: s.time_offset_s.map(|o| o - c.shift_s),
+                    time_offset_std_s: s.time_offset_std_s,
+                    left_out: s.left_out.clone(),
+                    camera_lines: Some([c.lines.0, c.lines.1]),
+                })
+                .collect(),
+        );
+        info.notes.push(
+            "the camera clock stepped: time_offset_s is the longest clock segment's, on that \
+             segment's own camera clock; clock_segments gives each segment's"
+                .to_owned(),
+        );
+    }
+    note_pose_covariances(&mut file, data);
     Ok(CalibrationRun {
         outcome,
         file,

@@ -12,6 +12,7 @@ use crate::io::camchain::read_camchain;
 use crate::io::dataset::{DatasetFiles, DatasetOverrides, discover};
 use crate::io::dvl::{DvlLog, DvlReadOptions, read_dvl_log};
 use crate::io::frames_csv::{frames_csv_path, read_tum_with_covariances};
+use crate::io::tum::{CameraClockStep, CameraSegment};
 use crate::types::PoseMeasurement;
 use crate::types::camera::Camchain;
 use crate::vision::scale::BoardSize;
@@ -130,6 +131,12 @@ pub struct Dataset {
     /// The camera frame's name when the data give one (the `header.frame_id` of a bag's cam0
     /// images): the parent frame of the exports unless `--frames` says otherwise.
     pub camera_frame: Option<String>,
+    /// The camera clock's steps back in a pose file (found in file order; images and bags are
+    /// read in time order, where a step cannot be seen).
+    pub camera_clock_steps: Vec<CameraClockStep>,
+    /// The camera clock's segments of a pose file (one when it did not step; none for images
+    /// and bags): the poses of each later segment follow the one before by a frame's interval.
+    pub camera_segments: Vec<CameraSegment>,
 }
 
 impl Dataset {
@@ -164,6 +171,7 @@ impl Dataset {
         let mut cameras = None;
         let mut notes = Vec::new();
         let mut camera_frame = None;
+        let (mut camera_clock_steps, mut camera_segments) = (Vec::new(), Vec::new());
         let (epoch, poses, run, camera_source) = match (&files.poses, &files.images) {
             (Some(p), _) => {
                 let (tum, table) = read_tum_with_covariances(p, None)?;
@@ -180,6 +188,8 @@ impl Dataset {
                         frames_csv_path(p).display()
                     ),
                 });
+                camera_clock_steps = tum.clock_steps;
+                camera_segments = tum.segments;
                 (tum.epoch, tum.poses, None, p.clone())
             }
             (None, Some(dir)) => {
@@ -293,6 +303,8 @@ impl Dataset {
             camera_source,
             notes,
             camera_frame,
+            camera_clock_steps,
+            camera_segments,
         })
     }
 
