@@ -478,3 +478,90 @@ fn a_folder_holding_a_bag_is_a_dataset_and_evaluate_takes_a_bag() {
     assert!(ok, "{stdout}\n{stderr}");
     assert!(stdout.contains("ATE"), "{stdout}");
 }
+
+#[test]
+fn pose_messages_bring_their_covariances_into_the_child_frame() {
+    use dvlcal::io::bag::open::OpenBag;
+    use dvlcal::io::bag::poses::{read_bag_poses, ros_pose_covariance};
+    use dvlcal::io::bag::roles::BagOptions;
+    use dvlcal::lie::{Se3, so3};
+    use dvlcal::rng::Rng;
+    use nalgebra::{Matrix6, Vector3, Vector6};
+
+    // The fixture's writer (rosbags) gave both topics a diagonal of 4e-6: 2 mm and 2 mrad,
+    // the same in every frame.
+    for topic in ["/vio/pose", "/vio/odom"] {
+        let ob = OpenBag::open(
+            &fixture("pose_cov.mcap"),
+            &BagOptions {
+                pose_topic: Some(topic.into()),
+                ..BagOptions::default()
+            },
+        )
+        .unwrap();
+        let p = read_bag_poses(&ob).unwrap();
+        assert!(p.covariances, "{topic}");
+        assert_eq!(p.poses.len(), 20);
+        for pose in &p.poses {
+            let c = pose.cov.expect("a covariance");
+            assert!(
+                (c - Matrix6::identity() * 4e-6).amax() < 1e-18,
+                "{topic}: {c}"
+            );
+        }
+    }
+
+    // The conversion against sampling: errors drawn as ROS states them (position and rotation
+    // about the parent's axes, correlated), applied to the pose, and read back as the right
+    // perturbation `log(T^-1 T')`; their covariance is the converted one.
+    let t = Se3::new(
+        so3::exp(&Vector3::new(0.4, -1.1, 0.7)),
+        Vector3::new(1.0, -2.0, 0.5),
+    );
+    let mut l = Matrix6::zeros();
+    for i in 0..6 {
+        for j in 0..=i {
+            l[(i, j)] = if i == j {
+                1e-3 * (1.0 + i as f64)
+            } else {
+                2e-4 * (i + 2 * j) as f64
+            };
+        }
+    }
+    let ros = l * l.transpose();
+    let mut c = [0.0; 36];
+    for i in 0..6 {
+        for j in 0..6 {
+            c[6 * i + j] = ros[(i, j)];
+        }
+    }
+    let ours = ros_pose_covariance(&c, &t).expect("usable");
+    let mut rng = Rng::new(3);
+    let n = 20_000;
+    let mut emp = Matrix6::zeros();
+    for _ in 0..n {
+        let z = Vector6::from_fn(|_, _| rng.normal());
+        let e = l * z;
+        let dp = Vector3::new(e[0], e[1], e[2]);
+        let dth = Vector3::new(e[3], e[4], e[5]);
+        let moved = Se3::new(so3::exp(&dth) * t.rot, t.trans + dp);
+        let r = (t.inverse() * moved).log();
+        emp += r * r.transpose();
+    }
+    emp /= n as f64;
+    for i in 0..6 {
+        for j in 0..6 {
+            let sd = (ours[(i, i)] * ours[(j, j)] / n as f64).sqrt() * 1.5;
+            assert!(
+                (emp[(i, j)] - ours[(i, j)]).abs() < 4.0 * sd,
+                "({i}, {j}): sampled {} against {}",
+                emp[(i, j)],
+                ours[(i, j)]
+            );
+        }
+    }
+    // ROS's -1 for an unknown part is no covariance.
+    c[35] = -1.0;
+    assert!(ros_pose_covariance(&c, &t).is_none());
+    assert!(ros_pose_covariance(&[0.0; 36], &t).is_none());
+}

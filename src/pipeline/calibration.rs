@@ -235,7 +235,10 @@ fn note_pose_covariances(file: &mut CalibrationFile, data: &Dataset) {
         }
         (Some(_), _) => "the image pipeline (stereo PnP)".to_string(),
         (None, Some(table)) => table.display().to_string(),
-        (None, None) => "the pose source".to_string(),
+        (None, None) => format!(
+            "the pose messages of {} (converted from the parent frame)",
+            data.camera_source.display()
+        ),
     };
     let info = file.info.get_or_insert_with(CalibrationInfo::default);
     info.figures.pose_covariances = Some(source);

@@ -4,6 +4,8 @@
 
 use std::collections::BTreeMap;
 
+use nalgebra::Matrix6;
+
 use crate::error::{Error, Result};
 use crate::io::bag::cdr;
 use crate::io::bag::open::{LISTED, OpenBag, message_time};
@@ -18,8 +20,11 @@ use crate::types::PoseMeasurement;
 pub struct BagPoses {
     /// The epoch of the pose times: the whole second of the first pose.
     pub epoch: Epoch,
-    /// The poses `T_world_cam`, in time order, without covariance.
+    /// The poses `T_world_cam`, in time order, with the messages' covariances (converted by
+    /// [`ros_pose_covariance`]) when every pose carries a usable one, else without.
     pub poses: Vec<PoseMeasurement>,
+    /// Whether the poses carry the messages' covariances.
+    pub covariances: bool,
     /// The topic (and, for TF, the child frame) read.
     pub source: String,
     /// Things the user should know (zero stamps, repeated stamps, skipped messages).
@@ -53,25 +58,35 @@ pub fn read_bag_poses(ob: &OpenBag) -> Result<BagPoses> {
         .as_deref()
         .map(|f| f.trim_start_matches('/').to_string());
     // Per child frame (one, "", for the topics of one pose per message): (t_ns, pose).
-    let mut by_child: BTreeMap<String, Vec<(i64, Se3)>> = BTreeMap::new();
+    let mut by_child: BTreeMap<String, Vec<Stamped>> = BTreeMap::new();
     let mut zero = 0usize;
     let mut bad = Vec::new();
     let mut n_bad = 0usize;
     let time = ob.options.time;
     let summary = ob.bag.messages(&|i| i == idx, &mut |m| {
-        let decoded: Result<Vec<(String, cdr::Time, cdr::Pose)>> = (|| {
+        let decoded: Result<Vec<Decoded>> = (|| {
             Ok(match kind {
                 Kind::PoseStamped => {
                     let p: cdr::PoseStamped = cdr::decode(m.data, ser)?;
-                    vec![(String::new(), p.header.stamp, p.pose)]
+                    vec![(String::new(), p.header.stamp, p.pose, None)]
                 }
                 Kind::PoseCov => {
                     let p: cdr::PoseWithCovarianceStamped = cdr::decode(m.data, ser)?;
-                    vec![(String::new(), p.header.stamp, p.pose.pose)]
+                    vec![(
+                        String::new(),
+                        p.header.stamp,
+                        p.pose.pose,
+                        Some(p.pose.covariance),
+                    )]
                 }
                 Kind::Odometry => {
                     let p: cdr::Odometry = cdr::decode(m.data, ser)?;
-                    vec![(String::new(), p.header.stamp, p.pose.pose)]
+                    vec![(
+                        String::new(),
+                        p.header.stamp,
+                        p.pose.pose,
+                        Some(p.pose.covariance),
+                    )]
                 }
                 Kind::Transform => {
                     let t: cdr::TransformStamped = cdr::decode(m.data, ser)?;
@@ -86,10 +101,10 @@ pub fn read_bag_poses(ob: &OpenBag) -> Result<BagPoses> {
         })();
         match decoded {
             Ok(list) => {
-                for (child, stamp, pose) in list {
+                for (child, stamp, pose, cov) in list {
                     let t_ns = message_time(stamp.as_nanos(), m.log_time_ns, time, &mut zero);
                     match se3_of(&pose) {
-                        Some(p) => by_child.entry(child).or_default().push((t_ns, p)),
+                        Some(p) => by_child.entry(child).or_default().push((t_ns, p, cov)),
                         None => {
                             n_bad += 1;
                             if bad.len() < LISTED {
@@ -157,9 +172,9 @@ pub fn read_bag_poses(ob: &OpenBag) -> Result<BagPoses> {
             topic.name
         ));
     }
-    list.sort_by_key(|(t, _)| *t);
+    list.sort_by_key(|(t, _, _)| *t);
     let before = list.len();
-    list.dedup_by_key(|(t, _)| *t);
+    list.dedup_by_key(|(t, _, _)| *t);
     if list.len() < before {
         warnings.push(format!(
             "{} poses on {} repeat an earlier time stamp and were dropped",
@@ -167,7 +182,7 @@ pub fn read_bag_poses(ob: &OpenBag) -> Result<BagPoses> {
             topic.name
         ));
     }
-    let Some(&(t0, _)) = list.first() else {
+    let Some(&(t0, _, _)) = list.first() else {
         return Err(Error::Input(format!(
             "{}: no usable pose on {}{}",
             ob.path().display(),
@@ -176,12 +191,33 @@ pub fn read_bag_poses(ob: &OpenBag) -> Result<BagPoses> {
         )));
     };
     let epoch = Epoch::at(raw_time(t0));
+    // The messages' covariances, when every pose carries a usable one (a pose without would
+    // weigh differently from the others: then none is used, and the fit estimates the noise).
+    let covs: Vec<Option<Matrix6<f64>>> = list
+        .iter()
+        .map(|(_, pose, c)| c.as_ref().and_then(|c| ros_pose_covariance(c, pose)))
+        .collect();
+    let with = covs.iter().filter(|c| c.is_some()).count();
+    let carried = list.iter().filter(|(_, _, c)| c.is_some()).count();
+    if carried > 0 && with < covs.len() {
+        warnings.push(format!(
+            "{} of the {} poses on {} carry no usable covariance (not finite, not symmetric or \
+             not positive definite, such as ROS's -1 for unknown): the pose noise is estimated \
+             from the trajectory fit for all of them",
+            covs.len() - with,
+            covs.len(),
+            topic.name
+        ));
+    }
+    let use_covs = with == covs.len();
+    let covariances = use_covs && with > 0;
     let poses = list
         .into_iter()
-        .map(|(t, pose)| PoseMeasurement {
+        .zip(covs)
+        .map(|((t, pose, _), cov)| PoseMeasurement {
             t: epoch.rel(raw_time(t)),
             pose,
-            cov: None,
+            cov: if use_covs { cov } else { None },
         })
         .collect();
     let source = if child.is_empty() {
@@ -197,6 +233,7 @@ pub fn read_bag_poses(ob: &OpenBag) -> Result<BagPoses> {
         epoch,
         poses,
         source,
+        covariances,
         warnings,
     })
 }
@@ -205,7 +242,7 @@ fn join(v: &[&String]) -> String {
     v.iter().map(|s| s.as_str()).collect::<Vec<_>>().join(", ")
 }
 
-fn transform_pose(t: &cdr::TransformStamped) -> (String, cdr::Time, cdr::Pose) {
+fn transform_pose(t: &cdr::TransformStamped) -> Decoded {
     let tr = &t.transform;
     (
         t.child_frame_id.trim_start_matches('/').to_string(),
@@ -218,12 +255,47 @@ fn transform_pose(t: &cdr::TransformStamped) -> (String, cdr::Time, cdr::Pose) {
             },
             orientation: tr.rotation,
         },
+        None,
     )
 }
 
 /// Largest departure of a pose's quaternion norm from 1 that is taken for rounding (a TUM
 /// file's limit).
 const QUATERNION_NORM_TOL: f64 = 1e-3;
+
+/// One pose message as decoded: child frame, stamp, pose and covariance (ROS order).
+type Decoded = (String, cdr::Time, cdr::Pose, Option<[f64; 36]>);
+/// One pose of a child frame: time (ns), pose and covariance (ROS order).
+type Stamped = (i64, Se3, Option<[f64; 36]>);
+
+/// The covariance of a ROS pose message (`PoseWithCovariance.covariance`: row-major 6 x 6 over
+/// x, y, z and the rotations about the fixed x, y, z axes, all in the parent frame) as the
+/// covariance of the right perturbation `[rho; phi]` of `T_parent_child` in the child frame
+/// (docs/conventions.md). To first order `T exp([rho; phi]) = (R exp(phi), p + R rho)`, so a
+/// position error `dp` and a rotation `dtheta` about the parent's axes are `rho = R^T dp`, `phi =
+/// R^T dtheta`: `C = A C_ros A^T`, `A = diag(R^T, R^T)`. `None` when the matrix is no usable
+/// covariance: a value not finite, not symmetric, or not positive definite (ROS's -1 for an
+/// unknown part, or all zeros).
+pub fn ros_pose_covariance(c: &[f64; 36], pose: &Se3) -> Option<Matrix6<f64>> {
+    let m = Matrix6::from_row_slice(c);
+    if !m.iter().all(|x| x.is_finite()) {
+        return None;
+    }
+    let max = m.amax();
+    if max <= 0.0 || (m - m.transpose()).amax() > 1e-9 * max {
+        return None;
+    }
+    let ev = m.symmetric_eigenvalues();
+    if !(ev.min() > 1e-12 * max) {
+        return None;
+    }
+    let rt = pose.rot.transpose();
+    let mut a = Matrix6::zeros();
+    a.fixed_view_mut::<3, 3>(0, 0).copy_from(&rt);
+    a.fixed_view_mut::<3, 3>(3, 3).copy_from(&rt);
+    let out = a * m * a.transpose();
+    Some((out + out.transpose()) * 0.5)
+}
 
 fn se3_of(p: &cdr::Pose) -> Option<Se3> {
     let q = [
