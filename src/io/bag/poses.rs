@@ -286,7 +286,8 @@ pub fn ros_pose_covariance(c: &[f64; 36], pose: &Se3) -> Option<Matrix6<f64>> {
         return None;
     }
     let ev = m.symmetric_eigenvalues();
-    if !(ev.min() > 1e-12 * max) {
+    let least = ev.min();
+    if least.is_nan() || least <= 1e-12 * max {
         return None;
     }
     let rt = pose.rot.transpose();
