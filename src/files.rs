@@ -8,6 +8,15 @@ use crate::error::{Error, Result};
 /// The UTF-8 byte-order mark (`EF BB BF`), which Windows editors write at the start of text files.
 pub const BOM: &[u8] = b"\xef\xbb\xbf";
 
+/// A file's name for messages that name it briefly (`target.yaml`), its whole path when it has
+/// no name.
+pub fn file_name_of(path: &Path) -> String {
+    path.file_name().map_or_else(
+        || path.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    )
+}
+
 /// Reads a whole text file without its byte-order mark, naming the file on failure.
 pub fn read_text(path: &Path) -> Result<String> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;

@@ -50,10 +50,7 @@ impl ImageRef {
     /// A short name: the file name, or `topic#index`.
     pub fn short_name(&self) -> String {
         match self {
-            ImageRef::File(p) => p.file_name().map_or_else(
-                || p.display().to_string(),
-                |n| n.to_string_lossy().into_owned(),
-            ),
+            ImageRef::File(p) => crate::files::file_name_of(p),
             ImageRef::Message { topic, index } => format!("{topic}#{index}"),
         }
     }

@@ -381,10 +381,7 @@ impl CameraCalRun {
     /// and the DVL calibration's stereo check of the board's size, which compares the board with
     /// the baseline, cannot see it.
     pub fn baseline_note(&self) -> String {
-        let name = self.target.file_name().map_or_else(
-            || self.target.display().to_string(),
-            |n| n.to_string_lossy().into_owned(),
-        );
+        let name = crate::files::file_name_of(&self.target);
         format!(
             "the baselines are measured in units of the board: a board printed at 97 % of the \
              size {name} states gives baselines 3 % short, and no check with these cameras can \
