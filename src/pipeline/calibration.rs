@@ -8,7 +8,7 @@ use std::time::Instant;
 use nalgebra::{Matrix4, Vector3};
 
 use crate::calib::offset::OffsetMethod;
-use crate::calib::segments::calibrate_segments;
+use crate::calib::segments::{SegmentOffset, calibrate_segments};
 use crate::calib::{
     CalibOptions, CalibrationOutcome, DeterminedBy, Method, Status, Verdict, calibrate,
 };
@@ -24,6 +24,7 @@ use crate::io::exports::{
     FrameNames, KalibrCamera, kalibr_camchain_imucam, ros_static_transform, urdf_joint,
 };
 use crate::io::provenance::Provenance;
+use crate::io::tum::CameraSegment;
 use crate::io::write_atomic;
 use crate::report::{
     FailureReportInput, ReportInput, frame_stats, render_failure_html, render_html,
@@ -46,7 +47,8 @@ pub struct CalibrationRun {
 }
 
 /// Calibrates `data` with `opts` on a pool of `threads` workers (`None`: all cores; the result
-/// is the same for any number), and builds the result file.
+/// is the same for any number), and builds the result file. A clock that stepped (the DVL's, or
+/// the camera's in a pose file) is calibrated in clock segments ([`calibrate_segments`]).
 pub fn calibrate_dataset(
     data: &Dataset,
     opts: &CalibOptions,
@@ -55,49 +57,16 @@ pub fn calibrate_dataset(
     let workers = crate::parallel::worker_pool(threads)?;
     let start = Instant::now();
     let log = &data.log;
-    if data.camera_segments.len() > 1 {
-        return calibrate_camera_segments(data, opts, &workers, start);
-    }
-    let (outcome, segments) = if log.clock_segments.len() > 1 {
-        // A clock that stepped: one offset per clock segment.
-        let parts: Vec<&[DvlSample]> = log
-            .clock_segments
-            .iter()
-            .map(|c| log.samples.get(c.samples.clone()).unwrap_or(&[]))
-            .collect();
-        let names: Vec<String> = log
-            .clock_segments
-            .iter()
-            .map(|c| format!("{}:{}-{}", log.stats.path.display(), c.lines.0, c.lines.1))
-            .collect();
-        workers.install(|| calibrate_segments(&data.poses, &parts, &names, opts))?
+    let plan = if data.camera_segments.len() > 1 {
+        SegmentPlan::camera(data, opts, &workers)?
     } else {
-        (
-            workers.install(|| calibrate(&data.poses, &log.samples, opts))?,
-            Vec::new(),
-        )
+        SegmentPlan::dvl(log)
     };
+    let (outcome, segments) =
+        workers.install(|| calibrate_segments(&data.poses, &plan.parts, &plan.names, opts))?;
     let elapsed_s = start.elapsed().as_secs_f64();
-    let mut file = result_file(&outcome, &data.log);
-    if !segments.is_empty()
-        && let Some(info) = file.info.as_mut()
-    {
-        info.figures.clock_segments = Some(
-            segments
-                .iter()
-                .zip(&log.clock_segments)
-                .map(|(s, c)| ClockSegmentFigure {
-                    lines: [c.lines.0, c.lines.1],
-                    samples: s.samples,
-                    duration_s: s.duration_s,
-                    time_offset_s: s.time_offset_s,
-                    time_offset_std_s: s.time_offset_std_s,
-                    left_out: s.left_out.clone(),
-                    camera_lines: None,
-                })
-                .collect(),
-        );
-    }
+    let mut file = result_file(&outcome, log);
+    plan.note(&mut file, &outcome, &segments, data);
     if let Some(cams) = &data.cameras {
         note_cameras(&mut file, cams);
     }
@@ -111,80 +80,130 @@ pub fn calibrate_dataset(
     })
 }
 
-/// [`calibrate_dataset`] for poses whose camera clock stepped back (a pose file read in file
-/// order): the poses of each later camera segment were moved to follow the one before it by a
-/// frame's interval, which holds to the frame's jitter when the camera kept recording. A first
-/// calibration of the whole finds the offset the junctions fall at on the DVL clock; the DVL
-/// reports are split there, and each stretch gets its own clock offset as a DVL clock segment
-/// does ([`calibrate_segments`]), the extrinsics shared. Each segment's offset is reported on
-/// its own camera clock, and so is the top-level one (the longest segment's).
-fn calibrate_camera_segments(
-    data: &Dataset,
-    opts: &CalibOptions,
-    workers: &rayon::ThreadPool,
-    start: Instant,
-) -> Result<CalibrationRun> {
-    let log = &data.log;
-    let cam = &data.camera_segments;
-    let poses_path = data.camera_source.display().to_string();
-    if log.clock_segments.len() > 1 {
-        return Err(Error::Input(format!(
-            "both clocks step: the camera's ({poses_path}:{}) and the DVL's ({}:{}); calibrate \
-             the stretches between the steps on their own",
-            data.camera_clock_steps.first().map_or(0, |s| s.line),
-            log.stats.path.display(),
-            log.clock_segments.get(1).map_or(0, |c| c.lines.0)
-        )));
+/// The DVL reports of a dataset in clock segments, one offset each: the DVL log's own segments,
+/// or the stretches of the camera clock's segments (one part when no clock stepped).
+struct SegmentPlan<'d> {
+    parts: Vec<&'d [DvlSample]>,
+    /// Each part in messages: its lines in the DVL log (and the camera segment's poses).
+    names: Vec<String>,
+    /// Each part's first and last line in the DVL log.
+    lines: Vec<[usize; 2]>,
+    /// The camera clock's segments the parts follow (empty: the DVL's own segments).
+    camera: &'d [CameraSegment],
+}
+
+impl<'d> SegmentPlan<'d> {
+    /// The DVL log's clock segments.
+    fn dvl(log: &'d DvlLog) -> Self {
+        let path = log.stats.path.display();
+        SegmentPlan {
+            parts: log
+                .clock_segments
+                .iter()
+                .map(|c| log.samples.get(c.samples.clone()).unwrap_or(&[]))
+                .collect(),
+            names: log
+                .clock_segments
+                .iter()
+                .map(|c| format!("{path}:{}-{}", c.lines.0, c.lines.1))
+                .collect(),
+            lines: log
+                .clock_segments
+                .iter()
+                .map(|c| [c.lines.0, c.lines.1])
+                .collect(),
+            camera: &[],
+        }
     }
-    let first = workers.install(|| calibrate(&data.poses, &log.samples, opts))?;
-    let offset = first.params.time_offset_s;
-    // Each junction, midway between the segments' poses, on the DVL clock.
-    let cuts: Vec<f64> = cam
-        .windows(2)
-        .map(|w| {
+
+    /// The stretches of the DVL log that the camera clock's segments cover. The poses of each
+    /// later camera segment were moved to follow the one before it by a frame's interval, which
+    /// holds to the frame's jitter when the camera kept recording; a first calibration of the
+    /// whole finds the offset the junctions fall at on the DVL clock, the reports are split
+    /// there, and each stretch's own offset absorbs what the one-frame assumption missed.
+    fn camera(data: &'d Dataset, opts: &CalibOptions, workers: &rayon::ThreadPool) -> Result<Self> {
+        let log = &data.log;
+        let cam = &data.camera_segments;
+        let poses_path = data.camera_source.display();
+        if log.clock_segments.len() > 1 {
+            return Err(Error::Input(format!(
+                "both clocks step: the camera's ({poses_path}:{}) and the DVL's ({}:{}); \
+                 calibrate the stretches between the steps on their own",
+                data.camera_clock_steps.first().map_or(0, |s| s.line),
+                log.stats.path.display(),
+                log.clock_segments.get(1).map_or(0, |c| c.lines.0)
+            )));
+        }
+        let first = workers.install(|| calibrate(&data.poses, &log.samples, opts))?;
+        let offset = first.params.time_offset_s;
+        // Each junction, midway between the segments' poses, on the DVL clock.
+        let mut bounds = vec![0usize];
+        bounds.extend(cam.windows(2).map(|w| {
             let before = data.poses[w[0].poses.end - 1].t;
             let after = data.poses[w[1].poses.start].t;
-            0.5 * (before + after) - offset
+            let cut = 0.5 * (before + after) - offset;
+            log.samples.partition_point(|x| x.t < cut)
+        }));
+        bounds.push(log.samples.len());
+        let line = |i: usize| log.lines.get(i).copied().unwrap_or(0);
+        let lines: Vec<[usize; 2]> = bounds
+            .windows(2)
+            .map(|b| [line(b[0]), line(b[1].saturating_sub(1))])
+            .collect();
+        Ok(SegmentPlan {
+            parts: bounds
+                .windows(2)
+                .map(|b| log.samples.get(b[0]..b[1].max(b[0])).unwrap_or(&[]))
+                .collect(),
+            names: cam
+                .iter()
+                .zip(&lines)
+                .map(|(c, l)| {
+                    format!(
+                        "{}:{}-{} (camera clock segment {poses_path}:{}-{})",
+                        log.stats.path.display(),
+                        l[0],
+                        l[1],
+                        c.lines.0,
+                        c.lines.1
+                    )
+                })
+                .collect(),
+            lines,
+            camera: cam,
         })
-        .collect();
-    let mut bounds = vec![0usize];
-    bounds.extend(
-        cuts.iter()
-            .map(|&c| log.samples.partition_point(|x| x.t < c)),
-    );
-    bounds.push(log.samples.len());
-    let parts: Vec<&[DvlSample]> = bounds
-        .windows(2)
-        .map(|b| log.samples.get(b[0]..b[1].max(b[0])).unwrap_or(&[]))
-        .collect();
-    let line = |i: usize| log.lines.get(i).copied().unwrap_or(0);
-    let names: Vec<String> = cam
-        .iter()
-        .zip(bounds.windows(2))
-        .map(|(c, b)| {
-            format!(
-                "{}:{}-{} (camera clock segment {poses_path}:{}-{})",
-                log.stats.path.display(),
-                line(b[0]),
-                line(b[1].saturating_sub(1)),
-                c.lines.0,
-                c.lines.1
-            )
-        })
-        .collect();
-    let (outcome, segments) =
-        workers.install(|| calibrate_segments(&data.poses, &parts, &names, opts))?;
-    let elapsed_s = start.elapsed().as_secs_f64();
-    let mut file = result_file(&outcome, log);
-    // The longest segment's offset, on its own camera clock.
-    let main = (0..segments.len())
-        .filter(|&k| segments[k].time_offset_s.is_some())
-        .max_by(|&a, &b| segments[a].duration_s.total_cmp(&segments[b].duration_s));
-    if let Some(k) = main {
-        file.time_offset_s = outcome.params.time_offset_s - cam[k].shift_s;
     }
-    if let Some(info) = file.info.as_mut() {
-        for (st, seg) in data.camera_clock_steps.iter().zip(cam.iter().skip(1)) {
+
+    /// Records the segments in the result file (`info.clock_segments`); for camera clock
+    /// segments also the steps' warnings, and every offset (the top-level one, the longest
+    /// segment's, included) moved onto its segment's own camera clock. Nothing with one part.
+    fn note(
+        &self,
+        file: &mut CalibrationFile,
+        outcome: &CalibrationOutcome,
+        segments: &[SegmentOffset],
+        data: &Dataset,
+    ) {
+        if segments.is_empty() {
+            return;
+        }
+        let shift = |k: usize| self.camera.get(k).map_or(0.0, |c| c.shift_s);
+        // The longest segment's offset, on its own camera clock.
+        let main = (0..segments.len())
+            .filter(|&k| segments[k].time_offset_s.is_some())
+            .max_by(|&a, &b| segments[a].duration_s.total_cmp(&segments[b].duration_s));
+        if let Some(k) = main {
+            file.time_offset_s = outcome.params.time_offset_s - shift(k);
+        }
+        let Some(info) = file.info.as_mut() else {
+            return;
+        };
+        let poses_path = data.camera_source.display();
+        for (st, seg) in data
+            .camera_clock_steps
+            .iter()
+            .zip(self.camera.iter().skip(1))
+        {
             // Its stamps step back by `-step_s` across one frame: the clock by one frame more.
             info.warnings.push(format!(
                 "{poses_path}:{}: the camera clock steps back by {:.3} s after line {} (taking \
@@ -197,34 +216,30 @@ fn calibrate_camera_segments(
                 seg.shift_s + st.step_s
             ));
         }
+        if !self.camera.is_empty() {
+            info.notes.push(
+                "the camera clock stepped: time_offset_s is the longest clock segment's, on that \
+                 segment's own camera clock; clock_segments gives each segment's"
+                    .to_owned(),
+            );
+        }
         info.figures.clock_segments = Some(
             segments
                 .iter()
-                .zip(cam)
-                .zip(bounds.windows(2))
-                .map(|((s, c), b)| ClockSegmentFigure {
-                    lines: [line(b[0]), line(b[1].saturating_sub(1))],
+                .zip(&self.lines)
+                .enumerate()
+                .map(|(k, (s, l))| ClockSegmentFigure {
+                    lines: *l,
                     samples: s.samples,
                     duration_s: s.duration_s,
-                    time_offset_s: s.time_offset_s.map(|o| o - c.shift_s),
+                    time_offset_s: s.time_offset_s.map(|o| o - shift(k)),
                     time_offset_std_s: s.time_offset_std_s,
                     left_out: s.left_out.clone(),
-                    camera_lines: Some([c.lines.0, c.lines.1]),
+                    camera_lines: self.camera.get(k).map(|c| [c.lines.0, c.lines.1]),
                 })
                 .collect(),
         );
-        info.notes.push(
-            "the camera clock stepped: time_offset_s is the longest clock segment's, on that \
-             segment's own camera clock; clock_segments gives each segment's"
-                .to_owned(),
-        );
     }
-    note_pose_covariances(&mut file, data);
-    Ok(CalibrationRun {
-        outcome,
-        file,
-        elapsed_s,
-    })
 }
 
 /// Records in the result file where the poses' covariances came from (`info.pose_covariances`).
@@ -268,22 +283,18 @@ fn note_board_size(file: &mut CalibrationFile, data: &Dataset) {
 
 /// Records in the result file each camera's focal length as the recording measures it
 /// (`info.focal_length_scale`, `focal_length_scale_std`), with a warning when it contradicts the
-/// camchain, or a note when the views did not vary enough to check it. Not for a camchain
-/// calibrated from the same images (it fits them by construction).
+/// camchain, or a note when the views did not vary enough to check it. Nothing when no camera
+/// was measured (a camchain calibrated from the same images is not: it fits them).
 fn note_focal_lengths(file: &mut CalibrationFile, data: &Dataset) {
     let Some(run) = &data.vision else { return };
-    if data.cameras.is_some() || run.focal.iter().all(Option::is_none) {
+    if run.focal.iter().all(Option::is_none) {
         return;
     }
     let name = data
         .files
         .camchain
-        .as_ref()
-        .and_then(|p| p.file_name())
-        .map_or_else(
-            || "the camchain".to_owned(),
-            |n| n.to_string_lossy().into_owned(),
-        );
+        .as_deref()
+        .map_or_else(|| "the camchain".to_owned(), crate::files::file_name_of);
     let info = file.info.get_or_insert_with(CalibrationInfo::default);
     info.figures.focal_length_scale = Some(
         run.focal

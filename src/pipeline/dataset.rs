@@ -98,13 +98,17 @@ pub fn describe_files(f: &DatasetFiles) -> String {
     s
 }
 
-/// Marks the board's size as unmeasurable when the chain was calibrated from the same images
-/// (`calibrated`): its baseline is then in the board's units. A scale that was applied stays
-/// (the poses were solved with it).
-fn baseline_from_board(run: &mut VisionRun, calibrated: bool) {
-    if calibrated && !run.board_size.measured().is_some_and(|b| b.applied) {
+/// What a chain calibrated from the same images (`calibrated`) cannot check: the board's size
+/// (its baseline is in the board's units; a scale that was applied stays, the poses were solved
+/// with it) and its focal lengths (fitted to these very images).
+fn chain_from_same_images(run: &mut VisionRun, calibrated: bool) {
+    if !calibrated {
+        return;
+    }
+    if !run.board_size.measured().is_some_and(|b| b.applied) {
         run.board_size = BoardSize::BaselineFromBoard;
     }
+    run.focal.iter_mut().for_each(|f| *f = None);
 }
 
 /// A dataset read into memory: the camera poses and the DVL log on one epoch.
@@ -215,7 +219,7 @@ impl Dataset {
                         poses_from_images_with_chain(dir, chain, target, vision)?
                     }
                 };
-                baseline_from_board(&mut run, cameras.is_some());
+                chain_from_same_images(&mut run, cameras.is_some());
                 on_vision(&run);
                 run.require_poses()?;
                 (run.epoch, run.poses_as_read_back(), Some(run), dir.clone())
@@ -270,7 +274,7 @@ impl Dataset {
                     };
                     camera_frame = plan.frame_ids.first().cloned().flatten();
                     let mut run = poses_from_bag(&ob, &plan, chain, target, vision)?;
-                    baseline_from_board(&mut run, cameras.is_some());
+                    chain_from_same_images(&mut run, cameras.is_some());
                     on_vision(&run);
                     run.require_poses()?;
                     (run.epoch, run.poses_as_read_back(), Some(run), bag.clone())

@@ -97,7 +97,7 @@ pub struct VisionRun {
     /// scaled to the measured size (`applied`).
     pub board_size: BoardSize,
     /// Per camera, its focal length as the frames measure it ([`crate::vision::focal`]; `None`
-    /// for a camera too few frames measured).
+    /// for a camera too few frames measured, and for a chain calibrated from the same images).
     pub focal: Vec<Option<FocalScale>>,
     /// The epoch of the pose times: the whole second of the first frame.
     pub epoch: Epoch,
@@ -383,10 +383,7 @@ impl VisionRun {
 
     /// [`BoardSize::words`] with the board file's name.
     pub fn board_size_words(&self) -> String {
-        let name = self.target.file_name().map_or_else(
-            || self.target.display().to_string(),
-            |n| n.to_string_lossy().into_owned(),
-        );
+        let name = crate::files::file_name_of(&self.target);
         self.board_size.words(&name)
     }
 
