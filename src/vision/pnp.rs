@@ -433,7 +433,7 @@ fn focal_fit(
             // One Gauss-Newton step from the frame's pose and the camchain's focal length:
             // linear in the residuals, so that the frames' factors average without the bias a
             // weight taken at each frame's own optimum would bring.
-            let (c, h, g, m) = normal7(&used, |o, k| focal_residual(chain, o, k, t_b_c0, 1.0))?;
+            let (c, h, g, m) = normal7(&used, |o, k| focal_residual(chain, o, k, t_b_c0))?;
             let chol = h.cholesky()?;
             let d = -chol.solve(&g);
             let left = (c + g.dot(&d)).max(0.0);
@@ -525,37 +525,23 @@ fn fit_with_factor(
     })
 }
 
-/// Residual of corner `k` of `o` with the focal lengths of its camera multiplied by `f`, and
-/// its Jacobian with respect to the right perturbation of `T_board_cam0` (first six columns)
-/// and to `f` (the last).
+/// Residual of corner `k` of `o` (as [`residual`] gives it, at the camchain's focal lengths) and
+/// its Jacobian with respect to the right perturbation of `T_board_cam0` (first six columns) and
+/// to a factor `f` on its camera's focal lengths at `f = 1` (the last): `px = f fu x_d + pu`, so
+/// `d px / d f = px - principal point`.
 fn focal_residual(
     chain: &Camchain,
     o: &Obs,
     k: usize,
     t_b_c0: &Se3,
-    f: f64,
 ) -> Option<(Vector2<f64>, Matrix2x7)> {
-    let r_b_c0 = &t_b_c0.rot;
-    let p_c0 = r_b_c0.transpose() * (o.board[k] - t_b_c0.trans);
-    let t_cn = &chain.t_cn_c0[o.cam];
-    let p_cn = t_cn.transform_point(&p_c0);
-    let base = chain.cams.get(o.cam)?;
-    let cam = crate::types::camera::Camera {
-        fu: base.fu * f,
-        fv: base.fv * f,
-        ..base.clone()
-    };
-    let (px, jp) = cam.project_jacobian(&p_cn)?;
-    let jr: Matrix2x3<f64> = jp * t_cn.rot;
+    let (r, jp) = residual(chain, o, k, t_b_c0)?;
+    let cam = chain.cams.get(o.cam)?;
     let mut j = Matrix2x7::zeros();
-    j.fixed_view_mut::<2, 3>(0, 0).copy_from(&(-jr));
-    j.fixed_view_mut::<2, 3>(0, 3).copy_from(&(jr * hat(&p_c0)));
-    // px = f fu x_d + pu: d px / d f = (px - principal point) / f.
-    let centre = Vector2::new(cam.pu, cam.pv);
-    j.fixed_view_mut::<2, 1>(0, 6)
-        .copy_from(&((px - centre) / f));
-    let r = px - o.px[k];
-    (r.x.is_finite() && r.y.is_finite()).then_some((r, j))
+    j.fixed_view_mut::<2, 6>(0, 0).copy_from(&jp);
+    let px = o.px[k] + r;
+    j.set_column(6, &(px - Vector2::new(cam.pu, cam.pv)));
+    Some((r, j))
 }
 
 /// Residual of corner `k` of `o` with the board scaled by `s`, and its Jacobian with respect to
