@@ -3,7 +3,7 @@
 //! lengths 2 % long, and with cam1's alone 2 % long (a warning naming the camera each time).
 
 mod tmp_common;
-use tmp_common::{TmpDir, dvlcal, s};
+use tmp_common::{TmpDir, dvlcal, s, sample};
 
 use std::path::{Path, PathBuf};
 
@@ -11,28 +11,24 @@ use dvlcal::io::calib_yaml::read_calib_yaml;
 
 const STEREO: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/sample_data/stereo");
 
-/// A dataset folder with the images, DVL log, board and truth of `sample_data/stereo` and its
-/// camchain with the focal lengths of the cameras `long` multiplied by `factor`.
+/// A dataset folder with `sample_data/stereo`'s parts and its camchain with the focal lengths of
+/// the cameras `long` multiplied by `factor`.
 fn dataset(tmp: &TmpDir, long: &[usize], factor: f64) -> PathBuf {
-    let d = tmp.path("data");
-    std::fs::create_dir_all(&d).unwrap();
-    let src = Path::new(STEREO);
-    for part in ["cam0", "cam1", "dvl.jsonl", "truth", "target.yaml"] {
-        std::os::unix::fs::symlink(src.join(part), d.join(part)).unwrap();
-    }
-    let mut chain = std::fs::read_to_string(src.join("camchain.yaml")).unwrap();
-    for (cam, (fu, fv)) in [(0, (458.0, 457.0)), (1, (457.5, 456.2))] {
-        if long.contains(&cam) {
-            let from = format!("intrinsics: [{fu:?}, {fv:?},");
-            assert!(chain.contains(&from), "{from} not in the camchain");
-            chain = chain.replace(
-                &from,
-                &format!("intrinsics: [{:?}, {:?},", fu * factor, fv * factor),
-            );
+    let chain = move |text: &str| {
+        let mut chain = text.to_owned();
+        for (cam, (fu, fv)) in [(0, (458.0, 457.0)), (1, (457.5, 456.2))] {
+            if long.contains(&cam) {
+                let from = format!("intrinsics: [{fu:?}, {fv:?},");
+                assert!(chain.contains(&from), "{from} not in the camchain");
+                chain = chain.replace(
+                    &from,
+                    &format!("intrinsics: [{:?}, {:?},", fu * factor, fv * factor),
+                );
+            }
         }
-    }
-    std::fs::write(d.join("camchain.yaml"), chain).unwrap();
-    d
+        chain
+    };
+    sample(tmp, STEREO, "data", &[("camchain.yaml", &chain)])
 }
 
 /// Calibrates `dir`; returns what the program printed and the result's focal length factors

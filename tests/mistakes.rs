@@ -6,10 +6,10 @@
 
 mod tmp_common;
 mod truth_common;
-use tmp_common::{TmpDir, dvlcal, s};
+use tmp_common::{TmpDir, dvlcal, s, sample};
 use truth_common::against_truth;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use dvlcal::io::calib_yaml::{ResultStatus, read_calib_yaml};
 
@@ -40,27 +40,6 @@ const ALL_CAUSES: &[&str] = &[
     "restarts",
     "the clock offset drifts",
 ];
-
-/// A file of a sample and how to rewrite its text.
-type Edit<'a> = (&'a str, &'a dyn Fn(&str) -> String);
-
-/// A copy of the sample `src` (its parts symlinked, except those `edit` rewrites).
-fn sample(tmp: &TmpDir, src: &str, name: &str, edit: &[Edit]) -> PathBuf {
-    let d = tmp.path(name);
-    std::fs::create_dir_all(&d).unwrap();
-    for entry in std::fs::read_dir(src).unwrap() {
-        let entry = entry.unwrap();
-        let file = entry.file_name().to_string_lossy().into_owned();
-        match edit.iter().find(|(f, _)| *f == file) {
-            Some((_, change)) => {
-                let text = std::fs::read_to_string(entry.path()).unwrap();
-                std::fs::write(d.join(&file), change(&text)).unwrap();
-            }
-            None => std::os::unix::fs::symlink(entry.path(), d.join(&file)).unwrap(),
-        }
-    }
-    d
-}
 
 /// The DVL log with each report's stamps changed by `change(report index, time_us)`.
 fn retimed(text: &str, change: impl Fn(usize, i64) -> i64) -> String {

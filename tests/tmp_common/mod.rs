@@ -42,3 +42,25 @@ impl Drop for TmpDir {
         let _ = std::fs::remove_dir_all(&self.0);
     }
 }
+
+/// A file of a sample and how to rewrite its text.
+pub type Edit<'a> = (&'a str, &'a dyn Fn(&str) -> String);
+
+/// A copy of the sample `src` (its parts symlinked, except those `edit` rewrites).
+#[allow(dead_code)] // not every test binary that includes this module copies a sample
+pub fn sample(tmp: &TmpDir, src: &str, name: &str, edit: &[Edit]) -> PathBuf {
+    let d = tmp.path(name);
+    std::fs::create_dir_all(&d).unwrap();
+    for entry in std::fs::read_dir(src).unwrap() {
+        let entry = entry.unwrap();
+        let file = entry.file_name().to_string_lossy().into_owned();
+        match edit.iter().find(|(f, _)| *f == file) {
+            Some((_, change)) => {
+                let text = std::fs::read_to_string(entry.path()).unwrap();
+                std::fs::write(d.join(&file), change(&text)).unwrap();
+            }
+            None => std::os::unix::fs::symlink(entry.path(), d.join(&file)).unwrap(),
+        }
+    }
+    d
+}
