@@ -53,9 +53,9 @@ pub fn calibrate_segments(
         ));
     }
     if opts.clock_drift {
-        // One drift per clock needs one clock: a log whose clock stepped has several.
+        // One drift per clock needs one clock: a recording whose clock stepped has several.
         return Err(Error::Input(format!(
-            "{} with a DVL clock that steps ({} clock segments, the first {}): a drift is \
+            "{} with a clock that steps ({} clock segments, the first {}): a drift is \
              estimated on one clock; calibrate each segment's reports on their own, or without \
              the drift",
             opts.name(Setting::ClockDrift),
@@ -101,8 +101,9 @@ pub fn calibrate_segments(
         .max_by(|&a, &b| out[a].duration_s.total_cmp(&out[b].duration_s))
     else {
         return Err(Error::Input(format!(
-            "the DVL clock stepped, and none of its {} clock segments ({}) is long enough to \
-             calibrate (each needs {MIN_SEGMENT_SAMPLES} reports over {MIN_SEGMENT_S} s)",
+            "a clock stepped (the DVL's, or the camera's), and none of the {} clock segments ({}) \
+             is long enough to calibrate (each needs {MIN_SEGMENT_SAMPLES} reports over \
+             {MIN_SEGMENT_S} s)",
             segments.len(),
             (0..segments.len()).map(name).collect::<Vec<_>>().join(", ")
         )));
@@ -193,7 +194,7 @@ pub fn calibrate_segments(
     let used = out.iter().filter(|o| o.time_offset_s.is_some()).count();
     result.warnings.extend(warnings);
     result.warnings.push(format!(
-        "the DVL clock stepped: {used} of {} clock segments calibrated together (shared \
+        "a clock stepped: {used} of {} clock segments calibrated together (shared \
          extrinsics and scale, one clock offset each: {}); the clock offset above is the one of \
          segment {}",
         segments.len(),
