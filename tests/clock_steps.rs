@@ -295,6 +295,21 @@ fn a_camera_clock_stepping_back_is_split_at_its_line_and_each_segment_keeps_its_
             "{o} +- {sd} vs {expected}"
         );
     }
+    // One drift needs one clock: refused, naming the option and the segments.
+    let out = dvlcal(&[
+        "calibrate",
+        s(&dir),
+        "--clock-drift",
+        "--out",
+        s(&dir.join("drift.yaml")),
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        stderr.contains("--clock-drift with a clock that steps")
+            && stderr.contains("camera clock segment"),
+        "{stderr}"
+    );
     // A stamp repeated, or a step back under a second, is still an error naming the line.
     let dir = camera_stepped(&tmp, "shuffled", 352, -0.15);
     let out = dvlcal(&["calibrate", s(&dir), "--out", s(&dir.join("out.yaml"))]);

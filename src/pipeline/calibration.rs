@@ -134,7 +134,13 @@ impl<'d> SegmentPlan<'d> {
                 log.clock_segments.get(1).map_or(0, |c| c.lines.0)
             )));
         }
-        let first = workers.install(|| calibrate(&data.poses, &log.samples, opts))?;
+        // The junctions need the offset only roughly: no drift (which calibrate_segments
+        // refuses across clock segments anyway).
+        let rough = CalibOptions {
+            clock_drift: false,
+            ..opts.clone()
+        };
+        let first = workers.install(|| calibrate(&data.poses, &log.samples, &rough))?;
         let offset = first.params.time_offset_s;
         // Each junction, midway between the segments' poses, on the DVL clock.
         let mut bounds = vec![0usize];
