@@ -7,6 +7,7 @@ use nalgebra::{Matrix6, SMatrix, Vector6};
 
 use super::*;
 use crate::rng::Rng;
+use crate::trajectory::JerkDensity;
 use crate::trajectory::blocktri::BlockTridiagonal;
 use crate::trajectory::gp::local_gamma;
 use crate::trajectory::solver::{GaussNewtonOptions, Problem, gauss_newton, step};
@@ -155,16 +156,16 @@ fn residuals(cos: &PosesAndTwists, knots: &[Knot]) -> Vec<Vector6<f64>> {
 fn interval_factors_are_assembled_into_the_blocks_their_jacobians_give() {
     let (knots, cos) = setup(3);
     let n = knots.len();
-    let qc_inv = Vector6::from_element(20.0);
+    let density = JerkDensity::constant(Vector6::from_element(0.05));
     let with = Problem {
         times: &cos.times,
         cosensor: &cos,
-        qc_inv,
+        density: &density,
     };
     let without = Problem {
         times: &cos.times,
         cosensor: &cos.poses,
-        qc_inv,
+        density: &density,
     };
     let mut sys = BlockTridiagonal::zeros(n);
     let cost = with.assemble_into(&knots, &mut sys);
@@ -229,10 +230,11 @@ fn interval_factors_are_assembled_into_the_blocks_their_jacobians_give() {
 #[test]
 fn the_solver_minimises_a_cost_with_interval_factors() {
     let (knots, cos) = setup(5);
+    let density = JerkDensity::constant(Vector6::from_element(0.05));
     let problem = Problem {
         times: &cos.times,
         cosensor: &cos,
-        qc_inv: Vector6::from_element(20.0),
+        density: &density,
     };
     let start = problem.cost(&knots);
     let solved = gauss_newton(

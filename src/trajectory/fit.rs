@@ -11,6 +11,7 @@ use std::sync::OnceLock;
 use nalgebra::Vector6;
 
 use super::blocktri::{BandedInverse, BlockTridiagonal, Factored, V18};
+use super::density::JerkDensity;
 use super::factors::PoseFactors;
 use super::gp::{Knot, Motion, kron_diag_mul, local_gamma};
 use super::hyper;
@@ -89,7 +90,7 @@ pub struct FitReport {
 pub struct Trajectory {
     times: Vec<f64>,
     knots: Vec<Knot>,
-    qc: Vector6<f64>,
+    density: JerkDensity,
     cov: Option<BandedInverse>,
     report: FitReport,
     /// Each interval's local state `gamma_2` (knot `k + 1` relative to knot `k`), formed on
@@ -128,7 +129,7 @@ impl Trajectory {
         Trajectory {
             times: self.times.clone(),
             knots,
-            qc: self.qc,
+            density: self.density.clone(),
             cov,
             report: self.report.clone(),
             local: OnceLock::new(),
@@ -157,10 +158,11 @@ impl Trajectory {
         let times: Vec<f64> = poses.iter().map(|p| p.t).collect();
         let meas: Vec<Se3> = poses.iter().map(|p| p.pose).collect();
         let factors = PoseFactors::new(meas, measurement_information(poses, hyp.pose_sigma)?);
+        let density = JerkDensity::constant(hyp.qc);
         let problem = Problem {
             times: &times,
             cosensor: &factors,
-            qc_inv: hyp.qc.map(|q| 1.0 / q),
+            density: &density,
         };
         let solved = gauss_newton(
             &problem,
@@ -194,7 +196,7 @@ impl Trajectory {
         Ok(Trajectory {
             times,
             knots: solved.knots,
-            qc: hyp.qc,
+            density,
             cov,
             report,
             local: OnceLock::new(),
@@ -221,9 +223,28 @@ impl Trajectory {
         &self.knots
     }
 
-    /// Power spectral density of jerk `Qc` of the GP prior, `[v; w]` order.
+    /// Power spectral density of jerk `Qc` of the GP prior, `[v; w]` order (the base of
+    /// [`Trajectory::density`]).
     pub fn qc(&self) -> Vector6<f64> {
-        self.qc
+        self.density.base()
+    }
+
+    /// The GP prior's jerk density per interval.
+    pub fn density(&self) -> &JerkDensity {
+        &self.density
+    }
+
+    /// The same knots under the jerk density `density` (which must not change the knot
+    /// times); the posterior covariance, which rests on the prior, is dropped.
+    pub fn with_density(&self, density: JerkDensity) -> Trajectory {
+        Trajectory {
+            times: self.times.clone(),
+            knots: self.knots.clone(),
+            density,
+            cov: None,
+            report: self.report.clone(),
+            local: OnceLock::new(),
+        }
     }
 
     /// What the fit found about its inputs and convergence.
@@ -303,7 +324,8 @@ impl Trajectory {
                 + cross
                 + cross.transpose()
                 + j2 * cov.diag[k + 1] * j2.transpose()
-                + tj.d_local * kron_diag_mul(&tj.cond, &self.qc, &tj.d_local.transpose());
+                + tj.d_local
+                    * kron_diag_mul(&tj.cond, &self.density.qc(k), &tj.d_local.transpose());
             (c + c.transpose()) * 0.5
         });
         Ok(TrajectoryState {

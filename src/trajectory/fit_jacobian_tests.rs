@@ -261,7 +261,7 @@ fn trajectory(times: Vec<f64>, knots: Vec<Knot>) -> Trajectory {
     Trajectory {
         times,
         knots,
-        qc: Vector6::repeat(1.0),
+        density: crate::trajectory::JerkDensity::constant(Vector6::repeat(1.0)),
         cov: None,
         report: FitReport {
             iterations: 0,

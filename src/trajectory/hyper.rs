@@ -16,6 +16,7 @@
 use nalgebra::Vector6;
 
 use super::blocktri::BlockTridiagonal;
+use super::density::JerkDensity;
 use super::factors::PoseFactors;
 use super::gp::Knot;
 use super::solver::{
@@ -116,10 +117,11 @@ fn unpack(p: &[f64], fixed_sigma: Option<(f64, f64)>) -> (Vector6<f64>, (f64, f6
 fn window_log_likelihood(w: &mut Window, qc: &Vector6<f64>, sigma: (f64, f64)) -> Result<f64> {
     w.factors
         .set_information(measurement_information(w.poses, sigma)?);
+    let density = JerkDensity::constant(*qc);
     let problem = Problem {
         times: &w.times,
         cosensor: &w.factors,
-        qc_inv: qc.map(|q| 1.0 / q),
+        density: &density,
     };
     if !w.converged_once {
         let opts = GaussNewtonOptions {

@@ -19,6 +19,7 @@
 use nalgebra::{Matrix6, Vector6};
 
 use super::blocktri::{BlockTridiagonal, Factored, M18, V18};
+use super::density::JerkDensity;
 use super::factors::{CoSensorFactors, IntervalNormal};
 use super::gp::{
     Knot, LocalState, PriorNormal, apply_scalar, first_local_state, kron_diag_mul, local_gamma,
@@ -81,7 +82,8 @@ pub(crate) fn initial_knots(poses: &[PoseMeasurement]) -> Vec<Knot> {
 pub(crate) struct Problem<'a> {
     pub times: &'a [f64],
     pub cosensor: &'a dyn CoSensorFactors,
-    pub qc_inv: Vector6<f64>,
+    /// The motion prior's jerk density per interval.
+    pub density: &'a JerkDensity,
 }
 
 /// Knots per unit of work of the parallel assembly. The cost is summed per chunk and then over
@@ -263,9 +265,22 @@ impl Problem<'_> {
         out: &mut PriorNormal,
         upper: &mut M18,
     ) -> LocalState {
+        self.prior_terms_weighted(knots, k, &self.density.qc_inv(k), out, upper)
+    }
+
+    /// [`Problem::prior_terms`] with `Qc^-1` replaced by `qc_inv` (a part of the prior: its
+    /// translational or rotational terms alone).
+    pub(crate) fn prior_terms_weighted(
+        &self,
+        knots: &[Knot],
+        k: usize,
+        qc_inv: &Vector6<f64>,
+        out: &mut PriorNormal,
+        upper: &mut M18,
+    ) -> LocalState {
         let dt = self.times[k + 1] - self.times[k];
         let f = prior_factor(&knots[k], &knots[k + 1], dt);
-        prior_normal(&f, &q_scalar_inv(dt), &self.qc_inv, out, upper);
+        prior_normal(&f, &q_scalar_inv(dt), qc_inv, out, upper);
         f.local
     }
 
@@ -276,7 +291,7 @@ impl Problem<'_> {
         let (k1, k2) = (&knots[k], &knots[k + 1]);
         let gamma = local_gamma(k1, k2);
         let e = gamma - apply_scalar(&phi_scalar(dt), &first_local_state(k1));
-        let we = kron_diag_mul(&q_scalar_inv(dt), &self.qc_inv, &e);
+        let we = kron_diag_mul(&q_scalar_inv(dt), &self.density.qc_inv(k), &e);
         (e.dot(&we), gamma)
     }
 }

@@ -486,7 +486,7 @@ fn reference(
                 - apply_scalar(&phi_scalar(dt), &first_local_state(&kn[k]))
         };
         let j: SMatrix<f64, 18, 36> = numeric_knot_jacobian(knots, k, e_of);
-        let w = kron_diag(&q_scalar_inv(dt), &jp.qc_inv);
+        let w = kron_diag(&q_scalar_inv(dt), &jp.density.qc_inv(k));
         let e = e_of(knots);
         let (j1, j2) = (j.fixed_columns::<18>(0), j.fixed_columns::<18>(18));
         let d1 = j1.transpose() * w * j1;

@@ -3,7 +3,7 @@
 
 use std::sync::Mutex;
 
-use nalgebra::{Matrix3, SMatrix, Vector6};
+use nalgebra::{Matrix3, SMatrix};
 
 use crate::calib::model::{DvlObs, NPARAM};
 use crate::calib::prior::Priors;
@@ -11,7 +11,7 @@ use crate::error::Result;
 use crate::trajectory::blocktri::BlockTridiagonal;
 use crate::trajectory::factors::CoSensorFactors;
 use crate::trajectory::solver::Problem;
-use crate::trajectory::{Knot, KnotView, Trajectory};
+use crate::trajectory::{JerkDensity, Knot, KnotView, Trajectory};
 
 /// What the joint problem needs besides the knot states: the co-sensor's factors (camera poses:
 /// with the weights and Qc of the trajectory's fit), the DVL terms and the calibration's
@@ -28,7 +28,7 @@ pub struct JointProblem<'a> {
     pub(super) times: Vec<f64>,
     /// The co-sensor's measurements as factors on the knots.
     pub(super) cosensor: Box<dyn CoSensorFactors + 'a>,
-    pub(super) qc_inv: Vector6<f64>,
+    pub(super) density: JerkDensity,
     /// Storage kept from one system to the next.
     storage: Mutex<JointStorage>,
 }
@@ -64,7 +64,7 @@ impl<'a> JointProblem<'a> {
             priors: Priors::default(),
             times: traj.times().to_vec(),
             cosensor,
-            qc_inv: traj.qc().map(|q| 1.0 / q),
+            density: traj.density().clone(),
             storage: Mutex::new(JointStorage::default()),
         })
     }
@@ -78,7 +78,7 @@ impl<'a> JointProblem<'a> {
         dvl_info: Vec<Matrix3<f64>>,
         times: Vec<f64>,
         cosensor: Box<dyn CoSensorFactors + 'a>,
-        qc_inv: Vector6<f64>,
+        qc_inv: nalgebra::Vector6<f64>,
     ) -> Self {
         JointProblem {
             obs,
@@ -87,14 +87,14 @@ impl<'a> JointProblem<'a> {
             priors: Priors::default(),
             times,
             cosensor,
-            qc_inv,
+            density: JerkDensity::constant(qc_inv.map(|q| 1.0 / q)),
             storage: Mutex::new(JointStorage::default()),
         }
     }
 
     /// The same problem with the motion prior's jerk density `qc_factor` times this one's.
     pub fn with_qc_factor(mut self, qc_factor: f64) -> Self {
-        self.qc_inv /= qc_factor;
+        self.density = self.density.scaled(qc_factor);
         self
     }
 
@@ -108,8 +108,8 @@ impl<'a> JointProblem<'a> {
             dvl_info: self.dvl_info.clone(),
             priors: self.priors,
             times: self.times[range.clone()].to_vec(),
-            cosensor: self.cosensor.restricted(range),
-            qc_inv: self.qc_inv,
+            cosensor: self.cosensor.restricted(range.clone()),
+            density: self.density.restricted(range),
             storage: Mutex::new(JointStorage::default()),
         }
     }
@@ -154,7 +154,7 @@ impl<'a> JointProblem<'a> {
         Problem {
             times: &self.times,
             cosensor: &*self.cosensor,
-            qc_inv: self.qc_inv,
+            density: &self.density,
         }
     }
 
