@@ -32,6 +32,7 @@ pub mod halves;
 pub mod init;
 pub(crate) mod joint;
 pub mod model;
+pub mod motion_prior;
 pub mod noise;
 pub mod offset;
 pub mod options;
@@ -164,11 +165,8 @@ fn calibrate_stages(
     // describe the camera's motion): rescaled, it would hide among them.
     let first_robust = &pass.reweighted.robust;
     let outlier_share = first_robust.outliers as f64 / first_robust.factors.max(1) as f64;
-    let engaged = if pass.setup.free.rotation && outlier_share <= opts.sanity.max_outlier_fraction {
-        noise.far()
-    } else {
-        (false, false)
-    };
+    let trusted = pass.setup.free.rotation && outlier_share <= opts.sanity.max_outlier_fraction;
+    let engaged = if trusted { noise.far() } else { (false, false) };
     if engaged.0 || engaged.1 {
         let first_start = pass.setup.start;
         let (mut dvl_applied, mut cos_applied) = (1.0, 1.0);
@@ -206,6 +204,23 @@ fn calibrate_stages(
         warnings.extend(noise.warnings());
     }
     let obs = obs_scaled.unwrap_or(obs);
+    // The motion prior's density along the recording, when the fit chose it (for the same
+    // reasons as above, not to absorb a misfit of held extrinsics).
+    let traj_report = pass.reweighted.refined.trajectory.report();
+    let motion_prior = if opts.varying_motion_prior && trusted && traj_report.qc_estimated {
+        let mut rerun = |traj, params| {
+            let (init, mut quiet) = (init.as_ref(), Vec::new());
+            refinement::run(
+                &fit, traj, &obs, &idx, params, init, opts, &mut clock, &mut quiet,
+            )
+        };
+        let (kept, check) = motion_prior::choose(&fit, pass, &idx, &mut rerun)?;
+        pass = kept;
+        clock.done("motion prior");
+        Some(check)
+    } else {
+        None
+    };
     let refinement::Pass {
         setup:
             refinement::Setup {
@@ -385,6 +400,7 @@ fn calibrate_stages(
         lever_arm_from_default_prior: roles.lever_arm_from_default_prior,
         contradicted,
         noise,
+        motion_prior,
         stage_seconds: clock.stages,
     })
 }

@@ -150,6 +150,9 @@ pub struct CalibOptions {
     /// Estimate the DVL clock's drift with the calibration ([`super::clock_drift`]): `t_cam =
     /// t_dvl + time_offset_s + 1e-6 ppm (t_dvl - t_ref)`. Off by default (a constant offset).
     pub clock_drift: bool,
+    /// Let the motion prior's jerk density vary along the recording, chosen by the evidence of
+    /// poses and DVL ([`super::motion_prior`]); on by default.
+    pub varying_motion_prior: bool,
     /// The words for the settings in warnings, verdicts and errors ([`Setting::field`] by
     /// default).
     pub names: SettingNames,
@@ -177,6 +180,7 @@ impl Default for CalibOptions {
             default_lever_arm_sigma_m: Some(1.0),
             honest_covariance: true,
             clock_drift: false,
+            varying_motion_prior: true,
             names: Setting::field,
         }
     }

@@ -7,6 +7,7 @@ use nalgebra::Vector3;
 use super::closed_form::ClosedForm;
 use super::given::Contradiction;
 use super::model::{DvlObs, NPARAM};
+use super::motion_prior::MotionPriorCheck;
 use super::noise::NoiseCheck;
 use super::offset::OffsetResult;
 use super::options::Method;
@@ -250,6 +251,9 @@ pub struct CalibrationOutcome {
     /// The DVL's noise as the recording shows it, against the stated noise; when applied, the
     /// reports (and `observations`) carry the stated covariances scaled by it.
     pub noise: NoiseCheck,
+    /// The motion prior's jerk density along the recording ([`super::motion_prior`]); `None`
+    /// when it was not chosen (a density given, the extrinsics held, or the option off).
+    pub motion_prior: Option<MotionPriorCheck>,
     /// Wall time of each stage of the run, in order (a profile of the run; not part of the
     /// result, and different on every run).
     pub stage_seconds: Vec<(&'static str, f64)>,

@@ -47,13 +47,7 @@ pub(crate) fn redundancy(
     free_params: usize,
 ) -> Result<Redundancy> {
     let n = knots.len();
-    let factors = DvlFactors::new(jp, p)?;
-    let mut sys = jp
-        .take_system()
-        .map(|s| s.resized(n))
-        .unwrap_or_else(|| BlockTridiagonal::zeros(n));
-    let total = factors.assemble(knots, &mut sys, false).cost;
-    let inv = sys.factor()?.banded_inverse();
+    let (total, inv) = banded_inverse_at(jp, knots, p)?;
     let traj = jp.trajectory_problem();
     // Per knot, in chunks summed in order: the co-sensor's cost and trace, the prior's trace
     // and cost.
@@ -85,11 +79,7 @@ pub(crate) fn redundancy(
         prior_cost += c;
         prior_tr += d;
     }
-    jp.keep_system(BlockTridiagonal {
-        rhs: vec![V18::zeros(); n],
-        diag: inv.diag,
-        upper: inv.upper,
-    });
+    keep_inverse(jp, inv);
     let dvl_dofs = 18.0 * n as f64 - cos_tr - prior_tr + free_params as f64;
     Ok(Redundancy {
         dvl_cost: total - cos_cost - prior_cost,
@@ -105,4 +95,69 @@ fn interval_trace(inv: &BandedInverse, k: usize, d1: &M18, upper: &M18, d2: &M18
     frobenius(&inv.diag[k], d1)
         + frobenius(&inv.diag[k + 1], d2)
         + 2.0 * frobenius(&inv.upper[k], upper)
+}
+
+/// The joint problem's trajectory system at the knots `knots` and the calibration `p` (the
+/// calibration held), its total cost and the blocks of its inverse on and beside the diagonal.
+fn banded_inverse_at(
+    jp: &JointProblem,
+    knots: &[Knot],
+    p: &CalibrationParams,
+) -> Result<(f64, BandedInverse)> {
+    let n = knots.len();
+    let factors = DvlFactors::new(jp, p)?;
+    let mut sys = jp
+        .take_system()
+        .map(|s| s.resized(n))
+        .unwrap_or_else(|| BlockTridiagonal::zeros(n));
+    let total = factors.assemble(knots, &mut sys, false).cost;
+    Ok((total, sys.factor()?.banded_inverse()))
+}
+
+/// Keeps the storage of `inv` for the problem's next system.
+fn keep_inverse(jp: &JointProblem, inv: BandedInverse) {
+    let n = inv.diag.len();
+    jp.keep_system(BlockTridiagonal {
+        rhs: vec![V18::zeros(); n],
+        diag: inv.diag,
+        upper: inv.upper,
+    });
+}
+
+/// One interval's GP prior terms, each part (translational, rotational) on its own.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct PriorShare {
+    /// The part's cost at the estimate (at its present weights).
+    pub cost: [f64; 2],
+    /// The degrees of freedom it takes, `tr(H^-1 J^T W J)` of its terms.
+    pub taken: [f64; 2],
+}
+
+/// Per interval between knots, the GP prior's cost and degrees of freedom in `jp` at `knots`
+/// and the calibration `p` (held), its translational and rotational parts apart: the
+/// variance components of the jerk density, the way [`redundancy`] gives the sensors'.
+pub(crate) fn prior_shares(
+    jp: &JointProblem,
+    knots: &[Knot],
+    p: &CalibrationParams,
+) -> Result<Vec<PriorShare>> {
+    let n = knots.len();
+    let (_, inv) = banded_inverse_at(jp, knots, p)?;
+    let traj = jp.trajectory_problem();
+    let shares = crate::parallel::map_indices(n.saturating_sub(1), ASSEMBLY_CHUNK, |k| {
+        let mut t = PriorNormal::zeros();
+        let mut u = M18::zeros();
+        let mut share = PriorShare::default();
+        let qc_inv = jp.density.qc_inv(k);
+        for part in 0..2 {
+            let masked =
+                qc_inv.map_with_location(|i, _, q| if (i < 3) == (part == 0) { q } else { 0.0 });
+            traj.prior_terms_weighted(knots, k, &masked, &mut t, &mut u);
+            share.cost[part] = t.cost;
+            share.taken[part] = interval_trace(&inv, k, &t.d1, &u, &t.d2);
+        }
+        share
+    });
+    keep_inverse(jp, inv);
+    Ok(shares)
 }
