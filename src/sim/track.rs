@@ -308,12 +308,13 @@ fn step_size(a: &PoseMeasurement, b: &PoseMeasurement) -> (f64, f64) {
 /// repeats the previous one's are dropped; time going backwards is an error.
 pub fn cut_track(poses: &[PoseMeasurement], opts: &CutOptions) -> Result<CutTrack> {
     let positive = |x: f64| x.is_finite() && x > 0.0;
-    if !positive(opts.max_step_ratio)
-        || !positive(opts.jump_ratio)
-        || !(opts.min_jump_m.is_finite() && opts.min_jump_m >= 0.0)
-        || !(opts.min_jump_rad.is_finite() && opts.min_jump_rad >= 0.0)
-        || !(opts.min_piece_s.is_finite() && opts.min_piece_s >= 0.0)
-    {
+    let non_negative = |x: f64| x.is_finite() && x >= 0.0;
+    let valid = positive(opts.max_step_ratio)
+        && positive(opts.jump_ratio)
+        && non_negative(opts.min_jump_m)
+        && non_negative(opts.min_jump_rad)
+        && non_negative(opts.min_piece_s);
+    if !valid {
         return Err(input(format!("track cut: invalid options {opts:?}")));
     }
     let mut out = CutTrack::default();
