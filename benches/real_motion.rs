@@ -4,7 +4,9 @@
 //! every track of `TRACKS` at its own time scales). Numbers are the seed count and then time
 //! scales (which replace every track's own); any other word names a track of `TRACKS`
 //! (`euroc_v101`, `tumvi_room6`, `trolley_slow`) and runs only the tracks named. The environment
-//! variable `DVLCAL_TRACK` (names separated by commas) selects tracks the same way.
+//! variable `DVLCAL_TRACK` (names separated by commas) selects tracks the same way. So
+//! `-- 20 1 2 euroc_v101` is the EuRoC-only run of docs/accuracy.md, and `-- 2` a quick look at
+//! every track (about a minute on two cores).
 //!
 //! Each track (`tests/fixtures/real_motion/`) is cut at its tracking losses and glitches by
 //! `dvlcal::sim::cut_track`, and its longest piece replayed with `dvlcal::sim::replay_track` (time
