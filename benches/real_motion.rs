@@ -1,16 +1,24 @@
-//! Calibration on a real vehicle's motion (docs/accuracy.md, "Real vehicle motion").
+//! Calibration on real vehicles' motion (docs/accuracy.md, "Real vehicle motion").
 //!
-//! `cargo bench --bench real_motion -- [SEEDS] [TIME_SCALE...]` (defaults: 20 seeds, time
-//! scales 1 and 2). The motion is the EuRoC V1_01 motion-capture track of a flying vehicle
-//! (`tests/fixtures/real_motion/`), replayed with `dvlcal::sim::replay_track` (time scale 2 plays
-//! it at half speed, closer to an underwater vehicle's). From it: 10 Hz camera poses of 2 mm /
-//! 0.1 deg and 10 Hz DVL reports of 1 cm/s from the simulator's default calibration. Each seed is
-//! calibrated by dvlcal (defaults) and by the independent smoothing-spline estimator
+//! `cargo bench --bench real_motion -- [SEEDS] [TIME_SCALE...] [TRACK...]` (defaults: 20 seeds,
+//! every track of `TRACKS` at its own time scales). Numbers are the seed count and then time
+//! scales (which replace every track's own); any other word names a track of `TRACKS`
+//! (`euroc_v101`, `tumvi_room6`, `trolley_slow`) and runs only the tracks named. The environment
+//! variable `DVLCAL_TRACK` (names separated by commas) selects tracks the same way. So
+//! `-- 20 1 2 euroc_v101` is the EuRoC-only run of docs/accuracy.md, and `-- 2` a quick look at
+//! every track (about a minute on two cores).
+//!
+//! Each track (`tests/fixtures/real_motion/`) is cut at its tracking losses and glitches by
+//! `dvlcal::sim::cut_track`, and its longest piece replayed with `dvlcal::sim::replay_track` (time
+//! scale 2 plays it at half speed, closer to an underwater vehicle's). From it: 10 Hz camera poses
+//! of 2 mm / 0.1 deg and 10 Hz DVL reports of 1 cm/s from the simulator's default calibration.
+//! Each seed is calibrated by dvlcal (defaults) and by the independent smoothing-spline estimator
 //! (`dvlcal::eval::spline_baseline`). Printed per parameter group: RMSE of each with a 95 %
-//! percentile-bootstrap interval, their ratio, and the RMS of dvlcal's `err / std`. A last table
-//! per time scale refits with the jerk density `Qc` fixed at 0.3, 1, 3, 10 and 30 times the one
-//! the hyperparameter search chooses from the poses, and prints the mean lever-arm error (its
-//! bias) and the marginal likelihood of poses and DVL together at each factor.
+//! percentile-bootstrap interval, their ratio, and the RMS of dvlcal's `err / std`. For the tracks
+//! marked so in `TRACKS` (EuRoC V1_01), a last table per time scale refits with the jerk density
+//! `Qc` fixed at 0.3, 1, 3, 10 and 30 times the one the hyperparameter search chooses from the
+//! poses, and prints the mean lever-arm error (its bias) and the marginal likelihood of poses and
+//! DVL together at each factor. Each track's section ends with its run time.
 //!
 //! `DVLCAL_BENCH_THREADS` sets the worker threads (default: all CPUs).
 
@@ -24,10 +32,44 @@ use dvlcal::calib::{CalibOptions, calibrate, jerk_density_evidence};
 use dvlcal::eval::spline_baseline::{BaselineOptions, spline_baseline};
 use dvlcal::io::tum::read_tum;
 use dvlcal::sim::{
-    Corruption, SimConfig, TrackMotion, TrackOptions, corrupt, replay_track, simulate_with,
+    Corruption, CutOptions, SimConfig, TrackMotion, TrackOptions, corrupt, cut_track, replay_track,
+    simulate_with,
 };
+use dvlcal::types::PoseMeasurement;
 
-const TRACK: &str = "tests/fixtures/real_motion/euroc_v101_vicon.txt";
+/// A recorded track: its name on the command line, its file, what moved, the time scales it is
+/// replayed at by default, and whether the jerk-density table is printed for it.
+struct Track {
+    name: &'static str,
+    file: &'static str,
+    kind: &'static str,
+    scales: &'static [f64],
+    qc_table: bool,
+}
+
+const TRACKS: [Track; 3] = [
+    Track {
+        name: "euroc_v101",
+        file: "tests/fixtures/real_motion/euroc_v101_vicon.txt",
+        kind: "EuRoC V1_01, a flying vehicle",
+        scales: &[1.0, 2.0],
+        qc_table: true,
+    },
+    Track {
+        name: "tumvi_room6",
+        file: "tests/fixtures/real_motion/tumvi_room6_mocap.txt",
+        kind: "TUM VI room6, a hand-held rig",
+        scales: &[2.0],
+        qc_table: false,
+    },
+    Track {
+        name: "trolley_slow",
+        file: "tests/fixtures/real_motion/uwb_trolley_slow_mocap.txt",
+        kind: "a trolley at 0.1 m/s, a slow ground vehicle",
+        scales: &[1.0],
+        qc_table: false,
+    },
+];
 const DVL_SIGMA: f64 = 0.01;
 const POSE_SIGMA_M: f64 = 0.002;
 const POSE_SIGMA_DEG: f64 = 0.1;
@@ -125,150 +167,220 @@ fn rmse(runs: &[Run], pick: fn(&Run) -> [f64; 8], range: &std::ops::Range<usize>
     common::rms_bootstrap(&sq, range.start as u64)
 }
 
+/// The longest piece of `track`'s recording after cutting, with a line saying what was cut.
+fn load(track: &Track) -> Result<(Vec<PoseMeasurement>, String), String> {
+    let recorded = read_tum(Path::new(track.file), None)
+        .map_err(|e| e.to_string())?
+        .poses;
+    let cut = cut_track(&recorded, &CutOptions::default()).map_err(|e| e.to_string())?;
+    let piece = cut
+        .longest()
+        .ok_or_else(|| format!("{}: no usable piece", track.file))?
+        .to_vec();
+    let note = format!(
+        "{} poses cut into {} pieces ({} tracking losses, {} glitches of {} poses, {} jumps, {} \
+         repeated times, {} short pieces dropped); the longest has {} poses",
+        recorded.len(),
+        cut.pieces.len(),
+        cut.gaps,
+        cut.glitches,
+        cut.glitch_poses,
+        cut.jumps,
+        cut.duplicates,
+        cut.short_pieces,
+        piece.len()
+    );
+    Ok((piece, note))
+}
+
 fn main() {
     let args: Vec<String> = std::env::args()
         .skip(1)
         .filter(|a| !a.starts_with("--"))
         .collect();
-    let seeds: usize = args.first().and_then(|a| a.parse().ok()).unwrap_or(20);
-    let mut scales: Vec<f64> = args.iter().skip(1).filter_map(|a| a.parse().ok()).collect();
-    if scales.is_empty() {
-        scales = vec![1.0, 2.0];
+    let numbers: Vec<f64> = args.iter().filter_map(|a| a.parse().ok()).collect();
+    let mut names: Vec<String> = args
+        .iter()
+        .filter(|a| a.parse::<f64>().is_err())
+        .cloned()
+        .collect();
+    if let Ok(env) = std::env::var("DVLCAL_TRACK") {
+        names.extend(
+            env.split(',')
+                .map(|s| s.trim().to_string())
+                .filter(|s| !s.is_empty()),
+        );
     }
-    let recorded = match read_tum(Path::new(TRACK), None) {
-        Ok(t) => t.poses,
-        Err(e) => {
-            eprintln!("{e}");
-            std::process::exit(1);
-        }
-    };
-    for &scale in &scales {
-        let track = match replay_track(
-            &recorded,
-            &TrackOptions {
-                time_scale: scale,
-                ..TrackOptions::default()
-            },
-        ) {
-            Ok(t) => t,
+    if let Some(bad) = names
+        .iter()
+        .find(|n| !TRACKS.iter().any(|t| t.name == n.as_str()))
+    {
+        let known: Vec<&str> = TRACKS.iter().map(|t| t.name).collect();
+        eprintln!("unknown track {bad}; the tracks are {}", known.join(", "));
+        std::process::exit(2);
+    }
+    let seeds = numbers.first().map_or(20, |&s| s.max(1.0) as usize);
+    let scales_arg: Vec<f64> = numbers.iter().skip(1).copied().collect();
+    for track in TRACKS
+        .iter()
+        .filter(|t| names.is_empty() || names.iter().any(|n| n == t.name))
+    {
+        let start = std::time::Instant::now();
+        let (piece, note) = match load(track) {
+            Ok(p) => p,
             Err(e) => {
                 eprintln!("{e}");
                 std::process::exit(1);
             }
         };
-        let d = track.duration_s;
-        // Six tracking losses of 2-6 s spread over the recording (poses and the DVL reports in
-        // them stay; the camera loses the board, the DVL keeps its lock).
-        let losses: Vec<(f64, f64)> = [
-            (0.12, 3.0),
-            (0.27, 5.0),
-            (0.41, 2.0),
-            (0.56, 6.0),
-            (0.72, 4.0),
-            (0.87, 3.0),
-        ]
-        .iter()
-        .map(|&(f, len)| (f * d, len))
-        .collect();
-        let scenarios = [
-            ("white DVL noise", Corruption::default()),
-            (
-                "AR(1) DVL noise, 1 s",
-                Corruption {
-                    dvl_ar1_tau_s: Some(1.0),
-                    ..Corruption::default()
-                },
-            ),
-            (
-                "white DVL noise, six tracking losses of 2-6 s",
-                Corruption {
-                    pose_gaps: losses,
-                    ..Corruption::default()
-                },
-            ),
-        ];
-        println!(
-            "## EuRoC V1_01 replayed at time scale {scale}: {:.1} s, RMS speed {:.3} m/s, RMS rate \
-             {:.3} rad/s (replay drift {:.1} mm RMS)\n",
-            track.duration_s,
-            track.rms_speed_mps,
-            track.rms_rate_radps,
-            track.position_drift_rms_m * 1e3
-        );
-        for (name, damage) in &scenarios {
-            let start = std::time::Instant::now();
-            let runs: Vec<Run> = par_map(seeds, |s| run(s, &track, damage))
-                .into_iter()
-                .flatten()
-                .collect();
-            println!(
-                "### {name}: {} runs, lever arm held at the default prior in {} ({:.0} s)\n",
-                runs.len(),
-                runs.iter().filter(|r| r.lever_held).count(),
-                start.elapsed().as_secs_f64()
-            );
-            println!(
-                "| parameter | dvlcal RMSE [95 % CI] | spline RMSE [95 % CI] | dvlcal / spline | RMS err/std dvlcal |"
-            );
-            println!("|---|---|---|---|---|");
-            for (label, range, f, unit) in GROUPS.iter() {
-                let a = rmse(&runs, |r| r.ours, range);
-                let b = rmse(&runs, |r| r.spline, range);
-                let zs: f64 = runs
-                    .iter()
-                    .flat_map(|r| range.clone().map(move |k| r.z[k] * r.z[k]))
-                    .sum::<f64>()
-                    / (runs.len() * range.len()).max(1) as f64;
-                println!(
-                    "| {label} ({unit}) | {:.3} [{:.3}, {:.3}] | {:.3} [{:.3}, {:.3}] | {:.2} | {:.2} |",
-                    a[0] * f,
-                    a[1] * f,
-                    a[2] * f,
-                    b[0] * f,
-                    b[1] * f,
-                    b[2] * f,
-                    a[0] / b[0],
-                    zs.sqrt()
-                );
-            }
-            println!();
+        println!("# {} ({}): {note}\n", track.name, track.kind);
+        let scales = if scales_arg.is_empty() {
+            track.scales.to_vec()
+        } else {
+            scales_arg.clone()
+        };
+        for &scale in &scales {
+            bench_scale(track, &piece, scale, seeds);
         }
         println!(
-            "### Jerk density: dvlcal with Qc fixed at a multiple of the one it chooses (white DVL \
-             noise)\n"
+            "{}: {:.0} s in all\n",
+            track.name,
+            start.elapsed().as_secs_f64()
+        );
+    }
+}
+
+/// The tables of one track at one time scale.
+fn bench_scale(track_def: &Track, recorded: &[PoseMeasurement], scale: f64, seeds: usize) {
+    let track = match replay_track(
+        recorded,
+        &TrackOptions {
+            time_scale: scale,
+            ..TrackOptions::default()
+        },
+    ) {
+        Ok(t) => t,
+        Err(e) => {
+            eprintln!("{e}");
+            std::process::exit(1);
+        }
+    };
+    let d = track.duration_s;
+    // Six tracking losses of 2-6 s spread over the recording (poses and the DVL reports in
+    // them stay; the camera loses the board, the DVL keeps its lock).
+    let losses: Vec<(f64, f64)> = [
+        (0.12, 3.0),
+        (0.27, 5.0),
+        (0.41, 2.0),
+        (0.56, 6.0),
+        (0.72, 4.0),
+        (0.87, 3.0),
+    ]
+    .iter()
+    .map(|&(f, len)| (f * d, len))
+    .collect();
+    let scenarios = [
+        ("white DVL noise", Corruption::default()),
+        (
+            "AR(1) DVL noise, 1 s",
+            Corruption {
+                dvl_ar1_tau_s: Some(1.0),
+                ..Corruption::default()
+            },
+        ),
+        (
+            "white DVL noise, six tracking losses of 2-6 s",
+            Corruption {
+                pose_gaps: losses,
+                ..Corruption::default()
+            },
+        ),
+    ];
+    println!(
+        "## {} replayed at time scale {scale}: {:.1} s, RMS speed {:.3} m/s, RMS rate {:.3} rad/s \
+         (replay drift {:.1} mm RMS)\n",
+        track_def.name,
+        track.duration_s,
+        track.rms_speed_mps,
+        track.rms_rate_radps,
+        track.position_drift_rms_m * 1e3
+    );
+    for (name, damage) in &scenarios {
+        let start = std::time::Instant::now();
+        let runs: Vec<Run> = par_map(seeds, |s| run(s, &track, damage))
+            .into_iter()
+            .flatten()
+            .collect();
+        println!(
+            "### {name}: {} runs, lever arm held at the default prior in {} ({:.0} s)\n",
+            runs.len(),
+            runs.iter().filter(|r| r.lever_held).count(),
+            start.elapsed().as_secs_f64()
         );
         println!(
-            "| Qc factor | mean lever-arm error x, y, z (mm) | lever-arm RMSE (mm) | scale RMSE (1e-3) | offset RMSE (ms) | log evidence - factor 1's (mean) |"
+            "| parameter | dvlcal RMSE [95 % CI] | spline RMSE [95 % CI] | dvlcal / spline | RMS err/std dvlcal |"
         );
-        println!("|---|---|---|---|---|---|");
-        for factor in [0.3, 1.0, 3.0, 10.0, 30.0] {
-            let runs: Vec<_> = par_map(seeds, |s| run_qc(s, &track, factor))
-                .into_iter()
-                .flatten()
-                .collect();
-            let n = runs.len().max(1) as f64;
-            let mut mean = [0.0; 3];
-            let (mut lever2, mut off2, mut scale2, mut ev) = (0.0, 0.0, 0.0, 0.0);
-            for (p, off, sc, e) in &runs {
-                ev += e / n;
-                for k in 0..3 {
-                    mean[k] += p[k] / n;
-                    lever2 += p[k] * p[k] / n;
-                }
-                off2 += off * off / n;
-                scale2 += sc * sc / n;
-            }
+        println!("|---|---|---|---|---|");
+        for (label, range, f, unit) in GROUPS.iter() {
+            let a = rmse(&runs, |r| r.ours, range);
+            let b = rmse(&runs, |r| r.spline, range);
+            let zs: f64 = runs
+                .iter()
+                .flat_map(|r| range.clone().map(move |k| r.z[k] * r.z[k]))
+                .sum::<f64>()
+                / (runs.len() * range.len()).max(1) as f64;
             println!(
-                "| {factor} | {:.1}, {:.1}, {:.1} | {:.2} | {:.3} | {:.3} | {:.0} |",
-                mean[0] * 1e3,
-                mean[1] * 1e3,
-                mean[2] * 1e3,
-                lever2.sqrt() * 1e3,
-                scale2.sqrt() * 1e3,
-                off2.sqrt() * 1e3,
-                ev
+                "| {label} ({unit}) | {:.3} [{:.3}, {:.3}] | {:.3} [{:.3}, {:.3}] | {:.2} | {:.2} |",
+                a[0] * f,
+                a[1] * f,
+                a[2] * f,
+                b[0] * f,
+                b[1] * f,
+                b[2] * f,
+                a[0] / b[0],
+                zs.sqrt()
             );
         }
         println!();
     }
+    if !track_def.qc_table {
+        return;
+    }
+    println!(
+        "### Jerk density: dvlcal with Qc fixed at a multiple of the one it chooses (white DVL \
+         noise)\n"
+    );
+    println!(
+        "| Qc factor | mean lever-arm error x, y, z (mm) | lever-arm RMSE (mm) | scale RMSE (1e-3) | offset RMSE (ms) | log evidence - factor 1's (mean) |"
+    );
+    println!("|---|---|---|---|---|---|");
+    for factor in [0.3, 1.0, 3.0, 10.0, 30.0] {
+        let runs: Vec<_> = par_map(seeds, |s| run_qc(s, &track, factor))
+            .into_iter()
+            .flatten()
+            .collect();
+        let n = runs.len().max(1) as f64;
+        let mut mean = [0.0; 3];
+        let (mut lever2, mut off2, mut scale2, mut ev) = (0.0, 0.0, 0.0, 0.0);
+        for (p, off, sc, e) in &runs {
+            ev += e / n;
+            for k in 0..3 {
+                mean[k] += p[k] / n;
+                lever2 += p[k] * p[k] / n;
+            }
+            off2 += off * off / n;
+            scale2 += sc * sc / n;
+        }
+        println!(
+            "| {factor} | {:.1}, {:.1}, {:.1} | {:.2} | {:.3} | {:.3} | {:.0} |",
+            mean[0] * 1e3,
+            mean[1] * 1e3,
+            mean[2] * 1e3,
+            lever2.sqrt() * 1e3,
+            scale2.sqrt() * 1e3,
+            off2.sqrt() * 1e3,
+            ev
+        );
+    }
+    println!();
 }

@@ -7,7 +7,8 @@
 //!   calibration.
 //! - [`corrupt`](mod@corrupt): damage to a simulated dataset as real recordings suffer it (DVL
 //!   spikes, bad poses, coloured DVL noise, gaps).
-//! - [`track`]: a recorded vehicle track (motion capture, INS) replayed as a motion.
+//! - [`track`]: a recorded vehicle track (motion capture, INS) cut at tracking losses and glitches
+//!   and replayed as a motion.
 //! - [`a50`]: simulated DVL samples as the A50's json_v3 reports.
 //! - [`render`]: camera images of a board, rendered from libapriltag's own tag patterns.
 //! - [`image_dataset`]: the stereo images of a simulated recording, written as a dataset folder.
@@ -31,4 +32,4 @@ pub use motion::{
     MeanReversion, Motion, MotionState, SampledConfig, SampledMotion, ScrewMotion, SinusoidMotion,
     SinusoidTerm,
 };
-pub use track::{TrackMotion, TrackOptions, replay_track};
+pub use track::{CutOptions, CutTrack, TrackMotion, TrackOptions, cut_track, replay_track};
