@@ -276,6 +276,11 @@ run_figures! {
     lever_arm_velocity_ratio: f64,
     /// The trajectory prior's jerk power spectral density, translation then rotation.
     trajectory_qc: Vec<f64>,
+    /// Whether the jerk density varies along the recording (chosen by the evidence).
+    jerk_density_varying: bool,
+    /// The smallest and largest factor on the jerk density over the stretches, translation then
+    /// rotation (1 where it did not vary).
+    jerk_density_factor_range: Vec<f64>,
     /// How the initial clock offset was found.
     clock_offset_init: String,
     /// The offset at which the speed series correlate best, s.

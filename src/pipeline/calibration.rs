@@ -460,6 +460,11 @@ pub fn result_file(o: &CalibrationOutcome, log: &DvlLog) -> CalibrationFile {
         rms_speed_mps: Some(o.excitation.rms_speed),
         lever_arm_velocity_ratio: Some(o.excitation.lever_arm_ratio),
         trajectory_qc: Some(o.trajectory.qc.iter().copied().collect()),
+        jerk_density_varying: o.motion_prior.as_ref().map(|m| m.applied),
+        jerk_density_factor_range: o.motion_prior.as_ref().map(|m| {
+            let [t, r] = m.factor_range();
+            vec![t.0, t.1, r.0, r.1]
+        }),
         clock_offset_init: init.map(|i| {
             match i.method {
                 OffsetMethod::CalmSubset => "global speed alignment, then calm subset",
