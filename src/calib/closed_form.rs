@@ -154,12 +154,240 @@ pub fn closed_form(rows: &[ClosedFormRow], bias_corrected: bool) -> Result<Close
     })
 }
 
+/// A rotation the closed form's linear solution missed: the minimum of the DVL residuals over
+/// rotations, far from the closed form's rotation (see [`search_rotation`]).
+#[derive(Clone, Debug)]
+pub struct RotationSearch {
+    /// Rotation, scale and lever arm at that minimum (the lever arm only when the closed form
+    /// solved it, otherwise the closed form's zero); the time offset is zero.
+    pub params: CalibrationParams,
+    /// Angle between its rotation and the closed form's, degrees.
+    pub angle_deg: f64,
+    /// RMS DVL residual there, m/s.
+    pub rms: f64,
+    /// RMS DVL residual at the closed form's own parameters, m/s.
+    pub closed_form_rms: f64,
+}
+
+/// Angle beyond which the minimum over rotations replaces the closed form's rotation, degrees:
+/// far more than noise moves a closed form that the velocities determine, well within what the
+/// refinement corrects.
+pub const ROTATION_SEARCH_ANGLE_DEG: f64 = 10.0;
+
+/// Most rows the rotation search uses (spread evenly).
+const SEARCH_ROWS: usize = 2000;
+
+/// The closed form's rotation checked against the minimum of the DVL residuals
+/// `sum |v_dvl - kappa R (v + w x p)|^2` over the rotation and the scale (and the lever arm when
+/// the closed form solved it), searched by Levenberg-Marquardt from the closed form's rotation
+/// turned by each of the 24 rotations of a cube (one of them lies within 63 deg of any
+/// rotation, so the global minimum's basin is always entered).
+///
+/// The closed form solves for a free 3x3 matrix `kappa R` and projects it onto the rotations.
+/// When the camera's velocity stays along nearly one direction of its own frame (a trolley or
+/// a vehicle that only moves forward), two of that matrix's columns rest on the small sideways
+/// velocities and their noise, and the projection can land anywhere, a half turn off included;
+/// the refinement started there can collapse the scale towards zero instead of turning back.
+/// The minimum over rotations only ever weighs the velocities by their size. It is returned
+/// when its rotation is more than [`ROTATION_SEARCH_ANGLE_DEG`] from the closed form's with a
+/// positive scale; `None` when the closed form already sits in the best basin (then nothing
+/// changes).
+pub fn search_rotation(rows: &[ClosedFormRow], cf: &ClosedForm) -> Option<RotationSearch> {
+    if rows.len() < 8 {
+        return None;
+    }
+    // A start needs no more than a few thousand rows, spread evenly over the recording.
+    let stride = rows.len().div_ceil(SEARCH_ROWS);
+    let thinned: Vec<ClosedFormRow> = rows.iter().step_by(stride).cloned().collect();
+    let rows = &thinned[..];
+    let p0 = &cf.params;
+    let r_cf = p0.r_dvl_cam();
+    let lever_free = cf.lever_arm_solved;
+    let start_cost = residual_cost(rows, &r_cf, p0.velocity_scale, &p0.lever_arm_cam_m());
+    let best = cube_rotations()
+        .iter()
+        .filter_map(|g| {
+            polish(
+                rows,
+                r_cf * g,
+                p0.velocity_scale.abs().max(0.1),
+                p0.lever_arm_cam_m(),
+                lever_free,
+            )
+        })
+        .filter(|m| m.kappa > 0.0 && m.cost.is_finite())
+        .min_by(|a, b| a.cost.total_cmp(&b.cost))?;
+    let angle = crate::lie::so3::log(&(best.r * r_cf.transpose()))
+        .norm()
+        .to_degrees();
+    if !(angle > ROTATION_SEARCH_ANGLE_DEG && best.cost < start_cost) {
+        return None;
+    }
+    let n = rows.len() as f64;
+    Some(RotationSearch {
+        params: CalibrationParams::from_r_dvl_cam(best.r, best.p, best.kappa, 0.0),
+        angle_deg: angle,
+        rms: (best.cost / n).sqrt(),
+        closed_form_rms: (start_cost / n).sqrt(),
+    })
+}
+
+/// A local minimum of the DVL residuals over the rotation, the scale and the lever arm.
+struct Minimum {
+    r: Matrix3<f64>,
+    kappa: f64,
+    p: Vector3<f64>,
+    cost: f64,
+}
+
+/// `sum |v_dvl - kappa R (v + w x p)|^2` over the rows.
+fn residual_cost(rows: &[ClosedFormRow], r: &Matrix3<f64>, kappa: f64, p: &Vector3<f64>) -> f64 {
+    rows.iter()
+        .map(|row| {
+            let v = row.twist.fixed_rows::<3>(0).into_owned();
+            let w = row.twist.fixed_rows::<3>(3).into_owned();
+            (row.v_dvl - r * (v + w.cross(p)) * kappa).norm_squared()
+        })
+        .sum()
+}
+
+/// Levenberg-Marquardt on the DVL residuals from `(r, kappa, p)`: the rotation (left
+/// perturbation), the scale, and the lever arm when `lever_free`.
+fn polish(
+    rows: &[ClosedFormRow],
+    mut r: Matrix3<f64>,
+    mut kappa: f64,
+    mut p: Vector3<f64>,
+    lever_free: bool,
+) -> Option<Minimum> {
+    let np = if lever_free { 7 } else { 4 };
+    let mut cost = residual_cost(rows, &r, kappa, &p);
+    let mut lambda = 1e-4;
+    for _ in 0..100 {
+        let mut h = SMatrix::<f64, 7, 7>::zeros();
+        let mut g = SMatrix::<f64, 7, 1>::zeros();
+        for row in rows {
+            let v = row.twist.fixed_rows::<3>(0).into_owned();
+            let w = row.twist.fixed_rows::<3>(3).into_owned();
+            let ru = r * (v + w.cross(&p));
+            let e = row.v_dvl - ru * kappa;
+            let mut j = SMatrix::<f64, 3, 7>::zeros();
+            j.fixed_view_mut::<3, 3>(0, 0)
+                .copy_from(&(crate::lie::hat(&ru) * kappa));
+            j.fixed_view_mut::<3, 1>(0, 3).copy_from(&(-ru));
+            if lever_free {
+                j.fixed_view_mut::<3, 3>(0, 4)
+                    .copy_from(&(-(r * crate::lie::hat(&w)) * kappa));
+            }
+            h += j.transpose() * j;
+            g += j.transpose() * e;
+        }
+        let mut improved = false;
+        while lambda < 1e12 {
+            let mut a = h;
+            for k in 0..np {
+                a[(k, k)] += lambda * h[(k, k)].max(1e-12);
+            }
+            for k in np..7 {
+                a[(k, k)] = 1.0;
+            }
+            let step = a.cholesky()?.solve(&(-g));
+            let r1 = crate::lie::so3::exp(&step.fixed_rows::<3>(0).into_owned()) * r;
+            let k1 = kappa + step[3];
+            let p1 = p + step.fixed_rows::<3>(4).into_owned();
+            let c1 = residual_cost(rows, &r1, k1, &p1);
+            if c1.is_finite() && c1 < cost {
+                let gain = cost - c1;
+                (r, kappa, p, cost) = (r1, k1, p1, c1);
+                lambda = (lambda * 0.3).max(1e-9);
+                improved = gain > 1e-12 * cost;
+                break;
+            }
+            lambda *= 10.0;
+        }
+        if !improved {
+            break;
+        }
+    }
+    Some(Minimum { r, kappa, p, cost })
+}
+
+/// The 24 rotations of a cube: the signed permutation matrices of determinant +1.
+fn cube_rotations() -> Vec<Matrix3<f64>> {
+    const PERMS: [[usize; 3]; 6] = [
+        [0, 1, 2],
+        [0, 2, 1],
+        [1, 0, 2],
+        [1, 2, 0],
+        [2, 0, 1],
+        [2, 1, 0],
+    ];
+    let mut out = Vec::with_capacity(24);
+    for perm in PERMS {
+        for signs in 0..8u32 {
+            let mut m = Matrix3::zeros();
+            for (row, &col) in perm.iter().enumerate() {
+                m[(row, col)] = if signs & (1 << row) != 0 { -1.0 } else { 1.0 };
+            }
+            if m.determinant() > 0.0 {
+                out.push(m);
+            }
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::calib::model::predict;
     use crate::lie::so3;
     use crate::rng::Rng;
+
+    #[test]
+    fn the_cube_has_24_distinct_rotations() {
+        let g = cube_rotations();
+        assert_eq!(g.len(), 24);
+        for (i, a) in g.iter().enumerate() {
+            assert!(((a * a.transpose()) - Matrix3::identity()).norm() < 1e-15);
+            assert!(g[..i].iter().all(|b| (a - b).norm() > 1.0));
+        }
+    }
+
+    #[test]
+    fn the_search_leaves_a_determined_closed_form_alone() {
+        let truth = CalibrationParams::from_r_dvl_cam(
+            so3::exp(&Vector3::new(-1.5, 0.05, 0.02)),
+            Vector3::new(0.05, 0.25, -0.1),
+            1.01,
+            0.0,
+        );
+        let mut rng = Rng::new(4);
+        let rows: Vec<ClosedFormRow> = (0..500)
+            .map(|_| {
+                let tw = rng.normal_vec6() * 0.3;
+                ClosedFormRow {
+                    v_dvl: predict(&truth, &tw) + rng.normal_vec3() * 0.01,
+                    twist: tw,
+                    twist_cov: Matrix6::zeros(),
+                }
+            })
+            .collect();
+        let cf = closed_form(&rows, true).unwrap();
+        assert!(search_rotation(&rows, &cf).is_none());
+        // Started half a turn off, the search finds the truth again.
+        let mut off = cf.clone();
+        off.params = CalibrationParams::from_r_dvl_cam(
+            so3::exp(&Vector3::new(0.0, 0.0, 3.0)) * cf.params.r_dvl_cam(),
+            Vector3::zeros(),
+            1.0,
+            0.0,
+        );
+        let s = search_rotation(&rows, &off).expect("a better rotation");
+        let err = so3::log(&(s.params.r_dvl_cam() * truth.r_dvl_cam().transpose())).norm();
+        assert!(err.to_degrees() < 0.5, "{}", err.to_degrees());
+        assert!((s.params.velocity_scale - 1.01).abs() < 0.01);
+    }
 
     #[test]
     fn exact_data_gives_exact_parameters() {

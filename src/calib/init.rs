@@ -5,7 +5,7 @@
 
 use nalgebra::Vector3;
 
-use super::closed_form::{ClosedForm, ClosedFormRow, closed_form};
+use super::closed_form::{ClosedForm, ClosedFormRow, closed_form, search_rotation};
 use super::model::{DvlObs, predict};
 use super::offset::estimate_offset;
 use super::options::{CalibOptions, Method};
@@ -52,15 +52,31 @@ pub fn initialise(
             let idx = usable(traj, obs, off.offset, 0.0);
             let rows = closed_form_rows(traj, obs, &idx, off.offset)?;
             let cf = trimmed_closed_form(&rows, opts.bias_corrected)?;
+            // A closed form the velocities do not determine (motion along one direction of the
+            // camera frame) is replaced by the best rotation, with a note.
+            let searched = search_rotation(&rows, &cf);
+            if let Some(s) = &searched {
+                warnings.push(format!(
+                    "the camera's velocity spans too few directions for the closed-form rotation: \
+                     it fits the DVL velocities {:.1} times worse (RMS {:.4} m/s) than a rotation \
+                     {:.0} deg from it (RMS {:.4} m/s), which the refinement started from; record \
+                     motion along and about more axes of the vehicle",
+                    s.closed_form_rms / s.rms.max(1e-12),
+                    s.closed_form_rms,
+                    s.angle_deg,
+                    s.rms
+                ));
+            }
             let params = CalibrationParams {
                 time_offset_s: off.offset,
-                ..cf.params
+                ..searched.as_ref().map_or(cf.params, |s| s.params)
             };
             (
                 params,
                 Some(InitReport {
                     offset: off,
                     closed_form: cf,
+                    rotation_search: searched,
                     params,
                 }),
             )

@@ -4,7 +4,7 @@
 
 use nalgebra::Vector3;
 
-use super::closed_form::ClosedForm;
+use super::closed_form::{ClosedForm, RotationSearch};
 use super::given::Contradiction;
 use super::model::{DvlObs, NPARAM};
 use super::motion_prior::MotionPriorCheck;
@@ -318,6 +318,9 @@ pub struct InitReport {
     pub offset: OffsetResult,
     /// Rotation, lever arm and scale in closed form at that offset.
     pub closed_form: ClosedForm,
+    /// The minimum of the DVL residuals over rotations, when it lies far from the closed form's
+    /// rotation and the refinement started from it instead.
+    pub rotation_search: Option<RotationSearch>,
     /// Parameters after initialisation (closed form with the searched offset).
     pub params: CalibrationParams,
 }
