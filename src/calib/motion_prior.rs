@@ -40,6 +40,7 @@ use super::cosensor::CoSensorFit;
 use super::joint::problem::JointProblem;
 use super::joint::redundancy::{PriorShare, prior_shares};
 use super::joint::steps::joint_log_evidence;
+pub use super::outcome::{MotionPriorCheck, Stretch};
 use super::refinement::Pass;
 use crate::error::Result;
 use crate::trajectory::{JerkDensity, Trajectory};
@@ -59,56 +60,6 @@ pub const ROUNDS: usize = 4;
 pub const MARGIN: f64 = 2.0;
 /// The weight that holds a stretch's log factor at 0 (the base density).
 const HELD_WEIGHT: f64 = 1e12;
-
-/// One stretch of the recording with its own density factors.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Stretch {
-    /// First and last knot times of the stretch, seconds.
-    pub span_s: (f64, f64),
-    /// Its intervals between knots.
-    pub intervals: Range<usize>,
-    /// The factors on the jerk density, translational and rotational (1 where the density
-    /// stayed constant).
-    pub factor: [f64; 2],
-    /// Standard deviations of their logarithms (penalised estimate).
-    pub std_ln: [f64; 2],
-    /// The stretch's redundancy per part, `m - t` (see the module documentation).
-    pub redundancy: [f64; 2],
-}
-
-/// What the choice of the motion prior's density found.
-#[derive(Clone, Debug, PartialEq)]
-pub struct MotionPriorCheck {
-    /// The stretches with their factors (those estimated, whether kept or not).
-    pub stretches: Vec<Stretch>,
-    /// Whether the varying density was kept (`false`: the constant one, and its result).
-    pub applied: bool,
-    /// Refinements run under new densities.
-    pub rounds: usize,
-    /// Laplace log evidence of poses and DVL, varying density less constant.
-    pub evidence_gain: f64,
-    /// Effective number of the factors' parameters (the penalised fit's degrees of freedom).
-    pub effective_parameters: f64,
-}
-
-impl MotionPriorCheck {
-    /// The smallest and largest factor applied, translational and rotational (1 when none).
-    pub fn factor_range(&self) -> [(f64, f64); 2] {
-        let mut out = [(1.0, 1.0); 2];
-        if !self.applied {
-            return out;
-        }
-        for (part, range) in out.iter_mut().enumerate() {
-            *range = self
-                .stretches
-                .iter()
-                .fold((f64::INFINITY, 0.0f64), |(lo, hi), s| {
-                    (lo.min(s.factor[part]), hi.max(s.factor[part]))
-                });
-        }
-        out
-    }
-}
 
 /// The intervals between the knots at `times`, cut into stretches of about `len_s` seconds (by
 /// each interval's start; the last stretch takes a remainder shorter than half a stretch).

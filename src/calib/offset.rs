@@ -93,6 +93,18 @@ pub enum OffsetMethod {
     SpeedCorrelation,
 }
 
+impl OffsetMethod {
+    /// How the result file's `clock_offset_init` names the search.
+    pub fn words(self) -> &'static str {
+        match self {
+            OffsetMethod::CalmSubset => "global speed alignment, then calm subset",
+            OffsetMethod::SpeedCorrelation => {
+                "global speed alignment, then speed correlation (no calm segment)"
+            }
+        }
+    }
+}
+
 /// Result of the offset search.
 #[derive(Clone, Debug)]
 pub struct OffsetResult {

@@ -2,12 +2,13 @@
 //! a verdict per parameter, the counts of the data used, what the robust loss did, the checks
 //! of the recording's parts, and whether the result can be trusted.
 
+use std::ops::Range;
+
 use nalgebra::Vector3;
 
 use super::closed_form::{ClosedForm, RotationSearch};
 use super::given::Contradiction;
 use super::model::{DvlObs, NPARAM};
-use super::motion_prior::MotionPriorCheck;
 use super::noise::NoiseCheck;
 use super::offset::OffsetResult;
 use super::options::Method;
@@ -352,5 +353,61 @@ impl HalvesCheck {
     /// The difference of parameter `k` in its standard deviations.
     pub fn z(&self, k: usize) -> f64 {
         self.difference[k].abs() / self.difference_std[k]
+    }
+}
+
+/// One stretch of the recording with its own density factors.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Stretch {
+    /// First and last knot times of the stretch, seconds.
+    pub span_s: (f64, f64),
+    /// Its intervals between knots.
+    pub intervals: Range<usize>,
+    /// The factors on the jerk density, translational and rotational (1 where the density
+    /// stayed constant).
+    pub factor: [f64; 2],
+    /// Standard deviations of their logarithms (penalised estimate).
+    pub std_ln: [f64; 2],
+    /// The stretch's redundancy per part, `m - t` (see the module documentation).
+    pub redundancy: [f64; 2],
+}
+
+/// What the choice of the motion prior's density found.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MotionPriorCheck {
+    /// The stretches with their factors (those estimated, whether kept or not).
+    pub stretches: Vec<Stretch>,
+    /// Whether the varying density was kept (`false`: the constant one, and its result).
+    pub applied: bool,
+    /// Refinements run under new densities.
+    pub rounds: usize,
+    /// Laplace log evidence of poses and DVL, varying density less constant.
+    pub evidence_gain: f64,
+    /// Effective number of the factors' parameters (the penalised fit's degrees of freedom).
+    pub effective_parameters: f64,
+}
+
+impl MotionPriorCheck {
+    /// The smallest and largest factor applied, translational and rotational (1 when none).
+    pub fn factor_range(&self) -> [(f64, f64); 2] {
+        let mut out = [(1.0, 1.0); 2];
+        if !self.applied {
+            return out;
+        }
+        for (part, range) in out.iter_mut().enumerate() {
+            *range = self
+                .stretches
+                .iter()
+                .fold((f64::INFINITY, 0.0f64), |(lo, hi), s| {
+                    (lo.min(s.factor[part]), hi.max(s.factor[part]))
+                });
+        }
+        out
+    }
+
+    /// [`MotionPriorCheck::factor_range`] as `[v_min, v_max, w_min, w_max]`.
+    pub fn factor_range_flat(&self) -> Vec<f64> {
+        let [t, r] = self.factor_range();
+        vec![t.0, t.1, r.0, r.1]
     }
 }

@@ -7,7 +7,6 @@ use std::time::Instant;
 
 use nalgebra::{Matrix4, Vector3};
 
-use crate::calib::offset::OffsetMethod;
 use crate::calib::segments::{SegmentOffset, calibrate_segments};
 use crate::calib::{
     CalibOptions, CalibrationOutcome, DeterminedBy, Method, Status, Verdict, calibrate,
@@ -461,19 +460,8 @@ pub fn result_file(o: &CalibrationOutcome, log: &DvlLog) -> CalibrationFile {
         lever_arm_velocity_ratio: Some(o.excitation.lever_arm_ratio),
         trajectory_qc: Some(o.trajectory.qc.iter().copied().collect()),
         jerk_density_varying: o.motion_prior.as_ref().map(|m| m.applied),
-        jerk_density_factor_range: o.motion_prior.as_ref().map(|m| {
-            let [t, r] = m.factor_range();
-            vec![t.0, t.1, r.0, r.1]
-        }),
-        clock_offset_init: init.map(|i| {
-            match i.method {
-                OffsetMethod::CalmSubset => "global speed alignment, then calm subset",
-                OffsetMethod::SpeedCorrelation => {
-                    "global speed alignment, then speed correlation (no calm segment)"
-                }
-            }
-            .to_owned()
-        }),
+        jerk_density_factor_range: o.motion_prior.as_ref().map(|m| m.factor_range_flat()),
+        clock_offset_init: init.map(|i| i.method.words().to_owned()),
         clock_alignment_lag_s: alignment.map(|a| a.lag_s),
         clock_alignment_correlation: alignment.map(|a| a.correlation),
         clock_alignment_second_lag_s: second.map(|(l, _)| l),
