@@ -180,7 +180,7 @@ fn calibrate_stages(
             fit.variance_scale = cos_applied;
             let scaled = noise::scaled(&obs, dvl_applied);
             let refined = pass.reweighted.refined;
-            let mut again = refinement::run(
+            let again = refinement::run(
                 &fit,
                 refined.trajectory,
                 &scaled,
@@ -191,10 +191,7 @@ fn calibrate_stages(
                 &mut clock,
                 &mut Vec::new(),
             )?;
-            // The first pass's start and co-sensor-only trajectory stay the run's.
-            again.setup.start = first_start;
-            again.setup.pose_only = pass.setup.pose_only;
-            pass = again;
+            pass = again.continuing(first_start, pass.setup.pose_only);
             noise = noise_components(&fit, &pass, &idx, (dvl_applied, cos_applied), round)?;
             obs_scaled = Some(scaled);
             if noise.settled(engaged) {
@@ -415,13 +412,7 @@ fn noise_components(
     rounds: usize,
 ) -> Result<noise::NoiseCheck> {
     let r = &pass.reweighted.refined;
-    let mut jp = JointProblem::new(
-        fit.factors(&r.trajectory)?,
-        &r.trajectory,
-        &pass.reweighted.weighted,
-        idx,
-    )?;
-    jp.priors = pass.setup.priors;
+    let jp = pass.joint_problem(fit, &r.trajectory, idx)?;
     let free = pass.setup.free.mask().iter().filter(|&&f| f).count();
     noise::components(&jp, &r.trajectory, &r.params, free, applied, rounds)
 }

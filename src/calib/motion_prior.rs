@@ -37,7 +37,6 @@
 use std::ops::Range;
 
 use super::cosensor::CoSensorFit;
-use super::joint::problem::JointProblem;
 use super::joint::redundancy::{PriorShare, prior_shares};
 use super::joint::steps::joint_log_evidence;
 pub use super::outcome::{MotionPriorCheck, Stretch};
@@ -211,29 +210,11 @@ fn density_of(base: &JerkDensity, ranges: &[Range<usize>], u: &[[f64; 2]]) -> Je
     JerkDensity::varying(base.base(), factors)
 }
 
-/// The joint problem at a pass's result: its trajectory, the DVL reports weighted as in
-/// `weighting`, and its priors.
-fn problem_at<'a>(
-    fit: &CoSensorFit,
-    traj: &Trajectory,
-    weighting: &'a Pass,
-    idx: &'a [usize],
-) -> Result<JointProblem<'a>> {
-    let mut jp = JointProblem::new(
-        fit.factors(traj)?,
-        traj,
-        &weighting.reweighted.weighted,
-        idx,
-    )?;
-    jp.priors = weighting.setup.priors;
-    Ok(jp)
-}
-
 /// Laplace log evidence of poses and DVL at `pass`'s result, the DVL reports weighted as in
 /// `weighting`, with the `log det Q_k` of its density relative to the base.
 fn evidence(fit: &CoSensorFit, pass: &Pass, weighting: &Pass, idx: &[usize]) -> Result<f64> {
     let r = &pass.reweighted.refined;
-    let jp = problem_at(fit, &r.trajectory, weighting, idx)?;
+    let jp = weighting.joint_problem(fit, &r.trajectory, idx)?;
     let free = pass.setup.free.mask();
     let density = r.trajectory.density();
     let relative = density.log_det_relative(r.trajectory.knots().len().saturating_sub(1));
@@ -258,7 +239,7 @@ pub(crate) fn choose(
         let (traj, params, shares) = {
             let pass = latest.as_ref().unwrap_or(&first);
             let r = &pass.reweighted.refined;
-            let jp = problem_at(fit, &r.trajectory, pass, idx)?;
+            let jp = pass.joint_problem(fit, &r.trajectory, idx)?;
             let shares = prior_shares(&jp, r.trajectory.knots(), &r.params)?;
             (r.trajectory.clone(), r.params, shares)
         };
@@ -278,10 +259,8 @@ pub(crate) fn choose(
             break (std, red, effective);
         }
         let traj = traj.with_density(density_of(&base, &ranges, &u));
-        let mut again = rerun(traj, params)?;
-        again.setup.start = first.setup.start;
-        again.setup.pose_only = first.setup.pose_only.clone();
-        latest = Some(again);
+        let again = rerun(traj, params)?;
+        latest = Some(again.continuing(first.setup.start, first.setup.pose_only.clone()));
         rounds += 1;
     };
     let mut gain = 0.0;

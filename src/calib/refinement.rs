@@ -234,6 +234,29 @@ pub(crate) struct Pass {
     pub storage: JointStorage,
 }
 
+impl Pass {
+    /// The joint problem at the trajectory `traj` (this pass's or another's), with this pass's
+    /// weighted DVL reports `idx` and priors.
+    pub(crate) fn joint_problem<'a>(
+        &'a self,
+        fit: &CoSensorFit,
+        traj: &Trajectory,
+        idx: &'a [usize],
+    ) -> Result<JointProblem<'a>> {
+        let mut jp = JointProblem::new(fit.factors(traj)?, traj, &self.reweighted.weighted, idx)?;
+        jp.priors = self.setup.priors;
+        Ok(jp)
+    }
+
+    /// This pass, run again from where an earlier one ended, carrying the run's start and its
+    /// co-sensor-only trajectory (which the later checks read) instead of its own.
+    pub(crate) fn continuing(mut self, start: CalibrationParams, pose_only: Trajectory) -> Pass {
+        self.setup.start = start;
+        self.setup.pose_only = pose_only;
+        self
+    }
+}
+
 /// [`refine`] then [`reweigh`], the clock marking each.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn run(
