@@ -9,6 +9,7 @@
 
 use nalgebra::{Matrix3, Matrix6, SMatrix, Vector3, Vector6};
 
+use super::model::predict;
 use crate::error::{Error, Result};
 use crate::lie::vee;
 use crate::types::CalibrationParams;
@@ -240,14 +241,11 @@ struct Minimum {
     cost: f64,
 }
 
-/// `sum |v_dvl - kappa R (v + w x p)|^2` over the rows.
+/// `sum |v_dvl - kappa R (v + w x p)|^2` over the rows (the measurement model's residuals).
 fn residual_cost(rows: &[ClosedFormRow], r: &Matrix3<f64>, kappa: f64, p: &Vector3<f64>) -> f64 {
+    let params = CalibrationParams::from_r_dvl_cam(*r, *p, kappa, 0.0);
     rows.iter()
-        .map(|row| {
-            let v = row.twist.fixed_rows::<3>(0).into_owned();
-            let w = row.twist.fixed_rows::<3>(3).into_owned();
-            (row.v_dvl - r * (v + w.cross(p)) * kappa).norm_squared()
-        })
+        .map(|row| (row.v_dvl - predict(&params, &row.twist)).norm_squared())
         .sum()
 }
 
@@ -340,7 +338,7 @@ fn cube_rotations() -> Vec<Matrix3<f64>> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::calib::model::predict;
+
     use crate::lie::so3;
     use crate::rng::Rng;
 
