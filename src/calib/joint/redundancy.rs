@@ -1,6 +1,7 @@
-//! How many of each sensor's residual dimensions are free to show its noise: the redundancy of
+//! How many of each group's residual dimensions are free to show its scale: the redundancy of
 //! the co-sensor's and the DVL's measurements in the joint problem, for the estimate of their
-//! noise scales (variance components).
+//! noise scales, and of the GP prior's terms per interval, for the jerk density along the
+//! recording (variance components both).
 //!
 //! A group of measurements with weights `W_g` and Jacobian `J_g` takes `p_g = tr(H^-1 J_g^T W_g
 //! J_g)` of the problem's degrees of freedom; its cost at the estimate has the expectation
