@@ -236,12 +236,11 @@ pub(crate) fn choose(
     let mut latest: Option<Pass> = None;
     let mut rounds = 0;
     let (std, red, effective) = loop {
-        let (traj, params, shares) = {
+        let shares = {
             let pass = latest.as_ref().unwrap_or(&first);
             let r = &pass.reweighted.refined;
             let jp = pass.joint_problem(fit, &r.trajectory, idx)?;
-            let shares = prior_shares(&jp, r.trajectory.knots(), &r.params)?;
-            (r.trajectory.clone(), r.params, shares)
+            prior_shares(&jp, r.trajectory.knots(), &r.params)?
         };
         let Penalised {
             u: next,
@@ -258,7 +257,11 @@ pub(crate) fn choose(
         if moved <= SETTLED_LN || rounds == ROUNDS {
             break (std, red, effective);
         }
-        let traj = traj.with_density(density_of(&base, &ranges, &u));
+        let r = &latest.as_ref().unwrap_or(&first).reweighted.refined;
+        let (traj, params) = (
+            r.trajectory.with_density(density_of(&base, &ranges, &u)),
+            r.params,
+        );
         let again = rerun(traj, params)?;
         latest = Some(again.continuing(first.setup.start, first.setup.pose_only.clone()));
         rounds += 1;
