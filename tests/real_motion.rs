@@ -140,6 +140,8 @@ struct Figures {
     z: [f64; 4],
     /// Runs where dvlcal held the lever arm at its default prior.
     lever_held: usize,
+    /// Runs whose status said the result cannot be trusted.
+    failed: usize,
     /// Runs where the spline estimator split the recording.
     spline_split: usize,
     /// RMS error of the spline estimator's twists, m/s and rad/s.
@@ -152,7 +154,7 @@ const GROUP_NAMES: [&str; 4] = ["rotation", "lever arm", "scale", "clock offset"
 fn accuracy(track: &TrackMotion, seeds: u64) -> Figures {
     let (mut ours, mut spline, mut z2) = ([0.0f64; 4], [0.0f64; 4], [0.0f64; 4]);
     let mut twist_err = (0.0, 0.0, 0usize);
-    let (mut lever_held, mut spline_split) = (0, 0);
+    let (mut lever_held, mut spline_split, mut failed) = (0, 0, 0);
     for seed in 0..seeds {
         let cfg = SimConfig {
             seed: 3000 + seed,
@@ -163,6 +165,7 @@ fn accuracy(track: &TrackMotion, seeds: u64) -> Figures {
         let ds = simulate_with(&cfg, &track.motion).expect("simulate");
         let o = calibrate(&ds.poses, &ds.dvl, &CalibOptions::default()).expect("dvlcal");
         lever_held += usize::from(o.lever_arm_from_default_prior);
+        failed += usize::from(!o.status.is_ok());
         let bopts = BaselineOptions::default();
         let b = spline_baseline(&ds.poses, &ds.dvl, &bopts).expect("baseline");
         spline_split += usize::from(b.stretches != 1);
@@ -191,6 +194,7 @@ fn accuracy(track: &TrackMotion, seeds: u64) -> Figures {
         ratio: [0.0; 4],
         z: [0.0; 4],
         lever_held,
+        failed,
         spline_split,
         spline_twist: ((twist_err.0 / n).sqrt(), (twist_err.1 / n).sqrt()),
     };
@@ -223,10 +227,12 @@ fn on_real_motion_dvlcal_matches_the_spline_estimator_with_honest_std() {
     }
 }
 
-/// The figures of the other tracks, printed and not yet held to thresholds: only that both
-/// estimators succeed on every seed.
+/// The other tracks on 2 seeds: dvlcal's status is ok on every seed and its std hold (RMS
+/// err/std under 2.5 per group; the bench's 10 seeds give at most 1.41). Their ratios to the
+/// spline estimator are printed, not held: on 2 seeds they swing by a factor of ten (the full
+/// tables are docs/accuracy.md's).
 #[test]
-fn on_the_other_tracks_both_estimators_succeed() {
+fn on_the_other_tracks_dvlcal_succeeds_with_honest_std() {
     for (name, file, scale) in [
         ("tumvi_room6", TUMVI_ROOM6, 2.0),
         ("trolley_slow", TROLLEY, 1.0),
@@ -243,6 +249,10 @@ fn on_the_other_tracks_both_estimators_succeed() {
                 "  {group}: dvlcal / spline RMSE {:.2}, RMS err/std {:.2}",
                 f.ratio[g], f.z[g]
             );
+        }
+        assert_eq!(f.failed, 0, "{name}: a run failed");
+        for (g, group) in GROUP_NAMES.iter().enumerate() {
+            assert!(f.z[g] < 2.5, "{name}: {group} err/std {}", f.z[g]);
         }
     }
 }
