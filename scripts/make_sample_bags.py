@@ -1,36 +1,36 @@
 #!/usr/bin/env python3
-"""Packs the rendered sample recordings as the ROS bags users record, with rosbags (PyPI), a
-pure-Python writer independent of dvlcal's bag readers, and writes the small bag fixtures of the
+"""Packs the bag recording and the poses sample as the ROS bags users record, with rosbags (PyPI),
+a pure-Python writer independent of dvlcal's bag readers, and writes the small bag fixtures of the
 tests.
 
     python3 -m venv /tmp/rbs && /tmp/rbs/bin/pip install rosbags numpy pillow
-    /tmp/rbs/bin/python scripts/make_sample_bags.py            # writes everything below
+    dvlcal simulate --images --jpeg-quality 85 --seed 31 --duration 13 \
+        --camchain sample_data/bags/recording/camchain.yaml --board-distance 1.0 --out /tmp/bag_recording
+    /tmp/rbs/bin/python scripts/make_sample_bags.py --recording /tmp/bag_recording   # writes everything below
     /tmp/rbs/bin/python scripts/make_sample_bags.py --summary  # prints what the bags hold
 
-Reads sample_data/stereo/ (cam0/ cam1/ <t_ns>.jpg, camchain.yaml, dvl.jsonl) and sample_data/poses/
-(poses.txt, dvl.jsonl) and writes, replacing earlier output:
+The bag recording is a rendered stereo recording of its own (376x240 cameras, 131 frames at 10 Hz,
+13 s), so that the bags hold every frame and calibrate, while costing a fraction of the image
+folders: its JPEG files are kept only inside the bags. Reads the recording (cam0/ cam1/
+<t_ns>.jpg, camchain.yaml, target.yaml, dvl.jsonl, truth/) and sample_data/poses/ (poses.txt,
+dvl.jsonl) and writes, replacing earlier output:
 
-  sample_data/bags/stereo_mcap/      ROS 2 bag, MCAP storage, zstd chunks: mono8 Image and
-                                     CameraInfo of both cameras, the three topics of Water Linked's
-                                     ROS 2 driver (Dvl, Odometry, PoseWithCovarianceStamped)
+  sample_data/bags/recording/        the recording's camchain.yaml, target.yaml, dvl.jsonl and
+                                     truth (calibration.yaml, poses.txt, poses_board.txt, twist.csv)
+  sample_data/bags/stereo_mcap/      ROS 2 bag, MCAP storage, zstd chunks: mono8 Image (the JPEGs
+                                     decoded) and CameraInfo of both cameras, the three topics of
+                                     Water Linked's ROS 2 driver (Dvl, Odometry,
+                                     PoseWithCovarianceStamped)
   sample_data/bags/stereo_sqlite3/   ROS 2 bag, sqlite3 storage: CompressedImage (the JPEG files
-                                     unchanged) of both cameras, every frame, Odometry of the DVL
+                                     unchanged) of both cameras, Odometry of the DVL
+  sample_data/bags/stereo_ros1.bag   ROS 1 bag, lz4 chunks: CompressedImage (the JPEG files
+                                     unchanged) of both cameras and the A50 JSON lines verbatim as
+                                     std_msgs/String (Water Linked's ROS 1 driver)
   sample_data/bags/poses_mcap.mcap   bare MCAP file, lz4 chunks: PoseStamped from poses/poses.txt
                                      and Dvl from poses/dvl.jsonl
-  sample_data/bags/stereo_ros1.bag   ROS 1 bag, lz4 chunks: mono8 Image of both cameras and the
-                                     A50 JSON lines verbatim as std_msgs/String (Water Linked's
-                                     ROS 1 driver)
-  sample_data/bags/frames.txt        the image stamps (ns) the bags keep, one per line
   tests/fixtures/bag_cases/*         small bags of the cases a bag reader must get right
 
-Frames: the bags of raw images keep the frames whose index i in stamp order (i = 0 for the first
-JPEG) has i % FRAME_STEP == 0, the same frames in each and in frames.txt; the sqlite3 bag of
-JPEG bytes keeps every frame (so that it calibrates exactly as the image folder does: at
-FRAME_STEP the poses are too sparse for the trajectory fit); every DVL report is kept.
-FRAME_STEP = 6 (42 of 251 frames, 0.6 s apart, over the whole recording) keeps sample_data/bags
-under SIZE_BUDGET: the rendered images carry sensor noise, so a raw mono8 frame costs about
-157 kB after zstd-19 and 199 kB after lz4-HC, and JPEG 45 kB, about 0.8 MB per stereo pair over
-the three image bags.
+Every frame and every DVL report is kept in every bag.
 
 Times: header stamps are exact (image: the integer ns of the file name; DVL: time_of_validity;
 poses: the TUM time split from its decimal text). The record (log) time of every message is its
@@ -70,15 +70,18 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from ruamel.yaml import YAML
 
 ROOT = Path(__file__).resolve().parent.parent
+# The rendered stereo frames read: sample_data/stereo for scripts/make_bench_bag.py, the bag
+# recording given with --recording for the sample bags.
 STEREO = ROOT / "sample_data" / "stereo"
 POSES = ROOT / "sample_data" / "poses"
 BAGS = ROOT / "sample_data" / "bags"
+RECORDING = BAGS / "recording"
+TRUTH_FILES = ("calibration.yaml", "poses.txt", "poses_board.txt", "twist.csv")
 CASES = ROOT / "tests" / "fixtures" / "bag_cases"
 
-FRAME_STEP = 6
 SEED = 11
 LATENCY_NS = (15_000_000, 45_000_000)
-SIZE_BUDGET = 60_000_000  # bytes, all of sample_data/bags
+SIZE_BUDGET = 25_000_000  # bytes, all of sample_data/bags
 CASE_BUDGET = 200_000  # bytes, each file of tests/fixtures/bag_cases
 
 # marine_acoustic_msgs/msg/Dvl (apl-ocean-engineering/marine_msgs), fields only.
@@ -132,13 +135,13 @@ def split_decimal_time(text: str) -> tuple[int, int]:
     return int(whole), int(frac.ljust(9, "0"))
 
 
-def frame_stamps(step: int = FRAME_STEP) -> list[int]:
-    """Stamps (ns) of the frames a bag keeps: every step-th of cam0 and cam1."""
+def frame_stamps() -> list[int]:
+    """Stamps (ns) of the recording's frames, the same for cam0 and cam1."""
     stamps0 = sorted(int(p.stem) for p in (STEREO / "cam0").glob("*.jpg"))
     stamps1 = sorted(int(p.stem) for p in (STEREO / "cam1").glob("*.jpg"))
     if stamps0 != stamps1 or not stamps0:
         raise SystemExit("cam0 and cam1 must hold the same stamps")
-    return stamps0[::step]
+    return stamps0
 
 
 def jpeg_path(cam: str, stamp_ns: int) -> Path:
@@ -238,9 +241,10 @@ def camera_info_msg(stamp_ns: int, frame: str, cam: dict):
     )
 
 
-def compressed_msg(stamp_ns: int, frame: str, jpeg: bytes):
-    return T2["sensor_msgs/msg/CompressedImage"](
-        header=header(stamp_ns, frame), format="jpeg", data=np.frombuffer(jpeg, dtype=np.uint8)
+def compressed_msg(stamp_ns: int, frame: str, jpeg: bytes, ros1_seq: int | None = None):
+    T = T1 if ros1_seq is not None else T2
+    return T["sensor_msgs/msg/CompressedImage"](
+        header=header(stamp_ns, frame, ros1_seq), format="jpeg", data=np.frombuffer(jpeg, dtype=np.uint8)
     )
 
 
@@ -497,12 +501,17 @@ def make_poses_mcap(poses, reports) -> None:
 def make_stereo_ros1(frames: list[int], reports) -> None:
     dest = BAGS / "stereo_ros1.bag"
     remove(dest)
-    all_stamps = sorted(int(p.stem) for p in (STEREO / "cam0").glob("*.jpg"))
     entries = []
     for cam in ("cam0", "cam1"):
-        for t in frames:
-            seq = all_stamps.index(t)
-            entries.append(Entry(t + latency_ns(cam, t), f"/{cam}/image_raw", "sensor_msgs/msg/Image", lambda c=cam, t=t, s=seq: image_msg(t, c, mono8(c, t), ros1_seq=s)))
+        for seq, t in enumerate(frames):
+            entries.append(
+                Entry(
+                    t + latency_ns(cam, t),
+                    f"/{cam}/image_raw/compressed",
+                    "sensor_msgs/msg/CompressedImage",
+                    lambda c=cam, t=t, s=seq: compressed_msg(t, c, jpeg_path(c, t).read_bytes(), ros1_seq=s),
+                )
+            )
     for line, rep in reports:
         t = tot_ns(rep)
         entries.append(Entry(t + latency_ns("/dvl/json_data", t), "/dvl/json_data", "std_msgs/msg/String", lambda s=line: T1["std_msgs/msg/String"](data=s)))
@@ -510,7 +519,7 @@ def make_stereo_ros1(frames: list[int], reports) -> None:
     writer = Writer1(dest)
     writer.set_compression(Writer1.CompressionFormat.LZ4)
     writer.compressor = lambda b: lz4.frame.compress(b, compression_level=9)  # LZ4HC, same frame format
-    callers = {"/cam0/image_raw": "/stereo_camera", "/cam1/image_raw": "/stereo_camera", "/dvl/json_data": "/dvl_a50"}
+    callers = {"/cam0/image_raw/compressed": "/stereo_camera", "/cam1/image_raw/compressed": "/stereo_camera", "/dvl/json_data": "/dvl_a50"}
     conns = {}
     with writer:
         for e in entries:
@@ -519,13 +528,24 @@ def make_stereo_ros1(frames: list[int], reports) -> None:
             writer.write(conns[e.topic], e.record_ns, bytes(TS1.serialize_ros1(e.make(), e.msgtype)))
 
 
+def copy_recording() -> None:
+    """The small files of the recording a user needs beside the bags: cameras, board, DVL log, truth."""
+    remove(RECORDING)
+    (RECORDING / "truth").mkdir(parents=True)
+    for name in ("camchain.yaml", "target.yaml", "dvl.jsonl"):
+        shutil.copyfile(STEREO / name, RECORDING / name)
+    for name in TRUTH_FILES:
+        shutil.copyfile(STEREO / "truth" / name, RECORDING / "truth" / name)
+
+
 def make_sample_bags() -> None:
     BAGS.mkdir(parents=True, exist_ok=True)
+    remove(BAGS / "frames.txt")
     frames = frame_stamps()
-    (BAGS / "frames.txt").write_text("".join(f"{t}\n" for t in frames))
+    copy_recording()
     stereo_reports = read_reports(STEREO / "dvl.jsonl")
     make_stereo_mcap(frames, stereo_reports)
-    make_stereo_sqlite3(frame_stamps(step=1), stereo_reports)
+    make_stereo_sqlite3(frames, stereo_reports)
     make_poses_mcap(read_tum(POSES / "poses.txt"), read_reports(POSES / "dvl.jsonl"))
     make_stereo_ros1(frames, stereo_reports)
     total = sum(p.stat().st_size for p in BAGS.rglob("*") if p.is_file())
@@ -534,7 +554,7 @@ def make_sample_bags() -> None:
             print(f"{p.stat().st_size:>12,}  {p.relative_to(ROOT)}")
     print(f"{total:>12,}  total of {BAGS.relative_to(ROOT)} ({len(frames)} frames per camera)")
     if total >= SIZE_BUDGET:
-        raise SystemExit(f"sample_data/bags is {total:,} bytes, over the budget of {SIZE_BUDGET:,}: raise FRAME_STEP")
+        raise SystemExit(f"sample_data/bags is {total:,} bytes, over the budget of {SIZE_BUDGET:,}")
 
 
 # ----------------------------------------------------------------------------- test cases
@@ -699,11 +719,16 @@ def summarize(path: Path) -> None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--summary", action="store_true", help="print the contents of the written bags instead of writing")
+    ap.add_argument("--recording", type=Path, help="the rendered bag recording (dvlcal simulate --images --out DIR)")
     args = ap.parse_args()
     if args.summary:
-        for p in [*sorted(BAGS.glob("*.bag")), *sorted(BAGS.glob("*.mcap")), *sorted(d for d in BAGS.iterdir() if d.is_dir()), *sorted(CASES.glob("*.mcap")), *sorted(CASES.glob("*.db3"))]:
+        for p in [*sorted(BAGS.glob("*.bag")), *sorted(BAGS.glob("*.mcap")), *sorted(d for d in BAGS.iterdir() if (d / "metadata.yaml").is_file()), *sorted(CASES.glob("*.mcap")), *sorted(CASES.glob("*.db3"))]:
             summarize(p)
         return
+    if args.recording is None:
+        raise SystemExit("give --recording DIR: the rendered bag recording (see the top of this script)")
+    global STEREO
+    STEREO = args.recording
     print(f"rosbags {version('rosbags')}, lz4 {version('lz4')}, backports.zstd {version('backports.zstd')}", file=sys.stderr)
     make_sample_bags()
     make_cases()
