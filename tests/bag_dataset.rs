@@ -678,3 +678,48 @@ fn pose_messages_bring_their_covariances_into_the_child_frame() {
     assert!(ros_pose_covariance(&c, &t).is_none());
     assert!(ros_pose_covariance(&[0.0; 36], &t).is_none());
 }
+
+/// Frames too far apart for the motion (one in six of the recording, 1.7 Hz, during rotations
+/// of about 1 rad/s) fail with that cause first, not with its symptoms alone (a lever arm that
+/// looks unobserved, DVL reports that look like outliers).
+#[test]
+fn frames_too_sparse_for_the_motion_are_named_as_the_cause() {
+    let tmp = TmpDir::new("bag-sparse");
+    let folder = equivalent_folder(&tmp.0);
+    for cam in ["cam0", "cam1"] {
+        let mut names: Vec<_> = std::fs::read_dir(folder.join(cam))
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .collect();
+        names.sort();
+        for (k, p) in names.iter().enumerate() {
+            if k % 6 != 0 {
+                std::fs::remove_file(p).unwrap();
+            }
+        }
+    }
+    let out = tmp.0.join("c.yaml");
+    let (ok, stdout, stderr) = dvlcal(&[
+        "calibrate",
+        folder.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--no-progress",
+    ]);
+    assert!(!ok, "{stdout}\n{stderr}");
+    let all = format!("{stdout}\n{stderr}");
+    let first_reason = all
+        .lines()
+        .skip_while(|l| !l.starts_with("CALIBRATION FAILED"))
+        .nth(1)
+        .unwrap_or_default();
+    assert!(
+        first_reason.contains("too sparse for the motion") && first_reason.contains("0.60 s apart"),
+        "{all}"
+    );
+    // The full recording at 10 Hz raises no such warning.
+    let cc = chain_and_target();
+    let cc: Vec<&str> = cc.iter().map(String::as_str).collect();
+    let (stdout, stderr) = calibrate(&sample("bags/stereo_sqlite3"), &cc, &out);
+    assert!(!format!("{stdout}{stderr}").contains("too sparse"));
+}

@@ -17,6 +17,7 @@
 
 use super::options::CalibOptions;
 use super::robust::{self, Loss, RobustSummary};
+use super::spacing::{SparsePoses, sparse_poses};
 use crate::error::{Error, Result};
 use crate::trajectory::factors::{CoSensorFactors, PoseFactors};
 use crate::trajectory::solver::measurement_information;
@@ -49,6 +50,9 @@ pub(crate) struct CoSensorFit {
     pub robust: RobustSummary,
     /// The weight of each measurement (1: full weight).
     pub weights: Vec<f64>,
+    /// Poses too sparse for the trajectory to follow the motion (a warning says so; a failed
+    /// calibration names it first).
+    pub sparse: Option<SparsePoses>,
 }
 
 impl CoSensor<'_> {
@@ -79,10 +83,14 @@ impl CoSensor<'_> {
                     measurements: Weighted::Poses(weighted),
                     robust,
                     weights,
+                    sparse: sparse_poses(poses),
                 };
                 (trajectory, fit)
             }
         };
+        if let Some(s) = &fit.sparse {
+            warnings.push(s.reason());
+        }
         if fit.robust.outliers > 0 {
             warnings.push(format!(
                 "{} of {} camera poses lie far from the trajectory the others describe (worst at \

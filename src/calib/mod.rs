@@ -43,6 +43,7 @@ pub mod robust;
 pub mod samples;
 pub mod segments;
 pub mod setting;
+pub mod spacing;
 pub(crate) mod update;
 pub mod whiteness;
 
@@ -349,7 +350,8 @@ fn calibrate_stages(
         &dvl_robust,
         &contradicted,
         opts,
-    );
+    )
+    .led_by(fit.sparse.as_ref().map(spacing::SparsePoses::reason));
     let drift = diagnostics::drift(
         free.time_offset.then_some(&pose_only),
         &obs,

@@ -33,6 +33,15 @@ impl Status {
     pub fn is_ok(&self) -> bool {
         matches!(self, Status::Ok)
     }
+
+    /// A failure with `cause` (the cause the other reasons only show symptoms of) as its first
+    /// reason; a passed result stays as it is.
+    pub fn led_by(self, cause: Option<String>) -> Status {
+        match (self, cause) {
+            (Status::Failed(r), Some(c)) => Status::Failed(std::iter::once(c).chain(r).collect()),
+            (s, _) => s,
+        }
+    }
 }
 
 /// The clock offset estimated on the first and on the last third of the recording alone (all
