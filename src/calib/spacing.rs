@@ -109,7 +109,7 @@ mod tests {
         let turn = Se3::exp(&nalgebra::Vector6::new(0.0, 0.0, 0.0, 1.0, 0.0, 0.0));
         for m in p.iter_mut().skip(50) {
             m.t += 2.0;
-            m.pose = turn.clone() * m.pose.clone();
+            m.pose = turn * m.pose;
         }
         assert_eq!(sparse_poses(&p), None);
     }
