@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Renders a dvlcal HTML report (the DVL calibration's or the camera calibration's) in headless
 # Chromium and fails when the browser reports any console message (SVG attribute errors, script
-# errors) or when a section or plot is missing.
+# errors) or when a section or plot is missing. In the DVL calibration's report it also reads the
+# "what to do next" box from the rendered DOM: a list with at least one step, or the sentence
+# that nothing is to be done; it prints the first step.
 #
 # usage: scripts/check_report.sh REPORT.html [SCREENSHOT.png]
 #
@@ -15,8 +17,10 @@ velocity-before-y velocity-after-y velocity-before-z velocity-after-z residuals-
 angular-velocity lever-arm offset-global offset-coarse offset-fine cost frames-tags frames-rms
 reprojection-map-cam0 reprojection-time-cam0 reprojection-map-cam1 reprojection-time-cam1
 pose-residual-pos pose-residual-rot trajectory"
-SECTIONS="summary results correlation warnings residual-time velocity residuals motion clock-offset
-refinement frames reprojection trajectory-fit dvl-log result-file"
+SECTIONS="summary next-steps results correlation warnings residual-time velocity residuals motion
+clock-offset refinement frames reprojection trajectory-fit dvl-log result-file"
+# The DVL calibration's report has the "what to do next" box (src/report/guidance.rs).
+steps_box=1
 
 if [[ $# -lt 1 || $# -gt 2 ]]; then
     echo "usage: $0 REPORT.html [SCREENSHOT.png]" >&2
@@ -33,6 +37,7 @@ fi
 # src/report/cameras.rs. A camera with any of its plots must have all three.
 if grep -q '<body data-report="camcal"' "$report"; then
     SECTIONS="summary warnings results residuals coverage frames camchain"
+    steps_box=0
     PLOTS="frame-rms"
     cams=$({ grep -o 'id="[a-z-]*-cam[0-9]*"' "$report" || true; } |
         sed 's/.*-cam\([0-9]*\)"/\1/' | sort -un)
@@ -44,6 +49,7 @@ fi
 # lists match FAILURE_SECTION_IDS and FAILURE_PLOT_IDS in src/report/failure.rs.
 if grep -q '<body data-report="failure"' "$report"; then
     SECTIONS="failure inputs counts time-spans detection dvl-log"
+    steps_box=0
     PLOTS="time-spans"
 fi
 browser=${CHROMIUM:-}
@@ -120,6 +126,20 @@ n_sections_closed=$(count '</section>')
 if grep -Eiq '<script|<link|<iframe|<img|src=|href="(https?:|//)|url\((https?:|//)' "$report"; then
     problem "the report refers to scripts or external resources"
 fi
+# The box: its first step's text (tags dropped), or the sentence that nothing is to be done.
+steps_words=""
+if [[ $steps_box -eq 1 ]]; then
+    first=$({ tr '\n' ' ' <"$dom" | grep -o '<ol id="next-steps-list">.*' || true; } |
+        { grep -o '<li data-step="[A-Za-z]*"><strong>[^<]*</strong>' || true; } | sed -n 1p |
+        sed -e 's/<[^>]*>//g' -e 's/&amp;/\&/g' -e 's/&lt;/</g' -e 's/&gt;/>/g')
+    if [[ -n $first ]]; then
+        steps_words="; first step: $first"
+    elif grep -q '<p id="nothing-to-do">' "$dom"; then
+        steps_words="; next steps: none"
+    else
+        problem "the next-steps box holds neither a step nor the sentence that nothing is to do"
+    fi
+fi
 empty=$({ grep -o '<svg id="[^"]*"[^>]*data-empty="true"' "$dom" || true; } |
     sed 's/<svg id="\([^"]*\)".*/\1/' | paste -sd' ' -)
 
@@ -134,4 +154,4 @@ if [[ $fail -ne 0 ]]; then
     exit 1
 fi
 echo "ok: $report renders without console messages; $n_open plots, $n_sections sections" \
-    "(without data: ${empty:-none})"
+    "(without data: ${empty:-none})$steps_words"

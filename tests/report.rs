@@ -13,7 +13,7 @@ use dvlcal::calib::Status;
 use dvlcal::calib::offset::DvlObs;
 use dvlcal::calib::{CalibOptions, CalibrationOutcome, Method, calibrate};
 use dvlcal::io::dvl::DvlLogStats;
-use dvlcal::report::{FrameStat, PLOT_IDS, ReportInput, SECTION_IDS, render_html};
+use dvlcal::report::{FrameDrop, FrameStat, PLOT_IDS, ReportInput, SECTION_IDS, render_html};
 use dvlcal::sim::dataset::{MotionKind, SimConfig, SimDataset, simulate};
 use dvlcal::vision::pnp::CornerResidual;
 use nalgebra::{Matrix3, Vector3};
@@ -91,6 +91,8 @@ fn frames(ds: &SimDataset) -> Vec<FrameStat> {
                     Vec::new()
                 },
                 corners,
+                edge_width_px: Some(0.9),
+                dropped: (!posed).then_some(FrameDrop::TooFewCorners),
             }
         })
         .collect()

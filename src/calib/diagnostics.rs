@@ -14,6 +14,7 @@ use super::offset::OffsetMethod;
 use super::options::CalibOptions;
 use super::outcome::{
     DeterminedBy, DriftCheck, Excitation, InitReport, ParamStd, Status, Verdict, Verdicts,
+    WeakCause,
 };
 use super::prior::{LeverArmPrior, Priors};
 use super::refinement::{unobserved_why, whitened_residuals};
@@ -162,6 +163,11 @@ pub(crate) fn judge(
                 unobserved_why(worst)
             ),
             by: DeterminedBy::Prior,
+            cause: Some(if worst.is_finite() {
+                WeakCause::LittleRotation
+            } else {
+                WeakCause::RotationRateNoise
+            }),
         };
     } else if roles.lever_arm_from_default_prior {
         verdicts.lever_arm = Verdict {
@@ -171,10 +177,12 @@ pub(crate) fn judge(
                  measure the lever arm and give {lever_prior}"
             ),
             by: DeterminedBy::Prior,
+            cause: Some(WeakCause::LittleRotation),
         };
     }
     if roles.rotation_from_user_prior {
         verdicts.rotation.by = DeterminedBy::Prior;
+        verdicts.rotation.cause = Some(WeakCause::UserPrior);
         push_reason(
             &mut verdicts.rotation,
             &format!(
@@ -185,6 +193,7 @@ pub(crate) fn judge(
     }
     if roles.lever_arm_from_user_prior {
         verdicts.lever_arm.by = DeterminedBy::Prior;
+        verdicts.lever_arm.cause = Some(WeakCause::UserPrior);
         push_reason(
             &mut verdicts.lever_arm,
             &format!(
@@ -467,7 +476,12 @@ fn verdicts(
     free: &[bool; NPARAM],
 ) -> Verdicts {
     let th = &opts.weak;
-    let judge = |free: bool, worst: f64, limit: f64, what: &str, unit: &str, why: &str| {
+    let judge = |free: bool,
+                 worst: f64,
+                 limit: f64,
+                 what: &str,
+                 unit: &str,
+                 (why, cause): (&str, WeakCause)| {
         if !free {
             Verdict {
                 ok: true,
@@ -476,12 +490,14 @@ fn verdicts(
                     opts.name(Setting::Guess)
                 ),
                 by: DeterminedBy::Fixed,
+                cause: None,
             }
         } else if worst.is_finite() && worst <= limit {
             Verdict {
                 ok: true,
                 reason: String::new(),
                 by: DeterminedBy::Data,
+                cause: None,
             }
         } else {
             Verdict {
@@ -490,6 +506,7 @@ fn verdicts(
                     "{what} standard deviation {worst:.3e} {unit} exceeds {limit} {unit}: {why}"
                 ),
                 by: DeterminedBy::Data,
+                cause: Some(cause),
             }
         }
     };
@@ -505,7 +522,7 @@ fn verdicts(
         th.lever_arm_m,
         "lever arm",
         "m",
-        &lever_why,
+        (&lever_why, WeakCause::LittleRotation),
     );
     if let Some(i) = init
         && !i.closed_form.lever_arm_solved
@@ -516,6 +533,7 @@ fn verdicts(
             ok: false,
             reason: "angular velocity too small to solve the lever arm in closed form".into(),
             by: DeterminedBy::Data,
+            cause: Some(WeakCause::LittleRotation),
         };
     }
     let offset_why = match init.map(|i| i.offset.method) {
@@ -532,7 +550,10 @@ fn verdicts(
             th.rotation_deg,
             "rotation",
             "deg",
-            "the camera moved along too few directions",
+            (
+                "the camera moved along too few directions",
+                WeakCause::FewDirections,
+            ),
         ),
         lever_arm: lever,
         time_offset: judge(
@@ -541,7 +562,7 @@ fn verdicts(
             th.time_offset_s,
             "clock offset",
             "s",
-            offset_why,
+            (offset_why, WeakCause::LittleSpeedChange),
         ),
         velocity_scale: judge(
             free[6],
@@ -549,7 +570,7 @@ fn verdicts(
             th.velocity_scale,
             "velocity scale",
             "",
-            "the camera moved too little",
+            ("the camera moved too little", WeakCause::LittleMotion),
         ),
     }
 }

@@ -60,7 +60,7 @@ pub use model::PARAM_NAMES;
 pub use options::{CalibOptions, Method, SanityLimits, WeakThresholds};
 pub use outcome::{
     CalibrationOutcome, ClockDrift, Counts, DeterminedBy, DriftCheck, Excitation, HalvesCheck,
-    InitReport, IterationRecord, ParamStd, Robustness, Status, Verdict, Verdicts,
+    InitReport, IterationRecord, ParamStd, Robustness, Status, Verdict, Verdicts, WeakCause,
 };
 pub use samples::{pose_gap_threshold_s, pose_gaps, usable_covariance};
 pub use setting::{Setting, SettingNames};

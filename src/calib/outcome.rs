@@ -93,6 +93,25 @@ pub enum DeterminedBy {
     Prior,
 }
 
+/// Why the data left a parameter weak, as a value (the words are in [`Verdict::reason`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum WeakCause {
+    /// The camera's angular velocity is mostly noise (its least excited axis): the lever arm
+    /// was held at the broad default prior.
+    RotationRateNoise,
+    /// The camera rotated too little for the data to determine the parameter (the lever arm,
+    /// also when held at the default prior for the data's large standard deviation).
+    LittleRotation,
+    /// The camera moved along too few directions (the rotation).
+    FewDirections,
+    /// The speed changed too little (the clock offset).
+    LittleSpeedChange,
+    /// The camera moved too little (the velocity scale).
+    LittleMotion,
+    /// The value comes mainly from the user's prior.
+    UserPrior,
+}
+
 /// Verdict on one parameter.
 #[derive(Clone, Debug)]
 pub struct Verdict {
@@ -102,6 +121,8 @@ pub struct Verdict {
     pub reason: String,
     /// Whether the data, a prior, or nothing (held fixed) gave the value.
     pub by: DeterminedBy,
+    /// What in the recording left it weak (`None` when ok or held fixed).
+    pub cause: Option<WeakCause>,
 }
 
 /// Verdicts on all parameters.

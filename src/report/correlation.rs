@@ -148,26 +148,33 @@ pub(super) fn correlation_section(o: &CalibrationOutcome) -> String {
                         cell_colour(x)
                     );
                 }
+                // The lever arm held at its prior was given its value by the prior, not fixed.
+                None if c.lever_arm_held && (3..6).any(|k| k == i || k == j) => {
+                    s.push_str("<td class=\"fixed-cell\">prior</td>")
+                }
                 None => s.push_str("<td class=\"fixed-cell\">fixed</td>"),
             }
         }
         s.push_str("</tr>");
     }
     s.push_str("</table>\n");
+    let at_prior = |k: usize| c.lever_arm_held && (3..6).contains(&k);
     let held: Vec<&str> = (0..NPARAM)
-        .filter(|&k| !c.estimated[k])
+        .filter(|&k| !c.estimated[k] && !at_prior(k))
         .map(|k| PARAM_NAMES[k].0)
         .collect();
     if !held.is_empty() {
         let _ = writeln!(
             s,
-            "<p>Not estimated in this run, so without a correlation: {}{}.</p>",
-            escape(&held.join(", ")),
-            if c.lever_arm_held {
-                " (the lever arm held at the broad default prior: the motion did not observe it)"
-            } else {
-                ""
-            }
+            "<p>Fixed in this run, so without a correlation: {}.</p>",
+            escape(&held.join(", "))
+        );
+    }
+    if c.lever_arm_held {
+        s.push_str(
+            "<p id=\"correlation-prior\">The lever arm is held at its prior (the broad default \
+             prior: the motion did not observe it), so it has no correlation with the others \
+             (cells marked prior).</p>\n",
         );
     }
     let strong = c.strong_pairs();

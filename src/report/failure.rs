@@ -4,6 +4,7 @@
 
 use std::fmt::Write as _;
 
+use super::guidance::FrameLoss;
 use super::html::STYLE;
 use super::input::FrameStat;
 use super::svg::{Plot, Series, escape};
@@ -161,11 +162,21 @@ pub fn render_failure_html(input: &FailureReportInput) -> String {
     for m in msgs.iter().filter(|m| !m.is_empty()) {
         let _ = write!(s, "<li>{}</li>", escape(m));
     }
-    let _ = writeln!(
+    let _ = write!(
         s,
-        "</ul><p id=\"advice\">{}</p></div></section>",
+        "</ul><p id=\"advice\">{}</p>",
         escape(advice(input.error))
     );
+    // The frames the image pipeline lost are what happened, whatever the error's usual causes.
+    if let Some(l) = FrameLoss::of(input.frames).filter(FrameLoss::significant) {
+        let _ = write!(
+            s,
+            "<p id=\"frame-cause\">In this run {}: the camera poses are too few or too sparse \
+             to follow the motion.</p>",
+            escape(&l.words())
+        );
+    }
+    s.push_str("</div></section>\n");
 
     s.push_str("<section id=\"inputs\"><h2>Inputs found</h2><table>");
     for (k, v) in input.inputs {

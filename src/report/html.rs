@@ -32,6 +32,8 @@ th{background:#f2f2f2}td.num{font-family:ui-monospace,'DejaVu Sans Mono',monospa
 white-space:nowrap}.ok{color:#1b7a2a;font-weight:600}.weak{color:#b3261e;font-weight:600}\
 .fixed{color:#555;font-weight:600}td.fixed-cell{color:#777;background:#f4f4f4;font-style:italic}\
 table.corr td{text-align:right}.start{color:#777;font-size:.9em;font-weight:400}ul.warn li{color:#8a4b00}.failed{border:2px solid #b00020;background:#fdecee;padding:.2em 1em;margin:1em 0}.failed strong{color:#b00020}.verdicts li{margin:.25em 0}\
+.next{border:2px solid #1f5fa8;background:#eef4fb;padding:.1em 1em .4em;margin:1em 0}\
+.next h2{border:0;margin:.5em 0 .2em}.next li{margin:.3em 0}.next .why{color:#555}\
 .grid{display:flex;flex-wrap:wrap;gap:8px 16px}figure{margin:.4em 0}\
 figcaption{font-size:.88em;color:#444;max-width:940px}\
 svg.plot{max-width:100%;height:auto;border:1px solid #e2e2e2}\

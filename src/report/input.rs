@@ -27,11 +27,59 @@ pub struct FrameStat {
     /// An evenly drawn sample of the pose's corner residuals (see
     /// [`crate::vision::pnp::FramePose::corner_sample`]).
     pub corners: Vec<CornerResidual>,
+    /// The width of the sharpest edges of the frame's images, px (their mean over the cameras;
+    /// see [`crate::vision::sharpness`]); `None` when not measured.
+    pub edge_width_px: Option<f64>,
+    /// Why the frame got no pose (`None` for a posed frame).
+    pub dropped: Option<FrameDrop>,
 }
 
-/// Per-frame statistics of the detection pipeline's results, on the epoch of the poses.
+/// Why a frame got no pose.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum FrameDrop {
+    /// None of its images could be read, or all had the wrong size.
+    Unreadable,
+    /// Its images are blurred (motion or focus): their sharpest edges are clearly wider than
+    /// the posed frames' ([`BLUR_FACTOR`]), or than [`BLURRED_EDGE_PX`] when no frame got a pose.
+    Blurred,
+    /// No tag was found in its images (the board out of view, too far, or too dark).
+    NoTags,
+    /// Tags were found, but too few of the board's corners for a pose.
+    TooFewCorners,
+    /// The pose could not be solved (degenerate geometry, a corner behind a camera).
+    NoSolution,
+}
+
+/// An unposed frame is blurred when its edges are this many times as wide as the posed frames'
+/// median (and at least [`BLUR_MARGIN_PX`] wider).
+pub const BLUR_FACTOR: f64 = 1.5;
+
+/// ... see [`BLUR_FACTOR`].
+pub const BLUR_MARGIN_PX: f64 = 0.75;
+
+/// Edge width beyond which an unposed frame is blurred when no frame got a pose to compare
+/// with, px.
+pub const BLURRED_EDGE_PX: f64 = 2.5;
+
+/// The median edge width of the posed frames, px.
+pub fn posed_edge_width_px(frames: &[FrameStat]) -> Option<f64> {
+    let mut w: Vec<f64> = frames
+        .iter()
+        .filter(|f| f.posed)
+        .filter_map(|f| f.edge_width_px)
+        .filter(|w| w.is_finite())
+        .collect();
+    if w.is_empty() {
+        return None;
+    }
+    w.sort_by(f64::total_cmp);
+    Some(w[w.len() / 2])
+}
+
+/// Per-frame statistics of the detection pipeline's results, on the epoch of the poses, each
+/// unposed frame with the reason it got no pose.
 pub fn frame_stats(results: &[FrameResult], epoch: &Epoch) -> Vec<FrameStat> {
-    results
+    let mut stats: Vec<FrameStat> = results
         .iter()
         .map(|r| FrameStat {
             t: epoch.rel(crate::io::images::raw_time(r.frame.t_ns)),
@@ -49,8 +97,35 @@ pub fn frame_stats(results: &[FrameResult], epoch: &Epoch) -> Vec<FrameStat> {
                 .as_ref()
                 .map(|p| p.corner_sample.clone())
                 .unwrap_or_default(),
+            edge_width_px: mean(r.edge_width_px.iter().flatten().copied()),
+            dropped: None,
         })
-        .collect()
+        .collect();
+    let posed = posed_edge_width_px(&stats);
+    for (f, r) in stats.iter_mut().zip(results) {
+        if f.posed {
+            continue;
+        }
+        let blurred = match (f.edge_width_px, posed) {
+            (Some(w), Some(m)) => w > (BLUR_FACTOR * m).max(m + BLUR_MARGIN_PX),
+            (Some(w), None) => w > BLURRED_EDGE_PX,
+            (None, _) => false,
+        };
+        f.dropped = Some(match r.status {
+            FrameStatus::NoImage => FrameDrop::Unreadable,
+            _ if blurred => FrameDrop::Blurred,
+            _ if f.tags_detected == 0 => FrameDrop::NoTags,
+            FrameStatus::NoSolution => FrameDrop::NoSolution,
+            // A frame marked posed without a pose has none to use either.
+            FrameStatus::TooFewCorners | FrameStatus::Posed => FrameDrop::TooFewCorners,
+        });
+    }
+    stats
+}
+
+fn mean(x: impl Iterator<Item = f64>) -> Option<f64> {
+    let (n, s) = x.fold((0usize, 0.0), |(n, s), v| (n + 1, s + v));
+    (n > 0).then(|| s / n as f64)
 }
 
 /// Everything the report shows.

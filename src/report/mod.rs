@@ -23,6 +23,7 @@ mod data;
 mod dvl_log;
 mod failure;
 mod frames;
+mod guidance;
 mod html;
 mod input;
 mod motion;
@@ -44,7 +45,11 @@ pub use cameras::{
     camcal_plot_ids, render_camcal_html,
 };
 pub use failure::{FAILURE_PLOT_IDS, FAILURE_SECTION_IDS, FailureReportInput, render_failure_html};
-pub use input::{FrameStat, ReportInput, frame_stats};
+pub use guidance::{NextStep, StepKind, next_steps};
+pub use input::{
+    BLUR_FACTOR, BLUR_MARGIN_PX, BLURRED_EDGE_PX, FrameDrop, FrameStat, ReportInput, frame_stats,
+    posed_edge_width_px,
+};
 pub use words::{WATER_SOUND_SPEED_MPS, implausible_water, sound_speed_words};
 
 use crate::error::Result;
@@ -86,6 +91,7 @@ pub const PLOT_IDS: &[&str] = &[
 /// The id of every section of the report, in page order.
 pub const SECTION_IDS: &[&str] = &[
     "summary",
+    "next-steps",
     "results",
     "correlation",
     "warnings",

@@ -2,13 +2,19 @@
 //! the clock-offset search, and the lever-arm term against the speed.
 
 use super::data::Derived;
+use super::guidance::{FrameLoss, specific_reason};
 use super::html::{AFTER, AXES, AXIS_COLORS, LEVER, WIDE, figure, percent, section};
 use super::svg::{Plot, Series};
 use super::words::estimated;
-use crate::calib::CalibrationOutcome;
 use crate::calib::offset::OffsetMethod;
+use crate::calib::{CalibrationOutcome, DeterminedBy};
 
-pub(super) fn motion(s: &mut String, o: &CalibrationOutcome, d: &Derived) {
+pub(super) fn motion(
+    s: &mut String,
+    o: &CalibrationOutcome,
+    d: &Derived,
+    loss: Option<&FrameLoss>,
+) {
     section(s, "motion", "Motion: rotation and lever-arm excitation");
     let norm: Vec<(f64, f64)> = d.angular.iter().map(|(t, w)| (*t, w.norm())).collect();
     let mut plot = Plot::new(
@@ -60,12 +66,28 @@ pub(super) fn motion(s: &mut String, o: &CalibrationOutcome, d: &Derived) {
     )
     .size(WIDE, 260.0)
     .series(Series::line("|v| camera speed", AFTER, speed).size(1.2))
-    .series(Series::line("|w × p| lever-arm term", LEVER, lever).size(1.4));
+    .series(
+        Series::line(
+            if o.verdicts.lever_arm.by == DeterminedBy::Prior {
+                "|w × p| lever-arm term (p: its prior)"
+            } else {
+                "|w × p| lever-arm term"
+            },
+            LEVER,
+            lever,
+        )
+        .size(1.4),
+    );
     let ratio = o.excitation.lever_arm_ratio;
     let lever_std_mm = 1e3 * o.std.lever_arm_m.max();
     let ext = estimated(&o.method, true);
     let judgement = if !ext {
         "The lever arm was held fixed in this run.".to_owned()
+    } else if o.verdicts.lever_arm.by == DeterminedBy::Prior {
+        format!(
+            "The lever arm comes from its prior, not from this motion: {}",
+            specific_reason(&o.verdicts.lever_arm, loss)
+        )
     } else if o.verdicts.lever_arm.ok {
         format!(
             "This motion makes the lever arm observable: it shows in the DVL velocities strongly \
@@ -75,7 +97,7 @@ pub(super) fn motion(s: &mut String, o: &CalibrationOutcome, d: &Derived) {
         format!(
             "With this motion the lever arm is weakly observable ({lever_std_mm:.2} mm largest \
              standard deviation): {}",
-            o.verdicts.lever_arm.reason
+            specific_reason(&o.verdicts.lever_arm, loss)
         )
     };
     figure(

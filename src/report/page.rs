@@ -7,13 +7,14 @@ use super::clock_offset::clock_offset;
 use super::data::Derived;
 use super::dvl_log::{dvl_log, result_file};
 use super::frames::frames;
+use super::guidance::{FrameLoss, next_steps, next_steps_section};
 use super::html::{STYLE, put};
 use super::input::ReportInput;
 use super::motion::motion;
 use super::refinement::refinement;
 use super::results::results;
 use super::robustness::robustness;
-use super::summary::{summary, warnings};
+use super::summary::{all_warnings, summary, warnings};
 use super::svg::escape;
 use super::trajectory_fit::trajectory;
 use super::velocity::{residuals, velocity};
@@ -28,10 +29,13 @@ pub(super) fn render(input: &ReportInput, d: &Derived) -> String {
          <title>{}</title><style>{STYLE}</style></head><body>\n",
         escape(input.title)
     );
-    summary(&mut s, input, d);
-    results(&mut s, o, input.dvl_stats.and_then(|st| st.sound_speed_mps));
+    let steps = next_steps(input);
+    let warned = all_warnings(input);
+    summary(&mut s, input, d, &steps, &warned);
+    next_steps_section(&mut s, &steps, warned.len());
+    results(&mut s, input);
     s.push_str(&super::correlation::correlation_section(o));
-    warnings(&mut s, input);
+    warnings(&mut s, &warned);
     s.push_str(&super::timeline::residual_time_section(
         &d.samples,
         &d.dvl_gaps,
@@ -39,7 +43,8 @@ pub(super) fn render(input: &ReportInput, d: &Derived) -> String {
     velocity(&mut s, d);
     robustness(&mut s, o);
     residuals(&mut s, o, d);
-    motion(&mut s, o, d);
+    let loss = FrameLoss::of(input.frames);
+    motion(&mut s, o, d, loss.as_ref());
     clock_offset(&mut s, o);
     refinement(&mut s, o);
     frames(&mut s, input.frames);

@@ -177,7 +177,7 @@ fn fixed_parameters_have_no_correlation() {
     let html = super::correlation::correlation_section(&o);
     assert_eq!(html.matches(">fixed</td>").count(), NPARAM * NPARAM - 4);
     assert!(!html.contains("NaN"));
-    assert!(html.contains("Not estimated in this run"));
+    assert!(html.contains("Fixed in this run"));
 }
 
 #[test]
@@ -202,7 +202,10 @@ fn a_lever_arm_held_at_the_default_prior_has_no_correlation() {
     );
     assert!(c.r[0][3].is_none() && c.r[6][7].is_some());
     let html = super::correlation::correlation_section(&o);
-    assert!(html.contains("held at the broad default prior"));
+    assert!(html.contains("The lever arm is held at its prior (the broad default prior"));
+    // Its cells say "prior", not "fixed": the prior gave its value (3 rows and 3 columns).
+    assert_eq!(html.matches(">prior</td>").count(), NPARAM * NPARAM - 5 * 5);
+    assert!(!html.contains(">fixed</td>"));
     // Determined by the data (covariance with the rest), it is estimated whatever the flag says.
     let mut o = with_sigma().clone();
     o.lever_arm_from_default_prior = true;
@@ -230,6 +233,8 @@ fn frame(t: f64, cams: usize, per_cam: usize) -> FrameStat {
         rms_px: Some(0.15),
         rms_px_per_cam: (0..cams).map(|c| Some(0.1 * (c + 1) as f64)).collect(),
         corners,
+        edge_width_px: Some(0.9),
+        dropped: None,
     }
 }
 

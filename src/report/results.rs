@@ -4,17 +4,21 @@
 
 use std::fmt::Write as _;
 
+use super::guidance::{FrameLoss, specific_reason};
 use super::html::{put, quat, section, vec3};
+use super::input::ReportInput;
 use super::svg::escape;
 use super::words::estimated;
-use crate::calib::{CalibrationOutcome, DeterminedBy, Verdict};
+use crate::calib::{DeterminedBy, Verdict, WeakCause};
 
 /// The verdict cell of the results table.
 fn verdict_cell(v: &Verdict, free: bool) -> &'static str {
     if !free {
         "<span class=\"fixed\">fixed (from --init)</span>"
+    } else if v.by == DeterminedBy::Prior && v.cause == Some(WeakCause::UserPrior) {
+        "<span class=\"weak\">prior (mainly the one given)</span>"
     } else if v.by == DeterminedBy::Prior {
-        "<span class=\"weak\">from the prior</span>"
+        "<span class=\"weak\">prior (not measured)</span>"
     } else if v.ok {
         "<span class=\"ok\">well determined</span>"
     } else {
@@ -23,8 +27,15 @@ fn verdict_cell(v: &Verdict, free: bool) -> &'static str {
 }
 
 /// One sentence on one parameter; `spread` describes its standard deviation (weak verdicts
-/// already quote it in their reason).
-fn verdict_sentence(name: &str, v: &Verdict, free: bool, spread: &str) -> String {
+/// already quote it in their reason), `loss` the frames the image pipeline lost.
+fn verdict_sentence(
+    name: &str,
+    v: &Verdict,
+    free: bool,
+    spread: &str,
+    loss: Option<&FrameLoss>,
+) -> String {
+    let reason = specific_reason(v, loss);
     if !free {
         format!(
             "{name} was not estimated: it stays at the value given with --init and has no \
@@ -33,7 +44,7 @@ fn verdict_sentence(name: &str, v: &Verdict, free: bool, spread: &str) -> String
     } else if v.by == DeterminedBy::Prior {
         format!(
             "{name} comes from its prior rather than the data: {}.",
-            v.reason.trim_end_matches('.')
+            reason.trim_end_matches('.')
         )
     } else if v.ok {
         format!("{name} is well determined: its standard deviation is {spread}.")
@@ -41,12 +52,16 @@ fn verdict_sentence(name: &str, v: &Verdict, free: bool, spread: &str) -> String
         format!(
             "{name} is weakly observable: {}. Do not rely on this value without a recording that \
              excites it better.",
-            v.reason.trim_end_matches('.')
+            reason.trim_end_matches('.')
         )
     }
 }
 
-pub(super) fn results(s: &mut String, o: &CalibrationOutcome, sound_speed: Option<f64>) {
+pub(super) fn results(s: &mut String, input: &ReportInput) {
+    let o = input.outcome;
+    let sound_speed = input.dvl_stats.and_then(|st| st.sound_speed_mps);
+    let loss = FrameLoss::of(input.frames);
+    let loss = loss.as_ref();
     section(s, "results", "Results");
     let c = o.params;
     let c0 = o.start;
@@ -68,7 +83,15 @@ pub(super) fn results(s: &mut String, o: &CalibrationOutcome, sound_speed: Optio
         (
             "lever arm p_cam_dvl (m, camera frame)",
             vec3(&o.params.lever_arm_cam_m(), 1.0, 4),
-            format!("{} mm", vec3(&st.lever_arm_m, 1e3, 2)),
+            format!(
+                "{} mm{}",
+                vec3(&st.lever_arm_m, 1e3, 2),
+                if o.verdicts.lever_arm.by == DeterminedBy::Prior && ext {
+                    " (the prior's)"
+                } else {
+                    ""
+                }
+            ),
             vec3(&o.start.lever_arm_cam_m(), 1.0, 4),
             verdict_cell(&o.verdicts.lever_arm, ext),
         ),
@@ -88,8 +111,8 @@ pub(super) fn results(s: &mut String, o: &CalibrationOutcome, sound_speed: Optio
         ),
     ];
     for (name, est, sd, start, verdict) in rows {
-        // A held parameter has no standard deviation.
-        let sd = if verdict.contains("fixed") {
+        // A parameter the method held has no standard deviation.
+        let sd = if verdict.contains("class=\"fixed\"") {
             "none (held)".to_owned()
         } else {
             sd
@@ -111,6 +134,7 @@ pub(super) fn results(s: &mut String, o: &CalibrationOutcome, sound_speed: Optio
             &o.verdicts.rotation,
             ext,
             &format!("at most {:.3} deg about any axis", st.rotation_deg.max()),
+            loss,
         ),
         verdict_sentence(
             "The lever arm",
@@ -120,12 +144,14 @@ pub(super) fn results(s: &mut String, o: &CalibrationOutcome, sound_speed: Optio
                 "at most {:.2} mm along any axis",
                 1e3 * st.lever_arm_m.max()
             ),
+            loss,
         ),
         verdict_sentence(
             "The clock offset",
             &o.verdicts.time_offset,
             tim,
             &format!("{:.2} ms", 1e3 * st.time_offset_s),
+            loss,
         ),
         verdict_sentence(
             "The velocity scale",
@@ -136,6 +162,7 @@ pub(super) fn results(s: &mut String, o: &CalibrationOutcome, sound_speed: Optio
                 st.velocity_scale,
                 100.0 * st.velocity_scale
             ),
+            loss,
         ),
     ];
     for line in sentences {

@@ -4,12 +4,20 @@
 use std::fmt::Write as _;
 
 use super::data::Derived;
+use super::guidance::{FrameLoss, NextStep, specific_reason};
 use super::html::{join_words, put, section, vec3};
 use super::input::ReportInput;
 use super::svg::escape;
 use super::words::{estimated, method_words};
+use crate::calib::DeterminedBy;
 
-pub(super) fn summary(s: &mut String, input: &ReportInput, d: &Derived) {
+pub(super) fn summary(
+    s: &mut String,
+    input: &ReportInput,
+    d: &Derived,
+    steps: &[NextStep],
+    warnings: &[String],
+) {
     let o = input.outcome;
     put!(
         s,
@@ -37,41 +45,23 @@ pub(super) fn summary(s: &mut String, input: &ReportInput, d: &Derived) {
         for r in reasons {
             put!(s, "<li>{}</li>", escape(r));
         }
-        s.push_str("</ul></div>\n");
+        s.push_str("</ul>");
+        if let Some(l) = FrameLoss::of(input.frames).filter(FrameLoss::significant) {
+            put!(
+                s,
+                "<p id=\"failed-cause\">In this run {}: camera poses this sparse cannot follow \
+                 the motion, which alone can explain a disagreement with the DVL.</p>",
+                escape(&l.words())
+            );
+        }
+        s.push_str("</div>\n");
     }
 
-    let v = &o.verdicts;
-    let ext = estimated(&o.method, true);
-    let tim = estimated(&o.method, false);
-    let judged = [
-        ("the rotation", &v.rotation, ext),
-        ("the lever arm", &v.lever_arm, ext),
-        ("the clock offset", &v.time_offset, tim),
-        ("the velocity scale", &v.velocity_scale, tim),
-    ];
-    let weak: Vec<&str> = judged
-        .iter()
-        .filter(|(_, v, free)| *free && !v.ok)
-        .map(|(n, _, _)| *n)
-        .collect();
-    let free = judged.iter().filter(|j| j.2).count();
-    let headline = if free == 0 {
-        "Nothing was estimated: this run only evaluates the given calibration against the data."
-            .to_owned()
-    } else if weak.is_empty() {
-        format!(
-            "All {free} estimated quantities are well determined by this recording \
-             (details and standard deviations below)."
-        )
-    } else {
-        format!(
-            "Attention: {} {} weakly observable with this recording; the other estimates are \
-             well determined.",
-            join_words(&weak),
-            if weak.len() == 1 { "is" } else { "are" }
-        )
-    };
-    put!(s, "<p><strong>{}</strong></p>\n", escape(&headline));
+    put!(
+        s,
+        "<p id=\"headline\"><strong>{}</strong></p>\n",
+        escape(&headline(input, steps, warnings))
+    );
     let mut words = format!(
         "After calibration the DVL velocities differ from the camera's prediction by {} mm/s RMS \
          (x, y, z)",
@@ -133,14 +123,88 @@ pub(super) fn summary(s: &mut String, input: &ReportInput, d: &Derived) {
     put!(s, "<p>{}</p></section>\n", escape(&words));
 }
 
-/// The log's warnings, the calibration's, and one per weak verdict.
-fn all_warnings(input: &ReportInput) -> Vec<String> {
+/// The summary's first sentence: the verdicts, and the warnings with the most serious named.
+fn headline(input: &ReportInput, steps: &[NextStep], warnings: &[String]) -> String {
+    let o = input.outcome;
+    let v = &o.verdicts;
+    let ext = estimated(&o.method, true);
+    let tim = estimated(&o.method, false);
+    let judged = [
+        ("the rotation", &v.rotation, ext),
+        ("the lever arm", &v.lever_arm, ext),
+        ("the clock offset", &v.time_offset, tim),
+        ("the velocity scale", &v.velocity_scale, tim),
+    ];
+    let free = judged.iter().filter(|j| j.2).count();
+    let weak: Vec<String> = judged
+        .iter()
+        .filter(|(_, _, free)| *free)
+        .filter_map(|(n, v, _)| {
+            if v.by == DeterminedBy::Prior {
+                Some(format!("{n} comes from its prior"))
+            } else if !v.ok {
+                Some(format!("{n} is weakly observable"))
+            } else {
+                None
+            }
+        })
+        .collect();
+    let mut h = if free == 0 {
+        "Nothing was estimated: this run only evaluates the given calibration against the data"
+            .to_owned()
+    } else if weak.is_empty() {
+        format!(
+            "All {free} estimated quantities are well determined by this recording (details and \
+             standard deviations below)"
+        )
+    } else {
+        let weak: Vec<&str> = weak.iter().map(String::as_str).collect();
+        let mut h = format!("Attention: {}", join_words(&weak));
+        if weak.len() < free {
+            h.push_str("; the other estimates are well determined");
+        }
+        h
+    };
+    let serious = steps
+        .first()
+        .map(|st| st.problem.as_str())
+        .or(warnings.first().map(String::as_str));
+    match (warnings.len(), serious) {
+        (0, Some(p)) => {
+            let _ = write!(h, ", but {p}.");
+        }
+        (0, None) => h.push('.'),
+        (n, p) => {
+            let _ = write!(
+                h,
+                "{} {} {n} warning{} below; the most serious: {}.",
+                if weak.is_empty() {
+                    ", but there"
+                } else {
+                    ". There"
+                },
+                if n == 1 { "is" } else { "are" },
+                if n == 1 { "" } else { "s" },
+                p.unwrap_or_default()
+            );
+        }
+    }
+    h
+}
+
+/// The log's warnings, the calibration's, the frames the image pipeline lost, and one per
+/// parameter that is weak or comes from its prior.
+pub(super) fn all_warnings(input: &ReportInput) -> Vec<String> {
     let o = input.outcome;
     let mut w: Vec<String> = input
         .dvl_stats
         .map(|st| st.warnings.clone())
         .unwrap_or_default();
     w.extend(o.warnings.iter().cloned());
+    let loss = FrameLoss::of(input.frames);
+    if let Some(l) = loss.as_ref().filter(|l| l.significant()) {
+        w.push(l.words());
+    }
     let ext = estimated(&o.method, true);
     let tim = estimated(&o.method, false);
     for (name, v, free) in [
@@ -149,16 +213,21 @@ fn all_warnings(input: &ReportInput) -> Vec<String> {
         ("time offset", &o.verdicts.time_offset, tim),
         ("velocity scale", &o.verdicts.velocity_scale, tim),
     ] {
-        if free && !v.ok {
-            w.push(format!("{name} is weakly observable: {}", v.reason));
+        if !free {
+            continue;
+        }
+        let why = specific_reason(v, loss.as_ref());
+        if v.by == DeterminedBy::Prior {
+            w.push(format!("{name} comes from its prior, not the data: {why}"));
+        } else if !v.ok {
+            w.push(format!("{name} is weakly observable: {why}"));
         }
     }
     w
 }
 
-pub(super) fn warnings(s: &mut String, input: &ReportInput) {
+pub(super) fn warnings(s: &mut String, w: &[String]) {
     section(s, "warnings", "Warnings");
-    let w = all_warnings(input);
     if w.is_empty() {
         s.push_str("<p>No warnings.</p>");
     } else {
@@ -168,7 +237,7 @@ pub(super) fn warnings(s: &mut String, input: &ReportInput) {
             w.len(),
             if w.len() == 1 { "" } else { "s" }
         );
-        for line in &w {
+        for line in w {
             put!(s, "<li>{}</li>", escape(line));
         }
         s.push_str("</ul>");

@@ -124,6 +124,9 @@ pub struct FrameResult {
     pub pose: Option<FramePose>,
     /// Tags detected in each camera's image (before matching them to the board).
     pub tags_detected: Vec<usize>,
+    /// The width of the sharpest edges in each camera's image, px
+    /// ([`super::sharpness::edge_width_px`]; `None` for an image not read or without edges).
+    pub edge_width_px: Vec<Option<f64>>,
 }
 
 /// Counts over a run.
@@ -313,7 +316,7 @@ fn process_frame(
     };
     let sizes: Vec<(u32, u32)> = chain.cams.iter().map(|c| (c.width, c.height)).collect();
     let cams: Vec<Option<&Camera>> = chain.cams.iter().map(Some).collect();
-    let (dets, any) = detect_images(f, load, &sizes, &cams, det, slot, &mut c);
+    let (dets, any, edge_width_px) = detect_images(f, load, &sizes, &cams, det, slot, &mut c);
     let detected: Vec<usize> = dets.iter().map(Vec::len).collect();
     let (status, pose) = if !any {
         (FrameStatus::NoImage, None)
@@ -330,6 +333,7 @@ fn process_frame(
             status,
             pose,
             tags_detected: detected,
+            edge_width_px,
         },
         c,
     )
@@ -337,8 +341,9 @@ fn process_frame(
 
 /// Decodes and detects the images of one frame. `sizes` are the expected image sizes per camera;
 /// `cams` the camera models for the corner refinement (`None`: not known yet). Unreadable and
-/// wrongly sized images are counted and named in `c`. Returns the detections per camera and
-/// whether any image was usable.
+/// wrongly sized images are counted and named in `c`. Returns the detections per camera,
+/// whether any image was usable, and the width of each image's sharpest edges.
+#[allow(clippy::type_complexity)]
 fn detect_images(
     f: &StereoFrame,
     load: &dyn Fn(usize) -> Option<Result<image::GrayImage>>,
@@ -347,8 +352,9 @@ fn detect_images(
     det: &DetectorSettings,
     slot: &mut Option<Detector>,
     c: &mut FrameCounts,
-) -> (Vec<Vec<TagDetection>>, bool) {
+) -> (Vec<Vec<TagDetection>>, bool, Vec<Option<f64>>) {
     let mut dets: Vec<Vec<TagDetection>> = vec![Vec::new(); f.images.len()];
+    let mut widths = vec![None; f.images.len()];
     let mut any = false;
     for (cam, name) in f.images.iter().enumerate() {
         let Some(name) = name else { continue };
@@ -384,9 +390,10 @@ fn detect_images(
         };
         c.images += 1;
         any = true;
+        widths[cam] = super::sharpness::edge_width_px(&img);
         dets[cam] = detector.detect_with_camera(&img, cams.get(cam).copied().flatten());
     }
-    (dets, any)
+    (dets, any, widths)
 }
 
 /// The tags of every frame, detected in parallel (one detector per worker thread), in frame
@@ -432,7 +439,7 @@ pub fn detect_source_tags(
                 wrong_size: 0,
                 problems: Vec::new(),
             };
-            let (d, any) = detect_images(f, load, sizes, &models, det, &mut guard, &mut c);
+            let (d, any, _) = detect_images(f, load, sizes, &models, det, &mut guard, &mut c);
             drop(guard);
             (d, any, c)
         })?;

@@ -10,3 +10,4 @@ pub mod kalibr;
 pub mod pnp;
 pub(crate) mod refine;
 pub mod scale;
+pub mod sharpness;
