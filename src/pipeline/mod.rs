@@ -28,6 +28,7 @@ mod calibration;
 mod cameras;
 mod dataset;
 mod evaluate;
+mod exports;
 mod simulate;
 mod vision;
 
