@@ -2,10 +2,13 @@
 //! the URDF export is a robot ROS's own parser reads, an export never shows a value the data did
 //! not measure without saying so, and `compare-calib` does not pass a failed estimate.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use dvlcal::io::calib_yaml::{Observability, read_calib_yaml};
+use dvlcal::io::target::read_board;
+use dvlcal::vision::detect::{Detector, DetectorSettings};
 
 #[path = "tmp_common/mod.rs"]
 mod tmp_common;
@@ -25,6 +28,282 @@ fn attr(el: &str, name: &str) -> Option<String> {
     let start = el.find(&key)? + key.len();
     let end = el[start..].find('"')? + start;
     Some(el[start..end].to_owned())
+}
+
+// ---------------------------------------------------------------------------------------------
+// Boards
+
+fn num(el: &str, name: &str) -> f64 {
+    attr(el, name)
+        .unwrap_or_else(|| panic!("no {name} in {el}"))
+        .trim_end_matches("mm")
+        .parse()
+        .unwrap_or_else(|e| panic!("{name} of {el}: {e}"))
+}
+
+/// Everything drawn on a sheet, as axis-aligned boxes in mm (x0, y0, x1, y1) with what drew
+/// them; and each tag's edge (mm) and centre on the sheet.
+struct Sheet {
+    width: f64,
+    height: f64,
+    viewbox: Vec<f64>,
+    boxes: Vec<([f64; 4], String)>,
+    tags: BTreeMap<u32, (f64, [f64; 2])>,
+    /// The board's paper (the outlined rectangle), x0, y0, width, height.
+    board: [f64; 4],
+}
+
+/// Reads what `dvlcal board` draws: rectangles, lines, arrow heads, text (its extent from the
+/// monospace advance of 0.6 em, anchored at its start or end) and the tags (cell grids placed by
+/// a `matrix(...)`, 10 cells across for tag36h11 with its white ring, 8 across the black square).
+fn read_sheet(svg: &str) -> Sheet {
+    let svg_el = svg.lines().find(|l| l.starts_with("<svg")).expect("<svg>");
+    let mut sheet = Sheet {
+        width: num(svg_el, "width"),
+        height: num(svg_el, "height"),
+        viewbox: attr(svg_el, "viewBox")
+            .unwrap_or_default()
+            .split(' ')
+            .map(|v| v.parse().unwrap())
+            .collect(),
+        boxes: Vec::new(),
+        tags: BTreeMap::new(),
+        board: [f64::NAN; 4],
+    };
+    let mut font = 0.0;
+    let mut in_tag = false;
+    for l in svg.lines() {
+        if let Some(f) = attr(l, "font-size") {
+            font = f.parse().unwrap();
+        }
+        if let (Some(id), Some(m)) = (attr(l, "id"), attr(l, "transform")) {
+            let id: u32 = id.trim_start_matches("tag").parse().unwrap();
+            let m: Vec<f64> = m
+                .trim_start_matches("matrix(")
+                .trim_end_matches(')')
+                .split(' ')
+                .map(|v| v.parse().unwrap())
+                .collect();
+            // Upright tags: cell (u, v) -> (e + a u, f + d v).
+            let (cell, e, f) = (m[0], m[4], m[5]);
+            let bx = [e, f, e + 10.0 * cell, f + 10.0 * cell];
+            sheet.boxes.push((bx, format!("tag {id}")));
+            let centre = [e + 5.0 * cell, f + 5.0 * cell];
+            sheet.tags.insert(id, (8.0 * cell, centre));
+            in_tag = true;
+            continue;
+        }
+        if l.starts_with("</g>") {
+            in_tag = false;
+        }
+        if in_tag || l.starts_with("<svg") {
+            continue;
+        }
+        if l.starts_with("<rect") {
+            let (x, y, w, h) = (num(l, "x"), num(l, "y"), num(l, "width"), num(l, "height"));
+            if l.contains("stroke=\"#bbbbbb\"") {
+                sheet.board = [x, y, w, h];
+            }
+            if !(x == 0.0 && y == 0.0) {
+                sheet.boxes.push(([x, y, x + w, y + h], l.to_owned()));
+            }
+        } else if l.starts_with("<line") {
+            let (x1, y1, x2, y2) = (num(l, "x1"), num(l, "y1"), num(l, "x2"), num(l, "y2"));
+            sheet.boxes.push((
+                [x1.min(x2), y1.min(y2), x1.max(x2), y1.max(y2)],
+                l.to_owned(),
+            ));
+        } else if l.starts_with("<path") {
+            // "M x y l dx dy l dx dy z": the start point and the relative steps.
+            let d = attr(l, "d").unwrap();
+            let v: Vec<f64> = d.split(' ').filter_map(|t| t.parse::<f64>().ok()).collect();
+            let (mut x, mut y) = (v[0], v[1]);
+            let mut b = [x, y, x, y];
+            for step in v[2..].chunks(2) {
+                x += step[0];
+                y += step[1];
+                b = [b[0].min(x), b[1].min(y), b[2].max(x), b[3].max(y)];
+            }
+            sheet.boxes.push((b, l.to_owned()));
+        } else if l.starts_with("<text") {
+            let body = &l[l.find('>').unwrap() + 1..l.rfind("</text>").unwrap()];
+            let chars = body
+                .replace("&lt;", "<")
+                .replace("&gt;", ">")
+                .replace("&amp;", "&")
+                .chars()
+                .count() as f64;
+            let (x, y) = (num(l, "x"), num(l, "y"));
+            let w = chars * 0.6 * font;
+            let x0 = if l.contains("text-anchor=\"end\"") {
+                x - w
+            } else {
+                x
+            };
+            sheet
+                .boxes
+                .push(([x0, y - font, x0 + w, y + 0.25 * font], l.to_owned()));
+        }
+    }
+    sheet
+}
+
+fn print_board(target: &Path, out: &Path, extra: &[&str]) -> std::process::Output {
+    let mut args = vec!["board", "--target", s(target), "--out", s(out)];
+    args.extend_from_slice(extra);
+    dvlcal(&args)
+}
+
+/// The SVG rendered by headless Chromium at 96 dpi, as grey.
+fn render(svg_path: &Path, sheet: &Sheet, png: &Path) -> image::GrayImage {
+    let px = 96.0 / 25.4;
+    let (w, h) = (
+        (sheet.width * px).ceil() as u32,
+        (sheet.height * px).ceil() as u32,
+    );
+    let browser = std::env::var("CHROMIUM").unwrap_or_else(|_| "chromium".into());
+    let out = Command::new(&browser)
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--hide-scrollbars",
+            "--force-device-scale-factor=1",
+            "--default-background-color=ffffffff",
+        ])
+        .arg(format!("--window-size={w},{h}"))
+        .arg(format!("--screenshot={}", png.display()))
+        .arg(format!("file://{}", svg_path.display()))
+        .output()
+        .unwrap_or_else(|e| {
+            panic!("run {browser} (install Debian's chromium, or DVLCAL_SKIP_BROWSER=1): {e}")
+        });
+    assert!(png.exists(), "{}", text(&out.stderr));
+    image::open(png).unwrap().to_luma8()
+}
+
+/// Each ready-made board prints on its own paper: the SVG is the paper's size, everything drawn
+/// (tags, labels, axes, scale bar, legend) keeps 10 mm from every edge, the board is centred
+/// across, the tags print at the YAML's tag_size, and rendered, every tag is detected at that
+/// size.
+#[test]
+fn the_ready_made_boards_fit_their_paper_at_exact_scale() {
+    let tmp = TmpDir::new("paper-boards");
+    let browser = !std::env::var("DVLCAL_SKIP_BROWSER").is_ok_and(|v| v == "1");
+    for (file, paper, tags) in [
+        ("calib_boards/tag36h11_4x5_a4.yaml", (210.0, 297.0), 20),
+        ("calib_boards/tag36h11_6x6_a3.yaml", (297.0, 420.0), 36),
+    ] {
+        let target = repo(file);
+        let board = read_board(&target).unwrap();
+        let tag_mm = board.grid.unwrap().tag_size_m * 1e3;
+        let out = tmp.path(&format!("{}.svg", board.tags.len()));
+        let r = print_board(&target, &out, &[]);
+        assert!(r.status.success(), "{file}: {}", text(&r.stderr));
+        let svg = std::fs::read_to_string(&out).unwrap();
+        let sheet = read_sheet(&svg);
+        assert_eq!((sheet.width, sheet.height), paper, "{file}");
+        assert_eq!(sheet.viewbox, vec![0.0, 0.0, paper.0, paper.1], "{file}");
+        for (b, what) in &sheet.boxes {
+            assert!(
+                b[0] >= 10.0 - 1e-6
+                    && b[1] >= 10.0 - 1e-6
+                    && b[2] <= paper.0 - 10.0 + 1e-6
+                    && b[3] <= paper.1 - 10.0 + 1e-6,
+                "{file}: {b:?} is within 10 mm of the paper's edge: {what}"
+            );
+        }
+        let [bx, _, bw, _] = sheet.board;
+        assert!(
+            (bx + bw / 2.0 - paper.0 / 2.0).abs() < 1e-3,
+            "{file}: board not centred across"
+        );
+        assert_eq!(sheet.tags.len(), tags, "{file}");
+        for (id, (edge, _)) in &sheet.tags {
+            assert!(
+                (edge - tag_mm).abs() < 1e-6,
+                "{file}: tag {id} prints {edge} mm, the YAML says {tag_mm}"
+            );
+        }
+        // Neighbours in a row sit one pitch apart: tag size times (1 + spacing).
+        let pitch = tag_mm * (1.0 + board.grid.unwrap().spacing);
+        let (c0, c1) = (sheet.tags[&0].1, sheet.tags[&1].1);
+        assert!(
+            (c1[0] - c0[0] - pitch).abs() < 1e-6,
+            "{file}: {c0:?} {c1:?}"
+        );
+
+        if !browser {
+            eprintln!("DVLCAL_SKIP_BROWSER=1: render of {file} skipped");
+            continue;
+        }
+        let img = render(&out, &sheet, &tmp.path(&format!("{tags}.png")));
+        let mut det = Detector::new(&DetectorSettings::default()).unwrap();
+        let found = det.detect(&img);
+        let mut ids: Vec<u32> = found.iter().map(|d| d.id).collect();
+        ids.sort_unstable();
+        assert_eq!(ids, (0..tags as u32).collect::<Vec<_>>(), "{file}");
+        let px_per_mm = 96.0 / 25.4;
+        let edges: Vec<f64> = found
+            .iter()
+            .flat_map(|d| (0..4).map(move |k| (d.corners[(k + 1) % 4] - d.corners[k]).norm()))
+            .collect();
+        let edge_mm = edges.iter().sum::<f64>() / edges.len() as f64 / px_per_mm;
+        assert!(
+            (edge_mm / tag_mm - 1.0).abs() < 0.01,
+            "{file}: detected tags {edge_mm:.2} mm, the YAML says {tag_mm}"
+        );
+    }
+}
+
+/// A board larger than its paper is refused with the size it needs and the tag size that fits;
+/// `--paper` names another paper, landscape included, and an unknown paper is refused by name
+/// (in the file, with its line).
+#[test]
+fn a_board_too_large_for_its_paper_is_refused_and_another_paper_can_be_named() {
+    let tmp = TmpDir::new("paper-errors");
+    let target = tmp.path("big.yaml");
+    // The A4 board as shipped before: 35 mm tags need 231.9 mm across.
+    std::fs::write(
+        &target,
+        "family: tag36h11\nrows: 5\ncols: 4\ntag_size: 0.035\nspacing: 0.3\npaper: A4\n",
+    )
+    .unwrap();
+    let out = tmp.path("big.svg");
+    let r = print_board(&target, &out, &[]);
+    let err = text(&r.stderr);
+    assert!(!r.status.success(), "{err}");
+    assert!(
+        !out.exists(),
+        "nothing written for a board that does not fit"
+    );
+    assert!(err.contains("big.yaml"), "{err}");
+    assert!(err.contains("231.9 x"), "{err}");
+    assert!(err.contains("A4 paper (210 x 297 mm)"), "{err}");
+    // 190 mm inside the margins: the board grows 5.5 tag sizes, its bands 39.4 mm.
+    assert!(err.contains("tag_size of at most 0.0273 m"), "{err}");
+
+    // The same board on A3, and on A2 turned: the SVG is that paper's size.
+    for (paper, size) in [("a3", (297.0, 420.0)), ("A2 landscape", (594.0, 420.0))] {
+        let r = print_board(&target, &out, &["--paper", paper]);
+        assert!(r.status.success(), "{paper}: {}", text(&r.stderr));
+        let sheet = read_sheet(&std::fs::read_to_string(&out).unwrap());
+        assert_eq!((sheet.width, sheet.height), size, "{paper}");
+        assert!(sheet.tags.values().all(|(e, _)| (e - 35.0).abs() < 1e-6));
+    }
+
+    let r = print_board(&target, &out, &["--paper", "A7"]);
+    assert!(!r.status.success());
+    assert!(text(&r.stderr).contains("--paper names an unknown paper 'A7'"));
+    std::fs::write(
+        &target,
+        "family: tag36h11\nrows: 2\ncols: 2\ntag_size: 0.03\nspacing: 0.3\npaper: B5\n",
+    )
+    .unwrap();
+    let r = print_board(&target, &out, &[]);
+    let err = text(&r.stderr);
+    assert!(!r.status.success(), "{err}");
+    assert!(err.contains("big.yaml:6:") && err.contains("'B5'"), "{err}");
 }
 
 // ---------------------------------------------------------------------------------------------
