@@ -5,8 +5,9 @@
 SHELL := /bin/bash
 CARGO ?= cargo
 DEBIAN_PACKAGES := pkg-config libopencv-dev clang libclang-dev libapriltag-dev apriltag libsqlite3-dev libzstd-dev
-# The tests also render the HTML report in headless chromium (scripts/check_report.sh).
-TEST_PACKAGES := $(DEBIAN_PACKAGES) chromium
+# The tests also render the HTML report and the boards in headless chromium
+# (scripts/check_report.sh), and parse the URDF export with check_urdf (liburdfdom-tools).
+TEST_PACKAGES := $(DEBIAN_PACKAGES) chromium liburdfdom-tools
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 OUT ?= out
 

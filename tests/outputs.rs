@@ -83,7 +83,9 @@ fn a_fixed_run_says_fixed_in_the_result_the_summary_and_the_comparison() {
     let truth = data.join("truth/calibration.yaml");
     let c = dvlcal(&["compare-calib", "--estimate", s(&out), "--truth", s(&truth)]);
     let cmp = String::from_utf8_lossy(&c.stdout);
-    assert!(c.status.success(), "{cmp}");
+    // The run failed: the comparison says so and exits non-zero.
+    assert!(!c.status.success(), "{cmp}");
+    assert!(cmp.contains("FAILED calibration"), "{cmp}");
     let clock = cmp
         .lines()
         .find(|l| l.starts_with("clock"))

@@ -99,6 +99,9 @@ pub struct CalibrationError {
     /// exactly zero (files of earlier versions, for held parameters) counts as
     /// [`Observability::Fixed`].
     pub state: [Option<Observability>; crate::calib::model::NPARAM],
+    /// The reasons the file records for a failed calibration (`status: failed`), joined by
+    /// "; " (a placeholder when the file gives none); `None` when the estimate did not fail.
+    pub failure: Option<String>,
 }
 
 impl CalibrationError {
@@ -106,6 +109,18 @@ impl CalibrationError {
     /// parameter held fixed).
     pub fn normalized(&self) -> Option<nalgebra::SVector<f64, { crate::calib::model::NPARAM }>> {
         self.std.map(|s| self.error.component_div(&s))
+    }
+
+    /// An error naming `path` and the recorded reasons when the estimate is a failed
+    /// calibration (`status: failed`): its differences are not those of a result.
+    pub fn refuse_failed(&self, path: &std::path::Path) -> Result<()> {
+        match &self.failure {
+            Some(why) => Err(Error::Input(format!(
+                "{} is a failed calibration (status: failed): {why}",
+                path.display()
+            ))),
+            None => Ok(()),
+        }
     }
 
     /// Whether parameter `k` was held at a given value rather than estimated: its error is a
@@ -157,5 +172,18 @@ pub fn calibration_error(
             }
         }
     }
-    Ok(CalibrationError { error, std, state })
+    let failure =
+        (estimate.status == Some(crate::io::calib_yaml::ResultStatus::Failed)).then(|| {
+            if estimate.failure.is_empty() {
+                "the file records no reason (no `failure` entries)".to_owned()
+            } else {
+                estimate.failure.join("; ")
+            }
+        });
+    Ok(CalibrationError {
+        error,
+        std,
+        state,
+        failure,
+    })
 }

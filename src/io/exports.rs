@@ -1,5 +1,13 @@
-//! The calibration in the forms other tools read: ROS static transform commands, a URDF joint,
-//! and a Kalibr camchain-imucam file.
+//! The calibration in the forms other tools read: ROS static transform commands, a URDF robot
+//! (the camera link, the DVL link and the fixed joint between them), and a Kalibr
+//! camchain-imucam file.
+//!
+//! A number in an export looks measured. A quantity the data did not determine (a lever arm held
+//! at the default prior because the motion did not observe it, a parameter held at the value
+//! given with `--init`, one the data constrained poorly) and a failed calibration exported with
+//! `--force` are therefore said in each file, in a comment beside the numbers
+//! ([`ExportNotes`]): `#` lines in the ROS commands and the Kalibr YAML, an XML comment in the
+//! URDF.
 //!
 //! ROS's `static_transform_publisher` and a URDF joint take the pose of the child frame in the
 //! parent frame, which for parent `cam0` and child `dvl` is `T_cam_dvl` (translation
@@ -13,7 +21,99 @@ use std::fmt::Write as _;
 use nalgebra::{Matrix3, Matrix4};
 
 use crate::error::{Error, Result};
+use crate::io::calib_yaml::Observability;
 use crate::types::CalibrationParams;
+
+/// What the exports say beside numbers the data did not measure: for each quantity that a prior
+/// or a given value determined, or that the data constrained poorly, one line saying so and why;
+/// and the reasons of a calibration that failed its checks and was exported anyway. Empty
+/// (the default) for a calibration whose every quantity the data determined.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ExportNotes {
+    /// The failure's reasons, when the calibration failed its checks (exported with `--force`).
+    pub failed: Option<Vec<String>>,
+    /// About the rotation of `T_cam_dvl`.
+    pub rotation: Option<String>,
+    /// About the lever arm (translation of `T_cam_dvl`).
+    pub lever_arm: Option<String>,
+    /// About the clock offset.
+    pub time_offset: Option<String>,
+    /// About the DVL velocity scale.
+    pub velocity_scale: Option<String>,
+}
+
+impl ExportNotes {
+    /// The note for a quantity in state `state`, with the reason the result gives for it;
+    /// `None` for one the data determined well.
+    pub fn note(state: Observability, reason: &str) -> Option<String> {
+        let reason = reason.split_whitespace().collect::<Vec<_>>().join(" ");
+        let why = if reason.is_empty() {
+            String::new()
+        } else {
+            format!(": {reason}")
+        };
+        match state {
+            Observability::Ok => None,
+            Observability::Prior => Some(format!(
+                "NOT MEASURED: the value is a prior's, not determined by the data{why}"
+            )),
+            // The reason only repeats how it was held.
+            Observability::Fixed => Some(
+                "NOT ESTIMATED: held at the value given with --init, not measured by this run"
+                    .to_owned(),
+            ),
+            Observability::Weak => Some(format!(
+                "POORLY DETERMINED: its standard deviation is above its limit{why}"
+            )),
+        }
+    }
+
+    /// Whether there is nothing to say.
+    pub fn is_empty(&self) -> bool {
+        *self == ExportNotes::default()
+    }
+
+    /// The notes as lines of text, each quantity named as the format names it (`names`:
+    /// rotation, lever arm, clock offset, velocity scale), the failure first.
+    fn lines(&self, names: [&str; 4]) -> Vec<String> {
+        let mut v = Vec::new();
+        if let Some(reasons) = &self.failed {
+            let reasons: Vec<String> = reasons
+                .iter()
+                .map(|r| r.split_whitespace().collect::<Vec<_>>().join(" "))
+                .collect();
+            v.push(format!(
+                "THIS CALIBRATION FAILED its checks and was written only because of --force; do \
+                 not mount a DVL with it: {}",
+                reasons.join("; ")
+            ));
+        }
+        let notes = [
+            &self.rotation,
+            &self.lever_arm,
+            &self.time_offset,
+            &self.velocity_scale,
+        ];
+        for (name, note) in names.iter().zip(notes) {
+            if let Some(n) = note {
+                v.push(format!("{name}: {n}"));
+            }
+        }
+        v
+    }
+}
+
+/// `text` as the body of an XML comment, which may hold neither `--` nor end in `-`.
+fn xml_comment_text(text: &str) -> String {
+    let mut s = text.to_owned();
+    while s.contains("--") {
+        s = s.replace("--", "- -");
+    }
+    if s.ends_with('-') {
+        s.push(' ');
+    }
+    s
+}
 
 /// Frame names used in the exports: the parent (camera) and child (DVL) of the transform.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -93,11 +193,23 @@ fn fmt_f(x: f64) -> String {
 }
 
 /// The ROS 1 and ROS 2 command lines publishing `T_cam_dvl` as a static transform, one per
-/// line, each preceded by a comment line.
-pub fn ros_static_transform(c: &CalibrationParams, names: &FrameNames) -> String {
+/// line, each preceded by a comment line; `notes` first, as `#` lines.
+pub fn ros_static_transform(
+    c: &CalibrationParams,
+    names: &FrameNames,
+    notes: &ExportNotes,
+) -> String {
     let t = c.t_cam_dvl.trans;
     let q = c.t_cam_dvl.quaternion_xyzw();
     let mut s = String::new();
+    for l in notes.lines([
+        "rotation (qx qy qz qw)",
+        "lever arm (x y z)",
+        "clock offset",
+        "DVL velocity scale",
+    ]) {
+        let _ = writeln!(s, "# {l}");
+    }
     let _ = writeln!(
         s,
         "# ROS 1 (tf2_ros): x y z qx qy qz qw parent child; the DVL frame in the camera frame"
@@ -155,11 +267,13 @@ pub struct KalibrCamera {
 /// dvlcal's explicit names (`T_cam_dvl`, `timeshift_cam_dvl`), the DVL velocity scale and the
 /// frame names. Kalibr's readers count the cameras as the file's top-level keys, so everything
 /// lives under `camN`. A camera with an empty `entry` is written with the transforms alone and a
-/// comment saying its calibration is unknown.
+/// comment saying its calibration is unknown. `notes` come after the header as `#` lines, and
+/// each camera's transforms are preceded by a comment pointing at them.
 pub fn kalibr_camchain_imucam(
     c: &CalibrationParams,
     cams: &[KalibrCamera],
     names: &FrameNames,
+    notes: &ExportNotes,
 ) -> String {
     let t_c0_dvl = c.t_cam_dvl.to_matrix();
     let mut s = String::new();
@@ -183,6 +297,15 @@ pub fn kalibr_camchain_imucam(
              tool reads it."
         );
     }
+    let note_lines = notes.lines([
+        "rotation (upper-left 3x3 of T_cam_imu and T_cam_dvl)",
+        "lever arm (last column of T_cam_imu and T_cam_dvl)",
+        "clock offset (timeshift_cam_imu, timeshift_cam_dvl)",
+        "DVL velocity scale (dvl_velocity_scale)",
+    ]);
+    for l in &note_lines {
+        let _ = writeln!(s, "# {l}");
+    }
     for (n, cam) in cams.iter().enumerate() {
         let _ = writeln!(s, "cam{n}:");
         s.push_str(&cam.entry);
@@ -190,6 +313,12 @@ pub fn kalibr_camchain_imucam(
         let _ = writeln!(s, "  cam_overlaps: [{}]", overlaps.join(", "));
         let t = cam.t_cn_c0 * t_c0_dvl;
         let shift = fmt_f(-c.time_offset_s);
+        if !note_lines.is_empty() {
+            let _ = writeln!(
+                s,
+                "  # not all of the values below were measured: see the notes at the top"
+            );
+        }
         let _ = writeln!(s, "  T_cam_imu:");
         matrix_rows(&mut s, "  ", &t);
         let _ = writeln!(s, "  timeshift_cam_imu: {shift}");
@@ -223,34 +352,51 @@ pub fn rpy_from_rotation(r: &Matrix3<f64>) -> [f64; 3] {
     }
 }
 
-/// A URDF fixed joint placing the DVL (child link) in the camera (parent link): `<origin xyz
-/// rpy>` is `T_cam_dvl`, rpy as [`rpy_from_rotation`]. The clock offset and scale, which a URDF
-/// cannot hold, are given in a comment.
-pub fn urdf_joint(c: &CalibrationParams, names: &FrameNames) -> String {
+/// A URDF robot of two links, the camera (parent) and the DVL (child), and the fixed joint
+/// `PARENT_to_CHILD` between them, as ROS's URDF parsers read a file: `<origin xyz rpy>` is
+/// `T_cam_dvl`, rpy as [`rpy_from_rotation`]. The clock offset and scale, which a URDF cannot
+/// hold, are given in a comment, and `notes` in a comment above the origin. To add the DVL to a
+/// robot's own URDF, copy the DVL link and the joint (the parent link is the robot's camera).
+pub fn urdf_robot(c: &CalibrationParams, names: &FrameNames, notes: &ExportNotes) -> String {
     let t = c.t_cam_dvl.trans;
     let [roll, pitch, yaw] = rpy_from_rotation(&c.t_cam_dvl.rot).map(fmt_f);
     let (parent, child) = (&names.camera, &names.dvl);
     let mut s = String::new();
+    let _ = writeln!(s, "<?xml version=\"1.0\"?>");
     let _ = writeln!(
         s,
         "<!-- dvlcal {}: the DVL frame in the camera frame (T_cam_dvl); rpy = fixed-axis roll \
          about x, then pitch about y, then yaw about z (R = Rz(yaw) Ry(pitch) Rx(roll)), rad.\n     \
-         Clock: t_cam = t_dvl + {} s; DVL velocity scale {}. -->",
+         Clock: t_cam = t_dvl + {} s; DVL velocity scale {}.\n     \
+         To add the DVL to a robot's URDF, copy the link {child} and the joint; {parent} is the \
+         robot's camera link. -->",
         env!("CARGO_PKG_VERSION"),
         fmt_f(c.time_offset_s),
         fmt_f(c.velocity_scale)
     );
-    let _ = writeln!(s, "<joint name=\"{parent}_to_{child}\" type=\"fixed\">");
-    let _ = writeln!(s, "  <parent link=\"{parent}\"/>");
-    let _ = writeln!(s, "  <child link=\"{child}\"/>");
+    let _ = writeln!(s, "<robot name=\"{parent}_{child}_calibration\">");
+    let _ = writeln!(s, "  <link name=\"{parent}\"/>");
+    let _ = writeln!(s, "  <link name=\"{child}\"/>");
+    let _ = writeln!(s, "  <joint name=\"{parent}_to_{child}\" type=\"fixed\">");
+    let _ = writeln!(s, "    <parent link=\"{parent}\"/>");
+    let _ = writeln!(s, "    <child link=\"{child}\"/>");
+    for l in notes.lines([
+        "rotation (origin rpy)",
+        "lever arm (origin xyz)",
+        "clock offset",
+        "DVL velocity scale",
+    ]) {
+        let _ = writeln!(s, "    <!-- {} -->", xml_comment_text(&l));
+    }
     let _ = writeln!(
         s,
-        "  <origin xyz=\"{} {} {}\" rpy=\"{roll} {pitch} {yaw}\"/>",
+        "    <origin xyz=\"{} {} {}\" rpy=\"{roll} {pitch} {yaw}\"/>",
         fmt_f(t.x),
         fmt_f(t.y),
         fmt_f(t.z)
     );
-    let _ = writeln!(s, "</joint>");
+    let _ = writeln!(s, "  </joint>");
+    let _ = writeln!(s, "</robot>");
     s
 }
 
@@ -271,7 +417,7 @@ mod tests {
     #[test]
     fn ros_line_carries_the_pose_of_the_dvl_in_the_camera() {
         let c = params();
-        let text = ros_static_transform(&c, &FrameNames::default());
+        let text = ros_static_transform(&c, &FrameNames::default(), &ExportNotes::default());
         let line = text
             .lines()
             .find(|l| l.starts_with("rosrun"))
@@ -319,7 +465,8 @@ mod tests {
                 overlaps: vec![0],
             },
         ];
-        let text = kalibr_camchain_imucam(&c, &cams, &FrameNames::default());
+        let text =
+            kalibr_camchain_imucam(&c, &cams, &FrameNames::default(), &ExportNotes::default());
         let v: serde_yaml::Value = serde_yaml::from_str(&text).expect("valid YAML");
         // Kalibr counts the cameras as the top-level keys: nothing else may be there.
         let keys: Vec<&str> = v
@@ -416,7 +563,7 @@ mod tests {
             velocity_scale: 1.0,
         };
         let names = FrameNames::parse("camera_link,dvl_link").unwrap();
-        let x = urdf_joint(&c, &names);
+        let x = urdf_robot(&c, &names, &ExportNotes::default());
         assert!(x.contains("<parent link=\"camera_link\"/>"), "{x}");
         assert!(x.contains("<child link=\"dvl_link\"/>"), "{x}");
         assert!(
@@ -443,6 +590,16 @@ mod tests {
             let e = FrameNames::parse(bad).unwrap_err().to_string();
             assert!(e.contains("--frames"), "{bad}: {e}");
         }
+    }
+
+    #[test]
+    fn xml_comments_hold_no_double_hyphen() {
+        assert_eq!(
+            xml_comment_text("give --lever-arm-prior"),
+            "give - -lever-arm-prior"
+        );
+        assert_eq!(xml_comment_text("a --- b -"), "a - - - b - ");
+        assert!(!xml_comment_text("----").contains("--"));
     }
 
     #[test]

@@ -11,6 +11,7 @@
 //!   tag_size: 0.04        # black square edge, m
 //!   spacing: 0.3          # gap between tags / tag_size
 //!   first_id: 0           # optional, default 0
+//!   paper: A4             # optional: the sheet to print it on (`dvlcal board`)
 //!   ```
 //! - a list of tags with their own size and pose (tags scattered on a pool wall):
 //!   ```yaml
@@ -30,6 +31,9 @@
 //!   `tagRows`, `tagSize`, `tagSpacing`), with tag ids from 0. Such a board is printed the way
 //!   Kalibr prints it ([`TagPrint::Kalibr`]: two-bit borders, corner squares); the other forms
 //!   as libapriltag draws its tags.
+//!
+//! Each form may name the sheet it is printed on, `paper` ([`Paper::from_name`]: `A4`,
+//! `A3 landscape`, `letter`, `300x400` in mm); Kalibr's tools ignore the key.
 
 use nalgebra::{Matrix4, Vector3};
 use serde::Deserialize;
@@ -37,7 +41,7 @@ use std::path::Path;
 
 use crate::error::{Error, Result};
 use crate::lie::Se3;
-use crate::types::board::{Board, BoardTag, TagFamily, TagPrint};
+use crate::types::board::{Board, BoardTag, PAPER_NAMES, Paper, TagFamily, TagPrint};
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -53,6 +57,8 @@ struct GridFile {
     #[serde(default)]
     #[allow(dead_code)]
     description: Option<String>,
+    #[serde(default)]
+    paper: Option<String>,
 }
 
 #[derive(Deserialize)]
@@ -62,6 +68,8 @@ struct ListFile {
     family: Option<String>,
     #[serde(default)]
     description: Option<String>,
+    #[serde(default)]
+    paper: Option<String>,
     tags: Vec<ListTag>,
 }
 
@@ -87,6 +95,36 @@ struct KalibrFile {
     tag_rows: u32,
     tag_size: f64,
     tag_spacing: f64,
+    #[serde(default)]
+    paper: Option<String>,
+}
+
+/// The paper `--paper` names ([`Paper::from_name`]); an error saying what it takes otherwise.
+pub fn paper_option(name: &str) -> Result<Paper> {
+    Paper::from_name(name).ok_or_else(|| {
+        Error::option(
+            "--paper",
+            format!("names an unknown paper '{name}': give {PAPER_NAMES}"),
+        )
+    })
+}
+
+/// The paper a board file names (`paper`), checked; the error names the key's line.
+fn paper_of(path: &Path, text: &str, name: Option<&str>) -> Result<Option<Paper>> {
+    let Some(name) = name else {
+        return Ok(None);
+    };
+    Paper::from_name(name).map(Some).ok_or_else(|| {
+        let line = text
+            .lines()
+            .position(|l| l.trim_start().starts_with("paper:"))
+            .map_or(0, |i| i + 1);
+        Error::parse(
+            path,
+            line,
+            format!("unknown paper '{name}': give {PAPER_NAMES}"),
+        )
+    })
 }
 
 fn yaml_err(path: &Path, e: serde_yaml::Error) -> Error {
@@ -217,7 +255,8 @@ pub fn parse_board(text: &str, path: &Path) -> Result<Board> {
         }
         check_grid(path, k.tag_rows, k.tag_cols)?;
         check_grid_ids(path, TagFamily::Tag36h11, k.tag_rows, k.tag_cols, 0)?;
-        Board::grid(
+        let paper = paper_of(path, text, k.paper.as_deref())?;
+        let mut board = Board::grid(
             TagFamily::Tag36h11,
             k.tag_rows,
             k.tag_cols,
@@ -225,10 +264,13 @@ pub fn parse_board(text: &str, path: &Path) -> Result<Board> {
             k.tag_spacing,
             0,
         )
-        .printed_by_kalibr()
+        .printed_by_kalibr();
+        board.paper = paper;
+        board
     } else if has("tags") {
         let l: ListFile = serde_yaml::from_str(text).map_err(|e| yaml_err(path, e))?;
         let family = family_of(&l.family)?;
+        let paper = paper_of(path, text, l.paper.as_deref())?;
         if l.tags.is_empty() {
             return Err(Error::parse(path, 0, "the board lists no tags"));
         }
@@ -294,6 +336,7 @@ pub fn parse_board(text: &str, path: &Path) -> Result<Board> {
             description,
             grid: None,
             print: TagPrint::Apriltag,
+            paper,
         }
     } else {
         let g: GridFile = serde_yaml::from_str(text).map_err(|e| yaml_err(path, e))?;
@@ -304,7 +347,9 @@ pub fn parse_board(text: &str, path: &Path) -> Result<Board> {
         }
         check_grid(path, g.rows, g.cols)?;
         check_grid_ids(path, family, g.rows, g.cols, g.first_id)?;
-        Board::grid(family, g.rows, g.cols, g.tag_size, g.spacing, g.first_id)
+        let mut board = Board::grid(family, g.rows, g.cols, g.tag_size, g.spacing, g.first_id);
+        board.paper = paper_of(path, text, g.paper.as_deref())?;
+        board
     };
     let n = board.family.code_count();
     if let Some(t) = board.tags.iter().find(|t| t.id as usize >= n) {
@@ -355,6 +400,9 @@ pub fn board_yaml(board: &Board) -> String {
                 ));
             }
         }
+    }
+    if let Some(p) = &board.paper {
+        s.push_str(&format!("paper: {}\n", p.name));
     }
     s
 }

@@ -20,7 +20,7 @@ use crate::io::camchain::kalibr_entry;
 use crate::io::dataset::DatasetFiles;
 use crate::io::dvl::DvlLog;
 use crate::io::exports::{
-    FrameNames, KalibrCamera, kalibr_camchain_imucam, ros_static_transform, urdf_joint,
+    FrameNames, KalibrCamera, kalibr_camchain_imucam, ros_static_transform, urdf_robot,
 };
 use crate::io::provenance::Provenance;
 use crate::io::tum::CameraSegment;
@@ -555,7 +555,7 @@ pub struct ResultPaths {
     /// `RESULT-camchain-imucam.yaml`: the camera chain with the DVL in the IMU's place, as
     /// Kalibr's camchain-imucam.yaml (as `tf`).
     pub camchain_imucam: Option<PathBuf>,
-    /// `RESULT-urdf.xml`: a URDF fixed joint from the camera to the DVL (as `tf`).
+    /// `RESULT-urdf.xml`: a URDF robot, the camera and DVL links and the fixed joint (as `tf`).
     pub urdf: Option<PathBuf>,
 }
 
@@ -641,8 +641,9 @@ fn kalibr_cameras(data: &Dataset) -> Vec<KalibrCamera> {
 /// Writes the result YAML to `out` (its folder created, its `provenance` section filled in:
 /// version, command line, UTC time, each input's size and SHA-256) and, when the calibration
 /// passed its sanity checks or `opts.force` is set, the exports beside it, each atomically:
-/// `RESULT-tf.txt` (ROS static transforms), `RESULT-urdf.xml` (a URDF joint) and
-/// `RESULT-camchain-imucam.yaml` (Kalibr). A failed calibration's result file says `status:
+/// `RESULT-tf.txt` (ROS static transforms), `RESULT-urdf.xml` (a URDF robot) and
+/// `RESULT-camchain-imucam.yaml` (Kalibr), each noting what the data did not measure
+/// ([`crate::io::exports::ExportNotes`]). A failed calibration's result file says `status:
 /// failed` with the reasons, and exports left from an earlier run are removed so that none can
 /// be mistaken for this run's. With images the Kalibr file holds every camera of the chain;
 /// with poses, cam0's transforms alone.
@@ -687,9 +688,10 @@ pub fn write_results(
             urdf: None,
         });
     }
-    write_atomic(&tf, ros_static_transform(calib, &names).as_bytes())?;
-    write_atomic(&urdf, urdf_joint(calib, &names).as_bytes())?;
-    let text = kalibr_camchain_imucam(calib, &kalibr_cameras(data), &names);
+    let notes = super::exports::export_notes(&run.outcome);
+    write_atomic(&tf, ros_static_transform(calib, &names, &notes).as_bytes())?;
+    write_atomic(&urdf, urdf_robot(calib, &names, &notes).as_bytes())?;
+    let text = kalibr_camchain_imucam(calib, &kalibr_cameras(data), &names, &notes);
     write_atomic(&imucam, text.as_bytes())?;
     Ok(ResultPaths {
         result: out.to_path_buf(),

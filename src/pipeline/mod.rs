@@ -24,13 +24,16 @@
 //!
 //! Long steps take a worker-thread count; results never depend on it.
 
+mod board;
 mod calibration;
 mod cameras;
 mod dataset;
 mod evaluate;
+mod exports;
 mod simulate;
 mod vision;
 
+pub use board::write_board_svg;
 pub use calibration::{
     CalibrationRun, CameraOutputs, OutputOptions, ResultPaths, calibrate_dataset,
     calibration_context, dataset_inputs, frame_names, method_name, result_file, sibling,

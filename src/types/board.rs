@@ -100,6 +100,96 @@ pub struct Board {
     /// YAML, [`TagPrint::Apriltag`] otherwise. The tag corners (the outer black squares) are the
     /// same either way.
     pub print: TagPrint,
+    /// The sheet the board is laid out for (a board file's `paper` key, or `dvlcal board
+    /// --paper`): the printed SVG is then exactly that size, the board centred in it. `None`: the
+    /// SVG is as large as the board and its margins.
+    pub paper: Option<Paper>,
+}
+
+/// A sheet of paper to print a board on.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Paper {
+    /// The name as [`Paper::from_name`] reads it back: `A4`, `A3 landscape`, `letter`,
+    /// `300x400`.
+    pub name: String,
+    /// Width of the sheet as it is printed (landscape: the longer side), mm.
+    pub width_mm: f64,
+    /// Height of the sheet, mm.
+    pub height_mm: f64,
+}
+
+/// The paper sizes [`Paper::from_name`] knows by name (portrait, mm): ISO 216 A0 to A5 and the
+/// North American letter, legal and tabloid.
+pub const PAPER_SIZES: [(&str, f64, f64); 9] = [
+    ("A0", 841.0, 1189.0),
+    ("A1", 594.0, 841.0),
+    ("A2", 420.0, 594.0),
+    ("A3", 297.0, 420.0),
+    ("A4", 210.0, 297.0),
+    ("A5", 148.0, 210.0),
+    ("letter", 215.9, 279.4),
+    ("legal", 215.9, 355.6),
+    ("tabloid", 279.4, 431.8),
+];
+
+/// What [`Paper::from_name`] accepts, in words (for error messages).
+pub const PAPER_NAMES: &str = "A0 to A5, letter, legal or tabloid (case-insensitive), each \
+     optionally followed by 'landscape', or WIDTHxHEIGHT in mm (as 300x400)";
+
+/// Largest sheet edge [`Paper::from_name`] accepts, mm.
+pub const MAX_PAPER_MM: f64 = 5000.0;
+
+impl Paper {
+    /// The paper named `text`: a name of [`PAPER_SIZES`] (case-insensitive), portrait unless
+    /// followed by `landscape`, or `WIDTHxHEIGHT` in millimetres; `None` for anything else
+    /// (see [`PAPER_NAMES`]).
+    pub fn from_name(text: &str) -> Option<Paper> {
+        let words: Vec<&str> = text.split_whitespace().collect();
+        let (name, landscape) = match words.as_slice() {
+            [n] => (*n, false),
+            [n, o] if o.eq_ignore_ascii_case("landscape") => (*n, true),
+            [n, o] if o.eq_ignore_ascii_case("portrait") => (*n, false),
+            _ => return None,
+        };
+        if let Some((n, w, h)) = PAPER_SIZES
+            .iter()
+            .find(|(n, _, _)| n.eq_ignore_ascii_case(name))
+        {
+            let (w, h) = if landscape { (*h, *w) } else { (*w, *h) };
+            let name = if landscape {
+                format!("{n} landscape")
+            } else {
+                (*n).to_owned()
+            };
+            return Some(Paper {
+                name,
+                width_mm: w,
+                height_mm: h,
+            });
+        }
+        if landscape {
+            return None;
+        }
+        let (w, h) = name.split_once(['x', 'X'])?;
+        let (w, h): (f64, f64) = (w.parse().ok()?, h.parse().ok()?);
+        let fine = |v: f64| v.is_finite() && v > 0.0 && v <= MAX_PAPER_MM;
+        (fine(w) && fine(h)).then(|| Paper {
+            name: format!("{w}x{h}"),
+            width_mm: w,
+            height_mm: h,
+        })
+    }
+}
+
+impl std::fmt::Display for Paper {
+    /// `A4 paper (210 x 297 mm)`.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} paper ({} x {} mm)",
+            self.name, self.width_mm, self.height_mm
+        )
+    }
 }
 
 /// The layout of a grid board.
@@ -253,6 +343,7 @@ impl Board {
                 first_id,
             }),
             print: TagPrint::Apriltag,
+            paper: None,
         }
     }
 

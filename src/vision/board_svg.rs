@@ -11,6 +11,12 @@
 //!   first and last id of the row, or every id of a row whose ids do not run one by one;
 //! - the board frame (group `board-axes`): ticks at the origin's x and y on the board's bottom
 //!   and left edges, and arrows for x (right) and y (up); z points out of the page.
+//!
+//! A board that names its paper ([`Board::paper`]) is printed on a sheet of exactly that size:
+//! the SVG's width and height are the paper's, the board is centred across it and as near its
+//! middle as the legend below allows, and everything drawn keeps [`PRINTER_MARGIN_MM`] from the
+//! edges, the margin printers cannot print. A board too large for its paper is an error that
+//! says how large the sheet would have to be and, for a grid, the largest tag size that fits.
 
 use std::fmt::Write as _;
 
@@ -18,7 +24,7 @@ use nalgebra::Vector2;
 
 use crate::error::{Error, Result};
 use crate::io::target::board_yaml;
-use crate::types::board::{Board, GridLayout, TagPrint};
+use crate::types::board::{Board, GridLayout, Paper, TagPrint};
 use crate::vision::family::{family_layout, tags_cells};
 use crate::vision::kalibr::{KALIBR_CELLS_ACROSS, kalibr_tag_cells};
 
@@ -58,7 +64,53 @@ fn escape(s: &str) -> String {
         .replace('>', "&gt;")
 }
 
+/// The margin kept free at each edge of a named paper, mm: most printers cannot print the
+/// outer 3 to 6 mm, and some scale a page to fit what they can print.
+pub const PRINTER_MARGIN_MM: f64 = 10.0;
+
+/// Where the sheet drawn at its natural size (`page`: width and height, mm, holding a board of
+/// `board_h` mm at `top` mm from its top) goes on `paper`: the offset of its top-left corner.
+/// Centred across; down, the board's middle at the paper's as far as the margins allow. An
+/// error when it does not fit inside the margins; `grid_tag` (a grid board's tag size, m, with
+/// the board's width and height, mm) gives the largest tag size that fits.
+fn place_on_paper(
+    paper: &Paper,
+    page: (f64, f64),
+    board: (f64, f64),
+    top: f64,
+    grid_tag: Option<f64>,
+) -> Result<(f64, f64)> {
+    let m = PRINTER_MARGIN_MM;
+    let (room_w, room_h) = (paper.width_mm - 2.0 * m, paper.height_mm - 2.0 * m);
+    if page.0 > room_w + 1e-9 || page.1 > room_h + 1e-9 {
+        let fit = match grid_tag {
+            Some(tag) => {
+                // Only the board grows with the tag size; the bands around it stay.
+                let f = ((room_w - (page.0 - board.0)) / board.0)
+                    .min((room_h - (page.1 - board.1)) / board.1);
+                let mm = (tag * f * 1e3 * 10.0).floor() / 10.0;
+                if mm > 0.0 {
+                    format!("a tag_size of at most {:.4} m fits", mm * 1e-3)
+                } else {
+                    "no tag size fits: fewer rows or columns".to_owned()
+                }
+            }
+            None => "smaller tags or tags closer together".to_owned(),
+        };
+        return Err(Error::Input(format!(
+            "the board and its margins need {:.1} x {:.1} mm, and {paper} leaves {:.1} x {:.1} \
+             mm inside its {m} mm printer margins: {fit}, or name a larger paper",
+            page.0, page.1, room_w, room_h
+        )));
+    }
+    let dx = (paper.width_mm - page.0) / 2.0;
+    let centred = paper.height_mm / 2.0 - (top + board.1 / 2.0);
+    let dy = centred.clamp(m, paper.height_mm - m - page.1);
+    Ok((dx, dy))
+}
+
 /// The SVG text of a board. Tags must lie in the board's z = 0 plane (grid boards always do).
+/// With [`Board::paper`], the SVG is the paper's size (see the module documentation).
 pub fn board_svg(board: &Board, source: &str) -> Result<String> {
     let ids: Vec<u32> = board.tags.iter().map(|t| t.id).collect();
     let family_err = || {
@@ -138,14 +190,25 @@ pub fn board_svg(board: &Board, source: &str) -> Result<String> {
     let columns = ((page_w - side) / (font * 0.6)).floor().max(20.0) as usize;
     let lines: Vec<String> = lines.iter().flat_map(|l| wrap(l, columns)).collect();
     let page_h = board_h + margin + bottom + lines.len() as f64 * font * 1.3;
+    // On a named paper the whole drawing moves by (dx, dy) and the sheet is the paper.
+    let (dx, dy, sheet_w, sheet_h) = match &board.paper {
+        Some(p) => {
+            let tag = board.grid.map(|g| g.tag_size_m);
+            let (dx, dy) = place_on_paper(p, (page_w, page_h), (board_w, board_h), margin, tag)?;
+            (dx, dy, p.width_mm, p.height_mm)
+        }
+        None => (0.0, 0.0, page_w, page_h),
+    };
+    // The board's paper: its top-left corner on the sheet.
+    let (x0, y0) = (dx + side, dy + margin);
     let mut s = String::new();
     let _ = writeln!(
         s,
         r##"<?xml version="1.0" encoding="UTF-8"?>
-<svg xmlns="http://www.w3.org/2000/svg" width="{page_w:.3}mm" height="{page_h:.3}mm" viewBox="0 0 {page_w:.4} {page_h:.4}">
+<svg xmlns="http://www.w3.org/2000/svg" width="{sheet_w:.3}mm" height="{sheet_h:.3}mm" viewBox="0 0 {sheet_w:.4} {sheet_h:.4}">
 <title>{}</title>
-<rect x="0" y="0" width="{page_w:.4}" height="{page_h:.4}" fill="white"/>
-<rect x="{side:.4}" y="{margin}" width="{board_w:.4}" height="{board_h:.4}" fill="white" stroke="#bbbbbb" stroke-width="0.1"/>"##,
+<rect x="0" y="0" width="{sheet_w:.4}" height="{sheet_h:.4}" fill="white"/>
+<rect x="{x0:.4}" y="{y0:.4}" width="{board_w:.4}" height="{board_h:.4}" fill="white" stroke="#bbbbbb" stroke-width="0.1"/>"##,
         escape(&board.description)
     );
     // Board point (m) -> page (mm): x right from lo.x, y down from hi.y.
@@ -168,8 +231,8 @@ pub fn board_svg(board: &Board, source: &str) -> Result<String> {
         let d = cell * ay.y;
         let bx = o.x * 1e3 + cell * (-off * ax.x + (tw - off) * ay.x);
         let by = o.y * 1e3 + cell * (-off * ax.y + (tw - off) * ay.y);
-        let e = bx - lo.0 * 1e3 + side;
-        let f = hi.1 * 1e3 - by + margin;
+        let e = bx - lo.0 * 1e3 + x0;
+        let f = hi.1 * 1e3 - by + y0;
         let _ = writeln!(
             s,
             r#"<g id="tag{}" transform="matrix({a:.6} {b:.6} {cc:.6} {d:.6} {e:.4} {f:.4})" fill="black" shape-rendering="crispEdges">"#,
@@ -208,8 +271,8 @@ pub fn board_svg(board: &Board, source: &str) -> Result<String> {
                 // Board-plane lower-left corner of the square, then its top-left on the page.
                 let x = c as f64 * pitch - gap;
                 let y_top = r as f64 * pitch;
-                let px = x - lo.0 * 1e3 + side;
-                let py = hi.1 * 1e3 - y_top + margin;
+                let px = x - lo.0 * 1e3 + x0;
+                let py = hi.1 * 1e3 - y_top + y0;
                 let _ = writeln!(
                     s,
                     r#"<rect x="{px:.4}" y="{py:.4}" width="{gap:.4}" height="{gap:.4}"/>"#
@@ -219,16 +282,16 @@ pub fn board_svg(board: &Board, source: &str) -> Result<String> {
         s.push_str("</g>\n");
     }
     // Board point (mm) -> page (mm).
-    let page = |x: f64, y: f64| (x - lo.0 * 1e3 + side, hi.1 * 1e3 - y + margin);
-    id_labels(&mut s, &rows, &page, side, board_w);
-    let paper_bottom = margin + board_h;
-    board_axes(&mut s, page(0.0, 0.0), (side, side + board_w), paper_bottom);
-    scale_bar(&mut s, side, paper_bottom + 14.0, scale_mm);
+    let page = |x: f64, y: f64| (x - lo.0 * 1e3 + x0, hi.1 * 1e3 - y + y0);
+    id_labels(&mut s, &rows, &page, x0, board_w);
+    let paper_bottom = y0 + board_h;
+    board_axes(&mut s, page(0.0, 0.0), (x0, x0 + board_w), paper_bottom, dy);
+    scale_bar(&mut s, x0, paper_bottom + 14.0, scale_mm);
     let mut y = paper_bottom + bottom + font;
     for l in &lines {
         let _ = writeln!(
             s,
-            r#"<text x="{side:.3}" y="{y:.3}" font-family="monospace" font-size="{font}" fill="black" xml:space="preserve">{}</text>"#,
+            r#"<text x="{x0:.3}" y="{y:.3}" font-family="monospace" font-size="{font}" fill="black" xml:space="preserve">{}</text>"#,
             escape(l)
         );
         y += font * 1.3;
@@ -346,8 +409,9 @@ fn id_labels(
 
 /// Ticks at the board origin's x (below the paper) and y (left of it), marked 0, and arrows
 /// along the board's x and y axes in the margins. `origin` is the origin on the page; `span` the
-/// paper's left and right edges; `bottom` its bottom edge (all mm).
-fn board_axes(s: &mut String, origin: (f64, f64), span: (f64, f64), bottom: f64) {
+/// paper's left and right edges; `bottom` its bottom edge; `top` the top of the drawing (all
+/// mm).
+fn board_axes(s: &mut String, origin: (f64, f64), span: (f64, f64), bottom: f64, top: f64) {
     let (ox, oy) = origin;
     let (left, right) = span;
     let red = "#c0392b";
@@ -387,14 +451,14 @@ fn board_axes(s: &mut String, origin: (f64, f64), span: (f64, f64), bottom: f64)
         );
     }
     // y: a tick left of the paper at the origin's y, an arrow up.
-    if oy >= 0.0 && oy <= bottom {
+    if oy >= top && oy <= bottom {
         let x = left - 3.5;
         let _ = writeln!(
             s,
             r#"<line x1="{left:.4}" y1="{oy:.4}" x2="{:.4}" y2="{oy:.4}" stroke="{green}"/>"#,
             left - 5.0
         );
-        let end = (oy - 25.0).max(1.0);
+        let end = (oy - 25.0).max(top + 1.0);
         let _ = writeln!(
             s,
             r#"<line x1="{x:.4}" y1="{oy:.4}" x2="{x:.4}" y2="{end:.4}" stroke="{green}"/>"#
@@ -503,6 +567,7 @@ mod tests {
             description: "list".into(),
             grid: None,
             print: TagPrint::Apriltag,
+            paper: None,
         }
     }
 

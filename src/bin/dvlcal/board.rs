@@ -3,9 +3,6 @@
 use anyhow::Result;
 use std::path::PathBuf;
 
-use dvlcal::io::target::read_board;
-use dvlcal::vision::board_svg::board_svg;
-
 #[derive(clap::Args)]
 pub struct BoardArgs {
     /// Board definition (dvlcal grid or list YAML, or Kalibr aprilgrid YAML).
@@ -14,14 +11,14 @@ pub struct BoardArgs {
     /// SVG to write (width and height in millimetres; print at 100 % scale).
     #[arg(long)]
     pub out: PathBuf,
+    /// Paper (A0-A5, letter, legal, tabloid [landscape], or WxH mm): the SVG is that size, the
+    /// board centred 10 mm or more from each edge. Default: the board file's `paper`, if any.
+    #[arg(long, value_name = "PAPER")]
+    pub paper: Option<String>,
 }
 
 pub fn run(a: BoardArgs) -> Result<()> {
-    dvlcal::files::refuse_input("--out", &a.out, [a.target.as_path()])?;
-    dvlcal::files::prepare_output("--out", &a.out)?;
-    let board = read_board(&a.target)?;
-    let svg = board_svg(&board, &a.target.display().to_string())?;
-    dvlcal::io::write_atomic(&a.out, svg.as_bytes())?;
-    println!("wrote {}: {}", a.out.display(), board.description);
+    let what = dvlcal::pipeline::write_board_svg(&a.target, &a.out, a.paper.as_deref())?;
+    println!("wrote {}: {what}", a.out.display());
     Ok(())
 }

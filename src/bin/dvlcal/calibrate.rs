@@ -111,7 +111,7 @@ pub struct CalibrateArgs {
     pub strict: bool,
     /// Result YAML (written atomically; with a provenance section: version, command line, UTC
     /// time, each input's size and SHA-256); beside it RESULT-tf.txt (ROS 1 and ROS 2 static
-    /// transform commands), RESULT-urdf.xml (a URDF fixed joint, camera to DVL) and
+    /// transform commands), RESULT-urdf.xml (a URDF robot: camera and DVL links, fixed joint) and
     /// RESULT-camchain-imucam.yaml (Kalibr's camchain-imucam with the DVL in the IMU's place:
     /// the camera chain, T_cam_imu = T_cam_dvl and timeshift_cam_imu per camera).
     #[arg(long, default_value = "calibration.yaml")]

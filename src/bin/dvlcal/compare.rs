@@ -46,6 +46,9 @@ pub fn run(a: CompareArgs) -> Result<()> {
     let d = ce.error;
     let rot = nalgebra::Vector3::new(d[0], d[1], d[2]);
     println!("{} against {}", a.estimate.display(), a.truth.display());
+    if let Some(why) = &ce.failure {
+        println!("FAILED calibration (status: failed), not a result to use: {why}");
+    }
     println!(
         "rotation   {:.4} deg  (about DVL x, y, z: {:+.4} {:+.4} {:+.4} deg; {})",
         rot.norm().to_degrees(),
@@ -71,7 +74,7 @@ pub fn run(a: CompareArgs) -> Result<()> {
                 "nothing was estimated: every parameter was held at the value given, so the \
                  differences above are in units only"
             );
-        } else {
+        } else if ce.failure.is_none() {
             let worst = estimated
                 .iter()
                 .filter(|&&k| s[k] > 0.0)
@@ -92,5 +95,6 @@ pub fn run(a: CompareArgs) -> Result<()> {
             );
         }
     }
+    ce.refuse_failed(&a.estimate)?;
     Ok(())
 }
