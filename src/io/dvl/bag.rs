@@ -69,6 +69,9 @@ fn read_bag_inner(
         Ok(())
     };
     damage(stats, bag.problems())?;
+    stats
+        .warnings
+        .extend(bag.notes().iter().map(|n| format!("bag: {n}")));
     let topics = bag.topics();
     let Some(idx) = choose_dvl(topics, opts.topic.as_deref())? else {
         return Err(Error::Input(format!(
