@@ -90,6 +90,7 @@ fn read_bag_inner(
         )));
     };
     stats.topic = Some(format!("{} ({})", topic.name, topic.msg_type));
+    stats.bag_topic = Some(topic.name.clone());
     let mut zero_stamps = 0usize;
     let summary = bag.messages(&|i| i == idx, &mut |msg| {
         let record_time = RawTime::from_nanos(msg.log_time_ns);
