@@ -8,6 +8,7 @@ use std::str::FromStr;
 
 use serde::Serialize;
 
+use super::polled::PolledCapture;
 use super::report::Reject;
 use crate::error::{Error, Result};
 use crate::time::Epoch;
@@ -241,6 +242,9 @@ pub struct DvlLogStats {
     pub time_problems: Vec<TimeProblem>,
     /// Steps and restarts of the DVL clock, in file order (each starts a new clock segment).
     pub clock_steps: Vec<ClockStep>,
+    /// Set when the log was captured by polling the latest report rather than recorded from
+    /// the DVL's stream ([`PolledCapture`]).
+    pub polled: Option<PolledCapture>,
     /// Things a user should know (rebuilt time line, fallback time source, damaged bag, ...).
     pub warnings: Vec<String>,
     /// First and last sample time, seconds relative to the epoch.

@@ -19,6 +19,7 @@ pub(crate) mod bag;
 pub(crate) mod detect;
 pub(crate) mod json;
 mod log;
+pub mod polled;
 pub(crate) mod record;
 pub(crate) mod report;
 pub(crate) mod serial;
@@ -40,6 +41,7 @@ pub use log::{
     DvlTimeSource, GAP_MIN_INTERVALS, GAP_MIN_S, MAX_LISTED, RejectedLine, TimeProblem, cr_only,
     text_lines,
 };
+pub use polled::PolledCapture;
 pub use record::{RecordOptions, RecordStats, add_host_time, record_tcp};
 pub use report::{Parsed, Reject, VelocityReport};
 pub use serial::parse_line as parse_serial_line;
@@ -222,6 +224,9 @@ struct Accumulator {
     seen: HashMap<u64, Vec<usize>>,
     /// The last line (or message) number seen.
     last_line: usize,
+    /// Runs of one report repeated line after line, in file order: the index of the report in
+    /// `reports` and the run's length (see [`PolledCapture`]).
+    runs: Vec<(usize, usize)>,
 }
 
 impl Accumulator {
@@ -265,11 +270,24 @@ impl Accumulator {
                     stats.invalid += 1;
                 }
                 let bucket = self.seen.entry(r.key).or_default();
-                if bucket.iter().any(|&i| self.reports[i].1.same_report(&r)) {
-                    stats.duplicates += 1;
-                } else {
-                    bucket.push(self.reports.len());
-                    self.reports.push((line, r));
+                let index = match bucket
+                    .iter()
+                    .copied()
+                    .find(|&i| self.reports[i].1.same_report(&r))
+                {
+                    Some(i) => {
+                        stats.duplicates += 1;
+                        i
+                    }
+                    None => {
+                        bucket.push(self.reports.len());
+                        self.reports.push((line, r));
+                        self.reports.len() - 1
+                    }
+                };
+                match self.runs.last_mut() {
+                    Some(run) if run.0 == index => run.1 += 1,
+                    _ => self.runs.push((index, 1)),
                 }
             }
             Ok(Parsed::WaterVelocity { label }) => {
@@ -342,6 +360,16 @@ impl Accumulator {
             ));
         }
         let times = choose_times(path, opts.time_source, &self.reports, &mut stats)?;
+        stats.polled = PolledCapture::find(
+            &self.runs,
+            &self.reports,
+            stats.time_source_used == REBUILT_TIMES,
+        );
+        if let Some(p) = &stats.polled {
+            stats
+                .warnings
+                .push(format!("{}: {}", path.display(), p.explain()));
+        }
         // Epoch: given, or the whole second of the earliest time.
         let epoch = match opts.epoch {
             Some(e) => e,

@@ -38,7 +38,7 @@ fn summary_json(log: &DvlLog) -> serde_json::Value {
     let n = log.samples.len();
     let axis = |k: usize| moments(log.samples.iter().map(move |x| x.v[k]));
     let abs = |t: Option<f64>| t.map(|t| log.epoch.format_abs(t, 6));
-    json!({
+    let mut v = json!({
         "file": file,
         "format": s.format.map(|f| f.name()),
         "formats_seen": s.formats_seen,
@@ -83,7 +83,10 @@ fn summary_json(log: &DvlLog) -> serde_json::Value {
             "start_abs": log.epoch.format_abs(g.start_s, 6),
             "at": s.at(g.lines.0), "lines": [g.lines.0, g.lines.1],
         })).collect::<Vec<_>>(),
-    })
+    });
+    // (Apart from the object above, whose size reaches the macro's recursion limit.)
+    v["polled_capture"] = serde_json::to_value(&s.polled).unwrap_or_default();
+    v
 }
 
 fn summary_text(log: &DvlLog, v: &serde_json::Value) -> String {
