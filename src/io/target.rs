@@ -132,6 +132,31 @@ fn yaml_err(path: &Path, e: serde_yaml::Error) -> Error {
     Error::parse(path, line, e.to_string())
 }
 
+/// The 1-based line where the top-level `key` is set, or 0 when it cannot be found.
+fn key_line(text: &str, key: &str) -> usize {
+    text.lines()
+        .position(|l| {
+            l.strip_prefix(key)
+                .is_some_and(|rest| rest.trim_start().starts_with(':'))
+        })
+        .map_or(0, |i| i + 1)
+}
+
+/// Why a Kalibr target of another kind than an aprilgrid cannot be used.
+fn other_target(kind: &str) -> String {
+    let what = match kind {
+        "checkerboard" => "a Kalibr checkerboard target",
+        "circlegrid" => "a Kalibr circle grid target",
+        _ => "a Kalibr target of an unknown kind",
+    };
+    format!(
+        "target_type '{kind}': {what}, which dvlcal does not detect: it finds AprilTags only \
+         (their ids tell each corner apart, so a board seen in part still counts). Use an \
+         aprilgrid (`target_type: 'aprilgrid'`, read as Kalibr writes it); `dvlcal board \
+         --target TARGET.yaml --out board.svg` draws one to print"
+    )
+}
+
 /// Largest tag edge accepted, m: a printed calibration tag is far smaller.
 pub const MAX_TAG_SIZE_M: f64 = 1.0;
 
@@ -231,15 +256,24 @@ pub fn parse_board(text: &str, path: &Path) -> Result<Board> {
         }
     };
     let board = if has("target_type") {
+        // The kind of target first: another kind lacks the aprilgrid's fields.
+        if let Some(kind) = map
+            .get(serde_yaml::Value::String("target_type".into()))
+            .and_then(|v| v.as_str())
+            && kind != "aprilgrid"
+        {
+            return Err(Error::parse(
+                path,
+                key_line(text, "target_type"),
+                other_target(kind),
+            ));
+        }
         let k: KalibrFile = serde_yaml::from_str(text).map_err(|e| yaml_err(path, e))?;
         if k.target_type != "aprilgrid" {
             return Err(Error::parse(
                 path,
-                0,
-                format!(
-                    "Kalibr target_type '{}' is not supported (only 'aprilgrid')",
-                    k.target_type
-                ),
+                key_line(text, "target_type"),
+                other_target(&k.target_type),
             ));
         }
         check_positive(path, "tagSize", k.tag_size)?;

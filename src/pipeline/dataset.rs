@@ -297,6 +297,14 @@ impl Dataset {
             }
         }
         let log = read_dvl_log(&dvl_path, &read)?;
+        // A polled capture without the DVL's time has a squeezed time line: nothing to fit.
+        if let Some(p) = log.stats.polled.as_ref().filter(|p| p.unusable()) {
+            return Err(Error::Input(format!(
+                "{}: {}",
+                dvl_path.display(),
+                p.explain()
+            )));
+        }
         Ok(Dataset {
             files,
             poses,

@@ -25,15 +25,26 @@ pub struct TopicInfo {
     pub role: String,
 }
 
+/// Fewest messages a rate is given for: fewer intervals than this minus one make a rate that is
+/// one interval's inverse.
+pub const RATE_MIN_MESSAGES: u64 = 5;
+/// Shortest span, seconds, a rate is given for: messages recorded within less (a burst, a
+/// latched topic, a bag written at once) have no rate to speak of.
+pub const RATE_MIN_SPAN_S: f64 = 1.0;
+
 impl TopicInfo {
-    /// Messages per second over the topic's span (0 for fewer than two messages).
-    pub fn rate_hz(&self) -> f64 {
-        let span = (self.last_ns - self.first_ns) as f64 * 1e-9;
-        if self.count < 2 || span <= 0.0 {
-            0.0
-        } else {
-            (self.count - 1) as f64 / span
-        }
+    /// Seconds from the first message to the last.
+    pub fn span_s(&self) -> f64 {
+        (self.last_ns - self.first_ns) as f64 * 1e-9
+    }
+
+    /// Messages per second over the topic's span, when that says something: at least
+    /// [`RATE_MIN_MESSAGES`] messages over at least [`RATE_MIN_SPAN_S`] (`None` otherwise; the
+    /// count and the span are what there is).
+    pub fn rate_hz(&self) -> Option<f64> {
+        let span = self.span_s();
+        (self.count >= RATE_MIN_MESSAGES && span >= RATE_MIN_SPAN_S)
+            .then(|| (self.count - 1) as f64 / span)
     }
 }
 
@@ -44,7 +55,7 @@ pub struct BagInfo {
     pub path: PathBuf,
     /// Its storage's name.
     pub storage: &'static str,
-    /// One per topic.
+    /// One per topic, sorted by name (then type).
     pub topics: Vec<TopicInfo>,
     /// How the parts were chosen, or why they could not be.
     pub notes: Vec<String>,
@@ -75,7 +86,7 @@ pub fn bag_info(path: &Path, options: &BagOptions) -> Result<BagInfo> {
         }
         Ok(())
     })?;
-    let topics = bag
+    let mut topics: Vec<TopicInfo> = bag
         .topics()
         .iter()
         .enumerate()
@@ -87,6 +98,23 @@ pub fn bag_info(path: &Path, options: &BagOptions) -> Result<BagInfo> {
             role: roles::role_name(&roles, i),
         })
         .collect();
+    // By name, as `rostopic list` and `ros2 bag info` list them, whatever order the bag
+    // declared them in.
+    topics.sort_by(|a, b| {
+        (&a.topic.name, &a.topic.msg_type).cmp(&(&b.topic.name, &b.topic.msg_type))
+    });
+    let unrated = topics
+        .iter()
+        .filter(|t| t.count > 0 && t.rate_hz().is_none())
+        .count();
+    if unrated > 0 {
+        notes.push(format!(
+            "rate \"-\": {unrated} topic(s) with fewer than {RATE_MIN_MESSAGES} messages or a span \
+             under {RATE_MIN_SPAN_S} s, which give no rate worth printing: their count and span \
+             are shown"
+        ));
+    }
+    notes.extend(bag.notes().iter().cloned());
     if roles.images.is_empty() && roles.pose.is_none() {
         notes.push("no image or pose topic: nothing gives the camera's motion".into());
     }
@@ -114,15 +142,18 @@ impl BagInfo {
             "topic", "type", "messages", "rate Hz", "span s"
         );
         for t in &self.topics {
-            let span = (t.last_ns - t.first_ns) as f64 * 1e-9;
+            let rate = match t.rate_hz() {
+                Some(r) => format!("{r:.2}"),
+                None => "-".to_string(),
+            };
             let _ = writeln!(
                 s,
-                "{:<40} {:<44} {:>8} {:>9.2} {:>9.2}  {}",
+                "{:<40} {:<44} {:>8} {:>9} {:>9.2}  {}",
                 t.topic.name,
                 t.topic.type_name(),
                 t.count,
-                t.rate_hz(),
-                span,
+                rate,
+                t.span_s(),
                 t.role
             );
         }

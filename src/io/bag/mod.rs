@@ -39,6 +39,7 @@ pub struct Bag {
     storage: Storage,
     topics: Vec<Topic>,
     problems: Vec<String>,
+    notes: Vec<String>,
     inner: Inner,
 }
 
@@ -53,20 +54,45 @@ enum Inner {
     Sqlite(sqlite::SqliteBag),
 }
 
+/// The first bytes of a file (all of it when it is shorter), enough to tell the storages apart.
+fn head_of_file(path: &Path) -> std::io::Result<Vec<u8>> {
+    let mut head = Vec::with_capacity(16);
+    std::io::Read::read_to_end(
+        &mut std::io::Read::take(std::fs::File::open(path)?, 16),
+        &mut head,
+    )?;
+    Ok(head)
+}
+
 /// The storage a file's first bytes announce, if any.
 fn storage_of_file(path: &Path) -> std::io::Result<Option<Storage>> {
-    let mut head = [0u8; 16];
-    let n = std::io::Read::read(&mut std::fs::File::open(path)?, &mut head)?;
-    let head = &head[..n];
-    Ok(if head.starts_with(ros1::MAGIC) {
-        Some(Storage::Ros1)
-    } else if head.starts_with(MCAP_MAGIC) {
-        Some(Storage::Mcap)
-    } else if head.starts_with(SQLITE_MAGIC) {
-        Some(Storage::Sqlite3)
-    } else {
-        None
-    })
+    Ok(Storage::of_head(&head_of_file(path)?))
+}
+
+/// The error for a file that is no bag: named after the storage its extension promises
+/// (`not an MCAP file: magic bytes ...`), or after all of them.
+fn not_a_bag(path: &Path) -> Error {
+    let head = match head_of_file(path) {
+        Ok(h) => h,
+        Err(e) => return Error::io(path, e),
+    };
+    match Storage::of_extension(path) {
+        Some(storage) => Error::Input(format!(
+            "{}: {}",
+            path.display(),
+            storage.magic_mismatch(&head)
+        )),
+        None => Error::Input(format!(
+            "{}: not a bag (neither a ROS 1 bag, an MCAP file, an sqlite3 database, nor a \
+             ROS 2 bag folder with metadata.yaml): it starts with {}",
+            path.display(),
+            if head.is_empty() {
+                "nothing (it is empty)".to_string()
+            } else {
+                types::show_bytes(&head)
+            }
+        )),
+    }
 }
 
 /// Whether `path` looks like a bag: a folder holding `metadata.yaml`, or a file starting like
@@ -90,11 +116,7 @@ impl Bag {
         match storage_of_file(path).map_err(|e| Error::io(path, e))? {
             Some(Storage::Ros1) => open_ros1(path),
             Some(storage) => open_ros2(path, storage, &[path.to_path_buf()]),
-            None => Err(Error::Input(format!(
-                "{}: not a bag (neither a ROS 1 bag, an MCAP file, an sqlite3 database, nor a \
-                 ROS 2 bag folder with metadata.yaml)",
-                path.display()
-            ))),
+            None => Err(not_a_bag(path)),
         }
     }
 
@@ -116,6 +138,12 @@ impl Bag {
     /// Damage found while opening: what it was and what it cost.
     pub fn problems(&self) -> &[String] {
         &self.problems
+    }
+
+    /// What a user should know about the bag that is not damage (a `metadata.yaml` naming
+    /// another storage than its files hold).
+    pub fn notes(&self) -> &[String] {
+        &self.notes
     }
 
     /// Hands every message of the topics `wanted` accepts (by index into [`Bag::topics`]) to
@@ -188,6 +216,7 @@ fn open_ros1(path: &Path) -> Result<Bag> {
         storage: Storage::Ros1,
         topics,
         problems: bag.problems().to_vec(),
+        notes: Vec::new(),
         inner: Inner::Ros1 { bag, conn_topic },
     })
 }
@@ -212,6 +241,7 @@ fn open_ros2(path: &Path, storage: Storage, files: &[PathBuf]) -> Result<Bag> {
         storage,
         topics,
         problems,
+        notes: Vec::new(),
         inner,
     })
 }
@@ -237,23 +267,100 @@ fn open_ros2_folder(dir: &Path) -> Result<Bag> {
             )));
         }
     }
-    let storage = match info.storage.as_str() {
-        "mcap" => Storage::Mcap,
-        "sqlite3" => Storage::Sqlite3,
-        other => {
-            return Err(Error::Input(format!(
-                "{}: storage_identifier {other:?} is not read (mcap and sqlite3 are)",
-                meta_path.display()
-            )));
-        }
-    };
+    let (storage, note) = folder_storage(&meta_path, &info.storage, &files)?;
     let mut bag = open_ros2(dir, storage, &files)?;
+    bag.notes.extend(note);
     for t in &mut bag.topics {
         if t.declared_count.is_none() {
             t.declared_count = info.counts.get(&t.name).copied();
         }
     }
     Ok(bag)
+}
+
+/// The storage of a ROS 2 bag folder's files (`files`, listed by `meta_path`, whose
+/// `storage_identifier` is `declared`), with a note when `declared` says otherwise.
+///
+/// The files' first bytes decide: every MCAP file opens with the MCAP magic and every
+/// sqlite3 database with SQLite's, so they cannot be mistaken for each other, while
+/// `storage_identifier` is a label that a copied or hand-edited `metadata.yaml` can get wrong.
+/// Files that are neither, or of both storages, are an error naming them.
+fn folder_storage(
+    meta_path: &Path,
+    declared: &str,
+    files: &[PathBuf],
+) -> Result<(Storage, Option<String>)> {
+    let named = match declared {
+        "mcap" => Some(Storage::Mcap),
+        "sqlite3" => Some(Storage::Sqlite3),
+        _ => None,
+    };
+    let mut found: Vec<(&PathBuf, Storage)> = Vec::new();
+    for f in files {
+        let head = head_of_file(f).map_err(|e| Error::io(f, e))?;
+        match Storage::of_head(&head) {
+            Some(s @ (Storage::Mcap | Storage::Sqlite3)) => found.push((f, s)),
+            other => {
+                // Compared with what the metadata says it is, else what its name says.
+                let expected = named
+                    .or_else(|| Storage::of_extension(f))
+                    .filter(|&s| s != Storage::Ros1)
+                    .unwrap_or(Storage::Mcap);
+                let what = if other == Some(Storage::Ros1) {
+                    format!(
+                        "not {}: it is a ROS 1 bag (read it by its own path, not through \
+                         metadata.yaml)",
+                        expected.file_kind()
+                    )
+                } else {
+                    expected.magic_mismatch(&head)
+                };
+                return Err(Error::Input(format!(
+                    "{}: {what} ({} lists it, storage_identifier {declared:?})",
+                    f.display(),
+                    meta_path.display()
+                )));
+            }
+        }
+    }
+    let Some(&(first, storage)) = found.first() else {
+        return Err(Error::Input(format!(
+            "{}: relative_file_paths lists no storage file",
+            meta_path.display()
+        )));
+    };
+    if let Some((other, s)) = found.iter().find(|(_, s)| *s != storage) {
+        return Err(Error::Input(format!(
+            "{}: its files are of two storages: {} is {} and {} is {}",
+            meta_path.display(),
+            first.display(),
+            storage.file_kind(),
+            other.display(),
+            s.file_kind()
+        )));
+    }
+    if named == Some(storage) {
+        return Ok((storage, None));
+    }
+    let kind = match storage {
+        Storage::Sqlite3 => "sqlite3",
+        _ => "mcap",
+    };
+    let files_word = if found.len() == 1 {
+        format!("{} starts", first.display())
+    } else {
+        format!("its {} files start", found.len())
+    };
+    Ok((
+        storage,
+        Some(format!(
+            "{}: storage_identifier is {declared:?}, but {files_word} with the magic bytes of \
+             {}: read as {kind} (the magic bytes say what a file holds; ROS 2's own tools go by \
+             storage_identifier, so set it to {kind})",
+            meta_path.display(),
+            storage.file_kind()
+        )),
+    ))
 }
 
 /// What dvlcal reads of a ROS 2 bag's `metadata.yaml`.

@@ -36,6 +36,88 @@ impl Storage {
             Storage::Sqlite3 => "ROS 2 bag (sqlite3)",
         }
     }
+
+    /// What one file of this storage is, in messages (`an MCAP file`).
+    pub fn file_kind(self) -> &'static str {
+        match self {
+            Storage::Ros1 => "a ROS 1 bag",
+            Storage::Mcap => "an MCAP file",
+            Storage::Sqlite3 => "an sqlite3 database",
+        }
+    }
+
+    /// The bytes every file of this storage starts with.
+    pub fn magic(self) -> &'static [u8] {
+        match self {
+            Storage::Ros1 => ROS1_MAGIC,
+            Storage::Mcap => MCAP_MAGIC,
+            Storage::Sqlite3 => SQLITE_MAGIC,
+        }
+    }
+
+    /// The storage a file's first bytes announce, if any.
+    pub fn of_head(head: &[u8]) -> Option<Storage> {
+        [Storage::Ros1, Storage::Mcap, Storage::Sqlite3]
+            .into_iter()
+            .find(|s| head.starts_with(s.magic()))
+    }
+
+    /// The storage a file's name suggests: `.bag`, `.mcap`, `.db3`.
+    pub fn of_extension(path: &std::path::Path) -> Option<Storage> {
+        let ext = path.extension()?.to_str()?.to_ascii_lowercase();
+        match ext.as_str() {
+            "bag" => Some(Storage::Ros1),
+            "mcap" => Some(Storage::Mcap),
+            "db3" => Some(Storage::Sqlite3),
+            _ => None,
+        }
+    }
+
+    /// Why a file starting with `head` (all of it when the file is that short) is not a file
+    /// of this storage: cut inside the magic, or other bytes where the magic belongs.
+    pub fn magic_mismatch(self, head: &[u8]) -> String {
+        let magic = self.magic();
+        let shown = &head[..head.len().min(magic.len())];
+        if head.len() < magic.len() && magic.starts_with(head) {
+            format!(
+                "not {}: the file ends after {} bytes, inside the magic bytes {} that open one \
+                 (cut at its start)",
+                self.file_kind(),
+                head.len(),
+                show_bytes(magic)
+            )
+        } else if head.is_empty() {
+            format!("not {}: the file is empty", self.file_kind())
+        } else {
+            format!(
+                "not {}: magic bytes {} where {} starts with {}",
+                self.file_kind(),
+                show_bytes(shown),
+                self.file_kind(),
+                show_bytes(magic)
+            )
+        }
+    }
+}
+
+/// The first bytes of a ROS 1 bag.
+const ROS1_MAGIC: &[u8] = super::ros1::MAGIC;
+
+/// Bytes as hex with their printable characters (`89 4d 43 41 (".MCA")`), for messages about
+/// a file's first bytes.
+pub fn show_bytes(b: &[u8]) -> String {
+    let hex: Vec<String> = b.iter().map(|x| format!("{x:02x}")).collect();
+    let text: String = b
+        .iter()
+        .map(|&x| {
+            if x.is_ascii_graphic() || x == b' ' {
+                x as char
+            } else {
+                '.'
+            }
+        })
+        .collect();
+    format!("{} (\"{text}\")", hex.join(" "))
 }
 
 /// One topic of a bag.

@@ -69,6 +69,9 @@ fn read_bag_inner(
         Ok(())
     };
     damage(stats, bag.problems())?;
+    stats
+        .warnings
+        .extend(bag.notes().iter().map(|n| format!("bag: {n}")));
     let topics = bag.topics();
     let Some(idx) = choose_dvl(topics, opts.topic.as_deref())? else {
         return Err(Error::Input(format!(
@@ -87,6 +90,7 @@ fn read_bag_inner(
         )));
     };
     stats.topic = Some(format!("{} ({})", topic.name, topic.msg_type));
+    stats.bag_topic = Some(topic.name.clone());
     let mut zero_stamps = 0usize;
     let summary = bag.messages(&|i| i == idx, &mut |msg| {
         let record_time = RawTime::from_nanos(msg.log_time_ns);

@@ -8,6 +8,7 @@ use std::str::FromStr;
 
 use serde::Serialize;
 
+use super::polled::PolledCapture;
 use super::report::Reject;
 use crate::error::{Error, Result};
 use crate::time::Epoch;
@@ -199,6 +200,8 @@ pub struct DvlLogStats {
     pub formats_seen: BTreeMap<String, usize>,
     /// For bags: the topic read and its message type.
     pub topic: Option<String>,
+    /// For bags: the name of the topic read, whose messages the line numbers count.
+    pub bag_topic: Option<String>,
     /// The time source asked for.
     pub time_source: DvlTimeSource,
     /// What the sample times really are (e.g. `time_of_validity (DVL clock)`, or a time line
@@ -239,6 +242,9 @@ pub struct DvlLogStats {
     pub time_problems: Vec<TimeProblem>,
     /// Steps and restarts of the DVL clock, in file order (each starts a new clock segment).
     pub clock_steps: Vec<ClockStep>,
+    /// Set when the log was captured by polling the latest report rather than recorded from
+    /// the DVL's stream ([`PolledCapture`]).
+    pub polled: Option<PolledCapture>,
     /// Things a user should know (rebuilt time line, fallback time source, damaged bag, ...).
     pub warnings: Vec<String>,
     /// First and last sample time, seconds relative to the epoch.
@@ -257,6 +263,41 @@ impl DvlLogStats {
         }
     }
 
+    /// What a line number counts: `line` in a text log, `message` (of the topic read) in a
+    /// bag.
+    pub fn unit(&self) -> &'static str {
+        if self.bag_topic.is_some() {
+            "message"
+        } else {
+            "line"
+        }
+    }
+
+    /// Where line `n` is, for messages: `file:n` in a text log, `file: message n of /topic`
+    /// in a bag.
+    pub fn at(&self, n: usize) -> String {
+        match &self.bag_topic {
+            Some(t) => format!("{}: message {n} of {t}", self.path.display()),
+            None => format!("{}:{n}", self.path.display()),
+        }
+    }
+
+    /// Where lines `a` to `b` are: `file:a..b`, or `file: messages a..b of /topic`.
+    pub fn at_range(&self, a: usize, b: usize) -> String {
+        match &self.bag_topic {
+            Some(t) => format!("{}: messages {a}..{b} of {t}", self.path.display()),
+            None => format!("{}:{a}..{b}", self.path.display()),
+        }
+    }
+
+    /// An error at line (bag: message) `n`, named as [`DvlLogStats::at`] does.
+    pub(super) fn error_at(&self, n: usize, msg: String) -> Error {
+        match self.bag_topic {
+            Some(_) => Error::Input(format!("{}: {msg}", self.at(n))),
+            None => Error::parse(&self.path, n, msg),
+        }
+    }
+
     pub(super) fn reject(
         &mut self,
         path: &Path,
@@ -265,11 +306,10 @@ impl DvlLogStats {
         r: Reject,
     ) -> Result<()> {
         if strict {
-            return Err(Error::parse(
-                path,
-                line,
-                format!("{}: {}", r.reason, r.detail),
-            ));
+            return Err(match self.bag_topic {
+                Some(_) => self.error_at(line, format!("{}: {}", r.reason, r.detail)),
+                None => Error::parse(path, line, format!("{}: {}", r.reason, r.detail)),
+            });
         }
         self.rejected_lines += 1;
         *self
@@ -345,10 +385,17 @@ impl DvlLog {
     }
 }
 
+/// Whether a text's lines end with CR alone (classic Mac OS): it holds a CR and no LF.
+pub fn cr_only(bytes: &[u8]) -> bool {
+    !bytes.contains(&b'\n') && bytes.contains(&b'\r')
+}
+
 /// The non-blank lines of a byte buffer with their 1-based numbers, `\r` line ends removed.
+/// Lines end with LF or CRLF, or with CR alone in a text without any LF ([`cr_only`]).
 pub fn text_lines(bytes: &[u8]) -> impl Iterator<Item = (usize, &[u8])> {
+    let end = if cr_only(bytes) { b'\r' } else { b'\n' };
     bytes
-        .split(|&b| b == b'\n')
+        .split(move |&b| b == end)
         .enumerate()
         .filter_map(|(i, l)| {
             let l = l.strip_suffix(b"\r").unwrap_or(l);

@@ -2,7 +2,8 @@
 //!
 //! Accepted inputs (see `docs/formats.md`):
 //! - JSON lines (the TCP stream on port 16171 captured with `nc`, JSON forwarded over UDP, or a
-//!   `record-dvl` log), json_v1 to json_v3.x, LF or CRLF line ends;
+//!   `record-dvl` log), json_v1 to json_v3.x, LF or CRLF line ends (CR alone in a text without
+//!   any LF, with a warning);
 //! - serial text (`wrz`, `wrs`, `wru`, `wrp`, deprecated `wrx`/`wrt`) with CRC-8 checksums;
 //! - ROS1 bags of the vendor's driver (`/dvl/json_data`, `/dvl/data`).
 //!
@@ -18,6 +19,7 @@ pub(crate) mod bag;
 pub(crate) mod detect;
 pub(crate) mod json;
 mod log;
+pub mod polled;
 pub(crate) mod record;
 pub(crate) mod report;
 pub(crate) mod serial;
@@ -36,8 +38,10 @@ pub use detect::detect_format;
 pub use json::parse_line as parse_json_line;
 pub use log::{
     ClockSegment, ClockStep, ClockStepKind, DvlFormat, DvlGap, DvlLog, DvlLogStats, DvlReadOptions,
-    DvlTimeSource, GAP_MIN_INTERVALS, GAP_MIN_S, MAX_LISTED, RejectedLine, TimeProblem, text_lines,
+    DvlTimeSource, GAP_MIN_INTERVALS, GAP_MIN_S, MAX_LISTED, RejectedLine, TimeProblem, cr_only,
+    text_lines,
 };
+pub use polled::PolledCapture;
 pub use record::{RecordOptions, RecordStats, add_host_time, record_tcp};
 pub use report::{Parsed, Reject, VelocityReport};
 pub use serial::parse_line as parse_serial_line;
@@ -62,8 +66,16 @@ pub fn read_dvl_log(path: &Path, opts: &DvlReadOptions) -> Result<DvlLog> {
         return read_bag_log(path, opts);
     }
     let bytes = crate::files::read_bytes(path)?;
+    blank_log(path, &bytes)?;
     let format = match opts.format {
         Some(f) => f,
+        // A file named like a bag that does not start like one: the bag reader names what its
+        // first bytes are instead of the storage's magic.
+        None if detect_format(&bytes).is_none()
+            && crate::io::bag::Storage::of_extension(path).is_some() =>
+        {
+            return read_bag_log(path, opts);
+        }
         None => detect_format(&bytes).ok_or_else(|| {
             Error::Input(format!(
                 "{}: not a recognised DVL log (JSON lines, serial sentences or a ROS bag); \
@@ -101,9 +113,29 @@ fn read_bag_log(path: &Path, opts: &DvlReadOptions) -> Result<DvlLog> {
     acc.finish(path, opts, stats)
 }
 
+/// An error for a log without a line to read: empty, or only blanks and line ends.
+fn blank_log(path: &Path, bytes: &[u8]) -> Result<()> {
+    if bytes.is_empty() {
+        return Err(Error::Input(format!(
+            "{}: the DVL log is empty (0 bytes): the recording wrote nothing (was the DVL \
+             connected, and the capture stopped cleanly?)",
+            path.display()
+        )));
+    }
+    if bytes.iter().all(|b| b.is_ascii_whitespace()) {
+        return Err(Error::Input(format!(
+            "{}: the DVL log holds only blanks and line ends ({} bytes, not one report)",
+            path.display(),
+            bytes.len()
+        )));
+    }
+    Ok(())
+}
+
 /// Reads DVL samples from in-memory text (JSON lines or serial sentences), as [`read_dvl_log`]
 /// does for a file; `name` stands for the file in messages. Bags need a file.
 pub fn read_dvl_text(name: &Path, bytes: &[u8], opts: &DvlReadOptions) -> Result<DvlLog> {
+    blank_log(name, bytes)?;
     let format = match opts.format.or_else(|| detect_format(bytes)) {
         Some(DvlFormat::RosBag) => {
             return Err(Error::Input(format!(
@@ -156,6 +188,13 @@ fn push_text(
             serial::parse_line(content)
         }
     };
+    if cr_only(bytes) {
+        stats.warnings.push(format!(
+            "{}: its lines end with CR alone (classic Mac OS line ends, no LF anywhere): read \
+             with CR as the line end",
+            path.display()
+        ));
+    }
     let mut lines = text_lines(bytes).peekable();
     while lines.peek().is_some() {
         let block: Vec<(usize, &[u8])> = lines.by_ref().take(PARSE_BLOCK).collect();
@@ -185,6 +224,9 @@ struct Accumulator {
     seen: HashMap<u64, Vec<usize>>,
     /// The last line (or message) number seen.
     last_line: usize,
+    /// Runs of one report repeated line after line, in file order: the index of the report in
+    /// `reports` and the run's length (see [`PolledCapture`]).
+    runs: Vec<(usize, usize)>,
 }
 
 impl Accumulator {
@@ -228,11 +270,24 @@ impl Accumulator {
                     stats.invalid += 1;
                 }
                 let bucket = self.seen.entry(r.key).or_default();
-                if bucket.iter().any(|&i| self.reports[i].1.same_report(&r)) {
-                    stats.duplicates += 1;
-                } else {
-                    bucket.push(self.reports.len());
-                    self.reports.push((line, r));
+                let index = match bucket
+                    .iter()
+                    .copied()
+                    .find(|&i| self.reports[i].1.same_report(&r))
+                {
+                    Some(i) => {
+                        stats.duplicates += 1;
+                        i
+                    }
+                    None => {
+                        bucket.push(self.reports.len());
+                        self.reports.push((line, r));
+                        self.reports.len() - 1
+                    }
+                };
+                match self.runs.last_mut() {
+                    Some(run) if run.0 == index => run.1 += 1,
+                    _ => self.runs.push((index, 1)),
                 }
             }
             Ok(Parsed::WaterVelocity { label }) => {
@@ -248,13 +303,13 @@ impl Accumulator {
                 bump(&mut stats.other_by_type, "config");
                 if let Some(c) = speed_of_sound {
                     if stats.sound_speed_mps.is_some_and(|old| old != c) {
+                        let at = stats.at(line);
                         stats.warnings.push(format!(
-                            "{}:{line}: the DVL's sound speed changed to {c} m/s during the log",
-                            path.display()
+                            "{at}: the DVL's sound speed changed to {c} m/s during the log"
                         ));
                     }
                     stats.sound_speed_mps = Some(c);
-                    stats.sound_speed_source = Some(format!("{}:{line}", path.display()));
+                    stats.sound_speed_source = Some(stats.at(line));
                 }
             }
             Ok(Parsed::Other { label, kind }) => {
@@ -283,7 +338,7 @@ impl Accumulator {
                 let first = stats
                     .rejected
                     .first()
-                    .map(|r| format!("; first at line {}: {}", r.line, r.detail))
+                    .map(|r| format!("; first at {} {}: {}", stats.unit(), r.line, r.detail))
                     .unwrap_or_default();
                 format!(": rejected lines: {}{first}", top.join(", "))
             };
@@ -293,18 +348,28 @@ impl Accumulator {
             } else {
                 format!("{why}; {}", stats.warnings.join("; "))
             };
-            return Err(Error::parse(
-                path,
+            return Err(stats.error_at(
                 self.last_line.max(1),
                 format!(
-                    "no velocity reports in the log ({} lines, {} rejected, {} of other types){why}",
+                    "no velocity reports in the log ({} {}s, {} rejected, {} of other types){why}",
                     stats.lines,
+                    stats.unit(),
                     stats.rejected_lines,
                     stats.other_reports + stats.water_velocity_reports
                 ),
             ));
         }
         let times = choose_times(path, opts.time_source, &self.reports, &mut stats)?;
+        stats.polled = PolledCapture::find(
+            &self.runs,
+            &self.reports,
+            stats.time_source_used == REBUILT_TIMES,
+        );
+        if let Some(p) = &stats.polled {
+            stats
+                .warnings
+                .push(format!("{}: {}", path.display(), p.explain()));
+        }
         // Epoch: given, or the whole second of the earliest time.
         let epoch = match opts.epoch {
             Some(e) => e,
@@ -401,17 +466,23 @@ impl Accumulator {
                 }),
             }
         }
-        for c in stats.clock_steps.iter().take(MAX_LISTED) {
-            stats.warnings.push(format!(
-                "{}:{}: the DVL clock {} by {:.3} s after line {}: the log is split into clock \
-                 segments there, each with its own clock offset",
-                path.display(),
-                c.line,
-                c.kind.words(),
-                c.step_s,
-                c.previous_line
-            ));
-        }
+        let steps: Vec<String> = stats
+            .clock_steps
+            .iter()
+            .take(MAX_LISTED)
+            .map(|c| {
+                format!(
+                    "{}: the DVL clock {} by {:.3} s after {} {}: the log is split into clock \
+                     segments there, each with its own clock offset",
+                    stats.at(c.line),
+                    c.kind.words(),
+                    c.step_s,
+                    stats.unit(),
+                    c.previous_line
+                )
+            })
+            .collect();
+        stats.warnings.extend(steps);
         if stats.clock_steps.len() > MAX_LISTED {
             stats.warnings.push(format!(
                 "{}: {} more steps of the DVL clock after those listed",
@@ -504,6 +575,9 @@ fn clock_steps(stamped: &[(usize, f64, f64, Option<f64>)]) -> Vec<ClockStep> {
     }
     out
 }
+
+/// [`DvlLogStats::time_source_used`] of a time line rebuilt from `time` increments.
+const REBUILT_TIMES: &str = "rebuilt from `time` increments (no absolute time in this format)";
 
 /// The raw time of every kept report (`None`: the report lacks the chosen stamp and is dropped).
 fn choose_times(
@@ -607,8 +681,7 @@ fn choose_times(
             path.display()
         )));
     }
-    stats.time_source_used =
-        "rebuilt from `time` increments (no absolute time in this format)".to_string();
+    stats.time_source_used = REBUILT_TIMES.to_string();
     stats.warnings.push(
         "this log has no absolute time (json_v1/json_v2 or wrx): sample times were rebuilt from \
          the `time` increments starting at 0; the estimated clock offset then absorbs an \

@@ -38,7 +38,7 @@ fn summary_json(log: &DvlLog) -> serde_json::Value {
     let n = log.samples.len();
     let axis = |k: usize| moments(log.samples.iter().map(move |x| x.v[k]));
     let abs = |t: Option<f64>| t.map(|t| log.epoch.format_abs(t, 6));
-    json!({
+    let mut v = json!({
         "file": file,
         "format": s.format.map(|f| f.name()),
         "formats_seen": s.formats_seen,
@@ -58,12 +58,12 @@ fn summary_json(log: &DvlLog) -> serde_json::Value {
         "rejected_lines": s.rejected_lines,
         "rejected_by_reason": s.rejected_by_reason,
         "rejected": s.rejected.iter().map(|r| json!({
-            "at": format!("{file}:{}", r.line), "line": r.line, "reason": r.reason, "detail": r.detail
+            "at": s.at(r.line), "line": r.line, "reason": r.reason, "detail": r.detail
         })).collect::<Vec<_>>(),
         "time_backwards": s.time_backwards,
         "time_repeats": s.time_repeats,
         "time_problems": s.time_problems.iter().map(|p| json!({
-            "at": format!("{file}:{}", p.line), "line": p.line, "step_s": p.step_s
+            "at": s.at(p.line), "line": p.line, "step_s": p.step_s
         })).collect::<Vec<_>>(),
         "warnings": s.warnings,
         "first_time_s": s.first_time_s,
@@ -81,9 +81,12 @@ fn summary_json(log: &DvlLog) -> serde_json::Value {
         "gaps": log.gaps(log.gap_threshold_s()).iter().map(|g| json!({
             "start_s": g.start_s, "end_s": g.end_s, "length_s": g.end_s - g.start_s,
             "start_abs": log.epoch.format_abs(g.start_s, 6),
-            "at": format!("{file}:{}", g.lines.0), "lines": [g.lines.0, g.lines.1],
+            "at": s.at(g.lines.0), "lines": [g.lines.0, g.lines.1],
         })).collect::<Vec<_>>(),
-    })
+    });
+    // (Apart from the object above, whose size reaches the macro's recursion limit.)
+    v["polled_capture"] = serde_json::to_value(&s.polled).unwrap_or_default();
+    v
 }
 
 fn summary_text(log: &DvlLog, v: &serde_json::Value) -> String {
@@ -103,7 +106,7 @@ fn summary_text(log: &DvlLog, v: &serde_json::Value) -> String {
         let _ = writeln!(o, "  topic             {t}");
     }
     let _ = writeln!(o, "  time source       {}", s.time_source_used);
-    let _ = writeln!(o, "  lines             {}", s.lines);
+    let _ = writeln!(o, "  {:<18}{}", format!("{}s", s.unit()), s.lines);
     let _ = writeln!(
         o,
         "  velocity reports  {} (valid {}, invalid {}, duplicates {})",
@@ -141,9 +144,8 @@ fn summary_text(log: &DvlLog, v: &serde_json::Value) -> String {
         for g in gaps.iter().take(10) {
             let _ = writeln!(
                 o,
-                "    {file}:{}..{}: {:.3} s from {}",
-                g.lines.0,
-                g.lines.1,
+                "    {}: {:.3} s from {}",
+                s.at_range(g.lines.0, g.lines.1),
                 g.end_s - g.start_s,
                 log.epoch.format_abs(g.start_s, 3)
             );
@@ -165,12 +167,17 @@ fn summary_text(log: &DvlLog, v: &serde_json::Value) -> String {
             );
         }
     }
-    let _ = writeln!(o, "  rejected lines    {}", s.rejected_lines);
+    let _ = writeln!(
+        o,
+        "  {:<18}{}",
+        format!("rejected {}s", s.unit()),
+        s.rejected_lines
+    );
     for (reason, n) in &s.rejected_by_reason {
         let _ = writeln!(o, "    {reason}: {n}");
     }
     for r in &s.rejected {
-        let _ = writeln!(o, "    {file}:{}: {}: {}", r.line, r.reason, r.detail);
+        let _ = writeln!(o, "    {}: {}: {}", s.at(r.line), r.reason, r.detail);
     }
     if s.rejected_lines > s.rejected.len() {
         let _ = writeln!(o, "    ... {} more", s.rejected_lines - s.rejected.len());
@@ -182,7 +189,7 @@ fn summary_text(log: &DvlLog, v: &serde_json::Value) -> String {
             s.time_backwards, s.time_repeats
         );
         for p in &s.time_problems {
-            let _ = writeln!(o, "    {file}:{}: step {:+.6} s", p.line, p.step_s);
+            let _ = writeln!(o, "    {}: step {:+.6} s", s.at(p.line), p.step_s);
         }
     }
     for w in &s.warnings {

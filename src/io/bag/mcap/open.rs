@@ -13,7 +13,7 @@ use super::records::{
     parse_statistics,
 };
 use crate::error::{Error, Result};
-use crate::io::bag::types::MCAP_MAGIC;
+use crate::io::bag::types::{MCAP_MAGIC, Storage};
 
 /// Opens one file: checks the magic and the Header, finds the footer and reads the summary,
 /// or reads the whole data section when there is no usable summary.
@@ -24,16 +24,18 @@ pub(super) fn open_file(path: &Path, problems: &mut Vec<String>) -> Result<(Mcap
         .len();
     let mut r = Reader::open(path)?;
     let magic_len = MCAP_MAGIC.len() as u64;
+    if len < magic_len {
+        let head = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        return Err(bad(Storage::Mcap.magic_mismatch(&head)));
+    }
+    let magic: [u8; 8] = r.read_array(0)?;
+    if magic != MCAP_MAGIC {
+        return Err(bad(Storage::Mcap.magic_mismatch(&magic)));
+    }
     if len < magic_len + RECORD_HEAD {
         return Err(bad(format!(
             "{len} bytes: too short for an MCAP file (the magic and a header)"
         )));
-    }
-    let magic: [u8; 8] = r.read_array(0)?;
-    if magic != MCAP_MAGIC {
-        return Err(bad(
-            "not an MCAP file (it does not start with the MCAP magic)".into(),
-        ));
     }
     let (op, hlen) = r.record_head(magic_len)?;
     if op != OP_HEADER {
