@@ -17,6 +17,9 @@ mod record_dvl;
 mod simulate;
 mod tags;
 
+use std::sync::OnceLock;
+
+use clap::parser::ValueSource;
 use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 
 #[derive(Parser)]
@@ -97,6 +100,34 @@ fn command() -> clap::Command {
     cmd
 }
 
+/// The options written on the command line (their ids: the argument fields' names), as opposed
+/// to those at their defaults.
+static GIVEN: OnceLock<Vec<String>> = OnceLock::new();
+
+/// Whether the option with id `id` (its field's name, e.g. `bag_time`) was written on the command
+/// line rather than left at its default.
+pub fn given(id: &str) -> bool {
+    GIVEN.get().is_some_and(|g| g.iter().any(|x| x == id))
+}
+
+/// An option the command line gave that this run would not use: refused, with why and what to
+/// use instead. The program then exits with status 2, as for any other usage error.
+#[derive(Debug)]
+pub struct Refused(pub String);
+
+impl std::fmt::Display for Refused {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for Refused {}
+
+/// Refuses an option: `Err(Refused)` with `msg`.
+pub fn refuse<T>(msg: impl Into<String>) -> anyhow::Result<T> {
+    Err(Refused(msg.into()).into())
+}
+
 fn main() {
     // Rust ignores SIGPIPE, so printing to a closed pipe (`dvlcal calibrate ... | head -1`)
     // would panic; with the default action the program ends quietly, as Unix tools do.
@@ -105,7 +136,16 @@ fn main() {
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
-    let cli = Cli::from_arg_matches(&command().get_matches()).unwrap_or_else(|e| e.exit());
+    let matches = command().get_matches();
+    if let Some((_, sub)) = matches.subcommand() {
+        let given = sub
+            .ids()
+            .filter(|id| sub.value_source(id.as_str()) == Some(ValueSource::CommandLine))
+            .map(|id| id.as_str().to_owned())
+            .collect();
+        let _ = GIVEN.set(given);
+    }
+    let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
     let result = match cli.command {
         Command::Simulate(a) => simulate::run(a),
         Command::FitTrajectory(a) => fit::run(a),
@@ -123,6 +163,7 @@ fn main() {
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");
-        std::process::exit(1);
+        let usage = e.chain().any(|c| c.is::<Refused>());
+        std::process::exit(if usage { 2 } else { 1 });
     }
 }
