@@ -26,6 +26,7 @@
 
 mod calibration;
 mod cameras;
+pub mod chain_order;
 mod dataset;
 mod evaluate;
 mod simulate;
