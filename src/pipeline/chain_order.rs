@@ -15,8 +15,6 @@ use crate::vision::detect::DetectorSettings;
 use crate::vision::frames::detect_source_tags;
 use crate::vision::pnp::{PnpOptions, PoseOutcome, solve_stereo};
 
-use super::vision::MAX_REPROJECTION_RMS_PX;
-
 /// Frames solved again for the check (spread over the recording).
 pub const CHECKED_FRAMES: usize = 12;
 
@@ -40,10 +38,10 @@ pub struct ChainOrderCheck {
 
 impl ChainOrderCheck {
     /// The sentence that names the order that fits, when one fits far better than the chain as
-    /// given and well enough to be used; `None` otherwise. Cameras with alike intrinsics fit
+    /// given and within `max_px` (the RMS poses are accepted with); `None` otherwise. Cameras with alike intrinsics fit
     /// alike swapped and with the transform inverted: then both causes are named.
-    pub fn hint(&self) -> Option<String> {
-        let fits = |px: f64| px <= MAX_REPROJECTION_RMS_PX && px * BETTER_BY < self.given_px;
+    pub fn hint(&self, max_px: f64) -> Option<String> {
+        let fits = |px: f64| px <= max_px && px * BETTER_BY < self.given_px;
         let transform = self.inverted_px.min(self.negated_px);
         let (t_fits, s_fits) = (fits(transform), fits(self.swapped_px));
         let head = format!(
@@ -54,12 +52,12 @@ impl ChainOrderCheck {
                           cam0 its x translation is negative, minus the baseline";
         let (t_words, t_fix) = if self.negated_px < self.inverted_px {
             (
-                "its translation negated",
+                "with its translation negated",
                 "the baseline in T_cn_cnm1 of cam1 has the wrong sign: negate its translation",
             )
         } else {
             (
-                "it inverted",
+                "inverted",
                 "T_cn_cnm1 of cam1 is written the other way round: invert it",
             )
         };
@@ -74,12 +72,12 @@ impl ChainOrderCheck {
         let msg = match (t_fits, s_fits) {
             (false, false) => return None,
             (true, true) if hi <= 1.2 * lo => format!(
-                "{head}, {transform:.2} px with T_cn_cnm1 of cam1 {t_words} and {:.2} px with \
+                "{head}, {transform:.2} px with cam1's T_cn_cnm1 {t_words} and {:.2} px with \
                  cam0 and cam1 swapped: either {t_fix}, or {swapped} ({convention}) {tail}",
                 self.swapped_px
             ),
             (true, _) if !s_fits || transform <= self.swapped_px => format!(
-                "{head}, {transform:.2} px with T_cn_cnm1 of cam1 {t_words}: {t_fix} \
+                "{head}, {transform:.2} px with cam1's T_cn_cnm1 {t_words}: {t_fix} \
                  ({convention}) {tail}"
             ),
             _ => format!(
@@ -208,7 +206,7 @@ mod tests {
             negated_px: negated,
             swapped_px: swapped,
         }
-        .hint()
+        .hint(3.0)
     }
 
     #[test]

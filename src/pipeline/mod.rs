@@ -30,6 +30,7 @@ pub mod chain_order;
 mod dataset;
 mod evaluate;
 mod simulate;
+pub mod unused;
 mod vision;
 
 pub use calibration::{

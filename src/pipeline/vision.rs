@@ -254,7 +254,7 @@ fn solve_poses(
         pool.install(|| check_chain_order(src, board, &chain, &det, &pnp))
             .ok()
             .flatten()
-            .and_then(|c| c.hint())
+            .and_then(|c| c.hint(MAX_REPROJECTION_RMS_PX))
     } else {
         None
     };

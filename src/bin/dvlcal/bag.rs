@@ -66,28 +66,12 @@ pub struct ImageBagArgs {
 impl ImageBagArgs {
     /// The library's options: the image topics and their time, no pose or DVL topic.
     pub fn options(&self) -> BagOptions {
+        let (image_topics, time) = (self.image_topics.clone(), self.bag_time);
         BagOptions {
-            image_topics: self.image_topics.clone(),
-            dvl_topic: None,
-            pose_topic: None,
-            pose_frame: None,
-            time: self.bag_time,
+            image_topics,
+            time,
+            ..BagOptions::default()
         }
-    }
-
-    /// Refuses the options when the images come from a folder (`--images`), not a bag.
-    pub fn refuse_without_bag(&self) -> Result<()> {
-        for (id, flag) in [
-            ("image_topics", "--image-topics"),
-            ("bag_time", "--bag-time"),
-        ] {
-            if crate::given(id) {
-                return crate::refuse(format!(
-                    "{flag} applies to a bag's image topics; the images come from a folder                      (--images), whose file names give the times: drop {flag}, or give the bag                      with --bag BAG instead of --images"
-                ));
-            }
-        }
-        Ok(())
     }
 }
 

@@ -17,7 +17,7 @@ use dvlcal::io::exports::FrameNames;
 use dvlcal::io::provenance::command_line;
 use dvlcal::pipeline::{
     CameraOutputs, OutputOptions, SEPARATE_CAMERA_RECORDING, calibrate_dataset,
-    calibration_context, write_failure_report, write_report, write_results,
+    calibration_context, unused, write_failure_report, write_report, write_results,
 };
 use dvlcal::types::CalibrationParams;
 
@@ -70,34 +70,12 @@ pub struct EstimatorArgs {
 }
 
 impl EstimatorArgs {
-    /// The estimator options written on the command line, by their flags.
-    pub fn given_flags(&self) -> Vec<&'static str> {
-        [
-            (self.dvl_sigma.is_some(), "--dvl-sigma"),
-            (self.offset_range.is_some(), "--offset-range"),
-            (self.lever_arm_prior.is_some(), "--lever-arm-prior"),
-            (self.rotation_prior.is_some(), "--rotation-prior"),
-            (crate::given("loss"), "--loss"),
-            (
-                crate::given("default_lever_arm_sigma"),
-                "--default-lever-arm-sigma",
-            ),
-            (self.model_covariance, "--model-covariance"),
-            (self.clock_drift, "--clock-drift"),
-        ]
-        .into_iter()
-        .filter_map(|(g, f)| g.then_some(f))
-        .collect()
-    }
-
-    /// Refuses `--default-lever-arm-sigma` beside `--lever-arm-prior`, which replaces it.
-    fn refuse_unused(&self) -> Result<()> {
-        if self.lever_arm_prior.is_some() && crate::given("default_lever_arm_sigma") {
-            return crate::refuse(
-                "--default-lever-arm-sigma sets the broad prior used when no --lever-arm-prior                  is given; --lever-arm-prior replaces it: drop one of the two",
-            );
-        }
-        Ok(())
+    /// The long flags of these settings.
+    pub fn flags() -> Vec<String> {
+        let cmd = <Self as clap::Args>::augment_args(clap::Command::new("estimator"));
+        cmd.get_arguments()
+            .filter_map(|a| a.get_long().map(|l| format!("--{l}")))
+            .collect()
     }
 
     fn priors(&self) -> Priors {
@@ -244,68 +222,13 @@ fn flagged(e: Error) -> Error {
     }
 }
 
-/// Refuses the options the chosen `--method` would not use, saying why and what to use instead.
-fn refuse_unused(a: &CalibrateArgs) -> Result<()> {
-    a.estimator.refuse_unused()?;
-    match a.method {
-        MethodArg::Uic if a.init.is_some() => {
-            return crate::refuse(
-                "--init is the guess of --method bcd (refined from) and --method fixed (its \
-                 rotation and lever arm held); --method uic, the default, starts from the data \
-                 alone and would not read it: add --method bcd or --method fixed, or drop --init \
-                 (a measured lever arm or rotation can be a prior: --lever-arm-prior, \
-                 --rotation-prior)",
-            );
-        }
-        MethodArg::Bcd | MethodArg::Fixed if a.biased => {
-            return crate::refuse(
-                "--biased changes the closed-form initialisation of --method uic; --method bcd \
-                 and fixed start from --init and never compute it: drop --biased, or use \
-                 --method uic",
-            );
-        }
-        _ => {}
-    }
-    if a.estimate_offset && !matches!(a.method, MethodArg::Fixed) {
-        return crate::refuse(
-            "--estimate-offset belongs to --method fixed (the extrinsics of --init held, the \
-             clock offset and scale estimated); --method uic and bcd estimate the clock offset \
-             anyway: drop --estimate-offset, or add --method fixed",
-        );
-    }
-    if matches!(a.method, MethodArg::Fixed) {
-        let held = a.estimator.given_flags().into_iter().find(|f| {
-            [
-                "--lever-arm-prior",
-                "--rotation-prior",
-                "--default-lever-arm-sigma",
-            ]
-            .contains(f)
-                || (*f == "--offset-range" && !a.estimate_offset)
-        });
-        if let Some(f) = held {
-            let what = if f == "--offset-range" {
-                "the clock offset of --init is held too (nothing is estimated without \
-                 --estimate-offset)"
-            } else {
-                "the rotation and lever arm of --init are held, so a prior on them changes nothing"
-            };
-            return crate::refuse(format!(
-                "{f} does nothing with --method fixed: {what}; drop {f}, or use --method bcd to \
-                 refine from --init{}",
-                if f == "--offset-range" {
-                    ", or add --estimate-offset"
-                } else {
-                    ""
-                }
-            ));
-        }
-    }
-    Ok(())
-}
-
 pub fn run(a: CalibrateArgs) -> Result<()> {
-    refuse_unused(&a)?;
+    let given = crate::given();
+    let method = a
+        .method
+        .to_possible_value()
+        .map(|v| v.get_name().to_owned());
+    unused::method_options(method.as_deref().unwrap_or(""), &given)?;
     let guess = match &a.init {
         Some(p) => Some(read_calibration_guess(p)?),
         None => None,
@@ -323,12 +246,12 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
     }
     let read = a.dvl_input.read_options(a.strict);
     let files = find(a.dataset.as_deref(), &a.files, &read)?;
-    crate::dataset::refuse_unused_inputs(&files, &a.files, &a.dvl_input)?;
+    unused::input_options(&files, &given)?;
     // Without a camchain the cameras are calibrated first; where their camchain (and report)
     // will go is checked before the long run.
     let cameras_out = CameraOutputs::plan(&a.out, a.report.as_deref(), &files)?;
     let mut data = read_files(files, &a.vision.options(), &read)?;
-    crate::dataset::refuse_unused_image_options(&data, &a.vision)?;
+    unused::image_options(&data, &given)?;
     if let (Some(cams), Some(to)) = (&data.cameras, &cameras_out) {
         let command = std::env::args().collect::<Vec<_>>().join(" ");
         for p in to.write(cams, Some(command))? {

@@ -49,7 +49,7 @@ pub struct CalibrateCamerasArgs {
 
 pub fn run(a: CalibrateCamerasArgs) -> Result<()> {
     if a.images.is_some() {
-        a.bag_args.refuse_without_bag()?;
+        dvlcal::pipeline::unused::image_bag_options(&crate::given())?;
     }
     let Some(model) = CameraModel::from_name(&a.model) else {
         bail!("--model {}: use pinhole-radtan or pinhole-equi", a.model);

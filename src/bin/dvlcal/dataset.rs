@@ -5,10 +5,6 @@ use std::path::{Path, PathBuf};
 use anyhow::Result;
 use clap::Args;
 
-use crate::detect::VisionTuning;
-use crate::dvl_info::DvlInputArgs;
-
-use dvlcal::io::bag::is_bag;
 use dvlcal::io::dataset::{DatasetFiles, DatasetOverrides};
 use dvlcal::io::dvl::DvlReadOptions;
 use dvlcal::pipeline::{Dataset, VisionOptions, VisionRun, dataset_files, describe_files};
@@ -64,97 +60,6 @@ pub fn find(dir: Option<&Path>, args: &DatasetArgs, read: &DvlReadOptions) -> Re
         print!("{}", describe_files(&files));
     }
     Ok(files)
-}
-
-/// Refuses the options a dataset's inputs would not use: the bag options when no input is a bag
-/// (`--dvl-topic` when the DVL log is not one), and the camchain and board when the camera poses
-/// come from a pose file. Says why, and what to use instead.
-pub fn refuse_unused_inputs(
-    files: &DatasetFiles,
-    args: &DatasetArgs,
-    dvl: &DvlInputArgs,
-) -> Result<()> {
-    let dvl_bag = files.dvl.as_deref().is_some_and(is_bag);
-    if dvl.dvl_topic.is_some() && !dvl_bag {
-        return crate::refuse(format!(
-            "--dvl-topic chooses the DVL topic of a bag; the DVL log here is {}, not a bag: drop \
-             --dvl-topic, or give the bag as the dataset or with --dvl BAG",
-            files
-                .dvl
-                .as_deref()
-                .map_or("-".into(), |p| p.display().to_string())
-        ));
-    }
-    let camera_bag = files.bag.is_some();
-    let camera = match (&files.poses, &files.images) {
-        (Some(p), _) => format!("the pose file {}", p.display()),
-        (None, Some(d)) => format!("the image folder {}", d.display()),
-        (None, None) => "no bag".into(),
-    };
-    let bag_only = [
-        (args.bag_args.image_topics.is_some(), "--image-topics"),
-        (args.bag_args.pose_topic.is_some(), "--pose-topic"),
-        (args.bag_args.pose_frame.is_some(), "--pose-frame"),
-    ];
-    if let (false, Some((_, f))) = (camera_bag, bag_only.iter().find(|(g, _)| *g)) {
-        return crate::refuse(format!(
-            "{f} chooses a topic of a bag that gives the camera data; the camera data come from \
-             {camera}: drop {f}, or give the bag as the dataset or with --bag BAG"
-        ));
-    }
-    if crate::given("bag_time") && !camera_bag && !dvl_bag {
-        return crate::refuse(format!(
-            "--bag-time chooses the times of a bag's messages; no input here is a bag (camera \
-             data from {camera}, DVL log {}): drop --bag-time (--dvl-time chooses the DVL log's \
-             times)",
-            files
-                .dvl
-                .as_deref()
-                .map_or("-".into(), |p| p.display().to_string())
-        ));
-    }
-    if let Some(p) = &files.poses {
-        for (g, f) in [
-            (args.camchain.is_some(), "--camchain"),
-            (args.target.is_some(), "--target"),
-        ] {
-            if g {
-                return crate::refuse(format!(
-                    "{f} is read with images; the camera poses come from the pose file {} and \
-                     need neither camchain nor board: drop {f}, or give the images with --images \
-                     DIR instead of the poses",
-                    p.display()
-                ));
-            }
-        }
-    }
-    Ok(())
-}
-
-/// Refuses the image pipeline's options when the camera poses did not come from images (a pose
-/// file, or a bag's pose topic).
-pub fn refuse_unused_image_options(data: &Dataset, vision: &VisionTuning) -> Result<()> {
-    if data.vision.is_some() {
-        return Ok(());
-    }
-    let options = [
-        ("decimate", "--decimate"),
-        ("pair_tolerance_ms", "--pair-tolerance-ms"),
-        ("min_corners", "--min-corners"),
-    ];
-    let given = options
-        .iter()
-        .find(|(id, _)| crate::given(id))
-        .map(|(_, f)| *f)
-        .or(vision.pixel_sigma.map(|_| "--pixel-sigma"));
-    match given {
-        Some(f) => crate::refuse(format!(
-            "{f} tunes the detection of the board in images; the camera poses come from {} \
-             without images: drop {f}",
-            data.camera_source.display()
-        )),
-        None => Ok(()),
-    }
 }
 
 /// Reads the dataset `files` name, printing the camera calibration (images without a

@@ -98,7 +98,7 @@ pub struct DetectArgs {
 
 pub fn run(a: DetectArgs) -> Result<()> {
     if a.images.is_some() {
-        a.bag_args.refuse_without_bag()?;
+        dvlcal::pipeline::unused::image_bag_options(&crate::given())?;
     }
     let frames = frames_csv_path(&a.out);
     for out in [&a.out, &frames] {

@@ -51,12 +51,7 @@ pub struct DvlInfoArgs {
 }
 
 pub fn run(args: DvlInfoArgs) -> anyhow::Result<()> {
-    if args.input.dvl_topic.is_some() && !dvlcal::io::bag::is_bag(&args.log) {
-        return crate::refuse(format!(
-            "--dvl-topic chooses the DVL topic of a bag; {} is not a bag: drop --dvl-topic",
-            args.log.display()
-        ));
-    }
+    dvlcal::pipeline::unused::dvl_topic_option(&args.log, &crate::given())?;
     let opts = args.input.read_options(args.strict);
     let log = read_dvl_log(&args.log, &opts)?;
     let mut text = if args.json {

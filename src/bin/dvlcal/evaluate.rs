@@ -10,12 +10,10 @@ use clap::Args;
 use dvlcal::eval::odometry::OdometryOptions;
 use dvlcal::io::calib_yaml::read_calibration_guess;
 use dvlcal::io::write_atomic;
-use dvlcal::pipeline::{baselines, cross_validate, odometry_table};
+use dvlcal::pipeline::{baselines, cross_validate, odometry_table, unused};
 
 use crate::calibrate::{EstimatorArgs, MethodArg, options};
-use crate::dataset::{
-    DatasetArgs, find, read_files, refuse_unused_image_options, refuse_unused_inputs,
-};
+use crate::dataset::{DatasetArgs, find, read_files};
 use crate::detect::VisionTuning;
 use crate::dvl_info::DvlInputArgs;
 
@@ -68,22 +66,10 @@ pub fn run(a: EvaluateArgs) -> Result<()> {
     if cross && a.datasets.len() < 2 {
         bail!("cross-validation needs two or more datasets; give --calib FILE to check one");
     }
-    if !cross {
-        let unused = a.estimator.given_flags();
-        let unused = a
-            .guess
-            .as_ref()
-            .map(|_| "--guess")
-            .into_iter()
-            .chain(unused);
-        if let Some(f) = unused.into_iter().next() {
-            return crate::refuse(format!(
-                "{f} applies to the calibrations of the cross-validation; with --calib alone the \
-                 calibration given is checked and nothing is calibrated: drop {f}, or add \
-                 --cross-validate (two or more datasets)"
-            ));
-        }
-    }
+    let given = crate::given();
+    let estimator = EstimatorArgs::flags();
+    let estimator: Vec<&str> = estimator.iter().map(String::as_str).collect();
+    unused::evaluate_options(cross, &given, &estimator)?;
     let read = a.dvl_input.read_options(false);
     let vision = a.vision.options();
     let args = DatasetArgs {
@@ -95,27 +81,14 @@ pub fn run(a: EvaluateArgs) -> Result<()> {
         found.push(find(Some(d), &args, &read)?);
     }
     // An option that applies to some dataset is used; one that applies to none is refused.
-    let checks: Vec<Result<()>> = found
-        .iter()
-        .map(|f| refuse_unused_inputs(f, &args, &a.dvl_input))
-        .collect();
-    if let Some(Err(e)) = checks
-        .into_iter()
-        .reduce(|a, b| if a.is_ok() { a } else { b })
-    {
-        return Err(e);
-    }
+    let checks = found.iter().map(|f| unused::input_options(f, &given));
+    checks.reduce(|a, b| a.or(b)).transpose()?;
     let mut data = Vec::with_capacity(a.datasets.len());
     for files in found {
         data.push(read_files(files, &vision, &read)?);
     }
-    if let Some(Err(e)) = data
-        .iter()
-        .map(|d| refuse_unused_image_options(d, &a.vision))
-        .reduce(|a, b| if a.is_ok() { a } else { b })
-    {
-        return Err(e);
-    }
+    let checks = data.iter().map(|d| unused::image_options(d, &given));
+    checks.reduce(|a, b| a.or(b)).transpose()?;
     let mut report = String::new();
     if let Some(p) = &a.calib {
         let c = read_calibration_guess(p)?;

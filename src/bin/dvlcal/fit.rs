@@ -54,17 +54,7 @@ pub fn run(a: FitArgs) -> Result<()> {
     )?;
     dvlcal::files::prepare_output("--out", &a.out)?;
     let (tum, table) = read_tum_with_covariances(&a.poses, None)?;
-    if let (Some(_), Some(t)) = (&a.pose_sigma, &table)
-        && tum.poses.iter().all(|p| p.cov.is_some())
-    {
-        return crate::refuse(format!(
-            "--pose-sigma sets the noise of poses without a covariance; every pose of {} has one \
-             (from {}), which the fit uses instead: drop --pose-sigma, or move the table away to \
-             fit with one noise for all poses",
-            a.poses.display(),
-            t.display()
-        ));
-    }
+    dvlcal::pipeline::unused::pose_sigma_option(&a.poses, table.as_deref(), &crate::given())?;
     let mut opts = FitOptions::default();
     if let Some(q) = &a.qc {
         opts.qc = Some(qc_from_arg(q)?);

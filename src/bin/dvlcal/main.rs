@@ -100,32 +100,14 @@ fn command() -> clap::Command {
     cmd
 }
 
-/// The options written on the command line (their ids: the argument fields' names), as opposed
-/// to those at their defaults.
+/// The options written on the command line (`--init`), not those left at their defaults.
 static GIVEN: OnceLock<Vec<String>> = OnceLock::new();
 
-/// Whether the option with id `id` (its field's name, e.g. `bag_time`) was written on the command
-/// line rather than left at its default.
-pub fn given(id: &str) -> bool {
-    GIVEN.get().is_some_and(|g| g.iter().any(|x| x == id))
-}
-
-/// An option the command line gave that this run would not use: refused, with why and what to
-/// use instead. The program then exits with status 2, as for any other usage error.
-#[derive(Debug)]
-pub struct Refused(pub String);
-
-impl std::fmt::Display for Refused {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.0)
-    }
-}
-
-impl std::error::Error for Refused {}
-
-/// Refuses an option: `Err(Refused)` with `msg`.
-pub fn refuse<T>(msg: impl Into<String>) -> anyhow::Result<T> {
-    Err(Refused(msg.into()).into())
+/// The flags written on the command line, for the library's checks of unused options.
+pub fn given() -> Vec<&'static str> {
+    GIVEN
+        .get()
+        .map_or(Vec::new(), |g| g.iter().map(String::as_str).collect())
 }
 
 fn main() {
@@ -137,13 +119,17 @@ fn main() {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
     let matches = command().get_matches();
-    if let Some((_, sub)) = matches.subcommand() {
-        let given = sub
-            .ids()
-            .filter(|id| sub.value_source(id.as_str()) == Some(ValueSource::CommandLine))
-            .map(|id| id.as_str().to_owned())
-            .collect();
-        let _ = GIVEN.set(given);
+    if let Some((name, sub)) = matches.subcommand()
+        && let Some(def) = command().find_subcommand(name)
+    {
+        let typed = |a: &&clap::Arg| {
+            sub.value_source(a.get_id().as_str()) == Some(ValueSource::CommandLine)
+        };
+        let flags = def
+            .get_arguments()
+            .filter(typed)
+            .filter_map(|a| a.get_long());
+        let _ = GIVEN.set(flags.map(|l| format!("--{l}")).collect());
     }
     let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
     let result = match cli.command {
@@ -163,7 +149,12 @@ fn main() {
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");
-        let usage = e.chain().any(|c| c.is::<Refused>());
+        let usage = e.chain().any(|c| {
+            matches!(
+                c.downcast_ref(),
+                Some(dvlcal::error::Error::UnusedOption(_))
+            )
+        });
         std::process::exit(if usage { 2 } else { 1 });
     }
 }
