@@ -36,6 +36,10 @@ pub enum Error {
         /// What is wrong with the value.
         msg: String,
     },
+    /// An option the run would not use (accepted, it would be ignored): why, and what to use
+    /// instead. A program treats it as a usage error.
+    #[error("{0}")]
+    UnusedOption(String),
     /// A stage had fewer usable samples than it needs.
     #[error("{found} {what}: at least {needed} are needed")]
     TooFewSamples {

@@ -17,7 +17,9 @@
 //!
 //! Missing folders: no cam0 images is an error; a chain of several cameras whose cam1 (or later)
 //! folder is missing or empty falls back to the cameras that have images, with a warning in
-//! [`ScanStats::warnings`] (the poses then come from cam0 alone).
+//! [`ScanStats::warnings`] naming the cameras the poses come from. Camera folders beyond the
+//! chain's cameras that hold images (a camchain of cam0 alone beside a full `cam1/`) are not
+//! used, with a warning that counts their images.
 
 use std::path::{Path, PathBuf};
 
@@ -218,7 +220,53 @@ pub fn scan_images(
         .map(|l| l.into_iter().map(|(t, p)| (t, ImageRef::File(p))).collect())
         .collect();
     let frames = pair_frames(lists, tolerance_ns, &labels, &mut stats);
+    unused_cameras(euroc_root.as_deref().unwrap_or(dir), cams, &mut stats)?;
     Ok((frames, stats))
+}
+
+/// Warns of the camera folders after the chain's `cams` cameras that hold images (a camchain of
+/// cam0 alone beside a `cam1/` full of images): their images are not used, and the poses come
+/// from fewer cameras than the folder offers.
+fn unused_cameras(root: &Path, cams: usize, stats: &mut ScanStats) -> Result<()> {
+    for c in cams.. {
+        let folder = root.join(format!("cam{c}"));
+        if !folder.is_dir() {
+            break;
+        }
+        let mut ignored = 0;
+        let n = match stats.layout {
+            Layout::Euroc if folder.join("data.csv").is_file() => {
+                read_euroc_csv(&folder.join("data.csv"), &folder.join("data"), &mut ignored)?.len()
+            }
+            Layout::Euroc => 0,
+            _ => list_folder(&folder, &mut ignored)?.len(),
+        };
+        if n == 0 {
+            continue;
+        }
+        let chain = match cams {
+            1 => "the camera chain has cam0 alone".to_string(),
+            n => format!("the camera chain has {n} cameras (cam0 to cam{})", n - 1),
+        };
+        stats.warnings.push(format!(
+            "{}: {n} images not used: {chain}, so the poses come from {}; give a camchain with \
+             cam{c} (dvlcal calibrate-cameras calibrates every camN folder) to use them",
+            folder.display(),
+            used_cameras_words(&(0..cams).collect::<Vec<_>>())
+        ));
+    }
+    Ok(())
+}
+
+/// The cameras `used` in words: `cam0 alone`, `cam0 and cam1 (stereo)`, `cam0, cam1 and cam2`.
+fn used_cameras_words(used: &[usize]) -> String {
+    let names: Vec<String> = used.iter().map(|c| format!("cam{c}")).collect();
+    match names.as_slice() {
+        [] => "no camera".into(),
+        [one] => format!("{one} alone"),
+        [a, b] => format!("{a} and {b} (stereo)"),
+        [rest @ .., last] => format!("{} and {last}", rest.join(", ")),
+    }
 }
 
 /// The image size of each of `cams` cameras, read from the header of its first image file that
@@ -257,16 +305,17 @@ pub fn pair_frames(
     stats: &mut ScanStats,
 ) -> Vec<StereoFrame> {
     let cams = lists.len();
-    let mut used_cams = vec![true; cams];
-    for c in 1..cams {
-        if lists[c].is_empty() {
-            used_cams[c] = false;
-            let why = missing
-                .get(c)
-                .cloned()
-                .unwrap_or_else(|| format!("cam{c}: no images"));
-            stats.warnings.push(format!("{why}; poses from cam0 alone"));
-        }
+    let used_cams: Vec<bool> = (0..cams).map(|c| c == 0 || !lists[c].is_empty()).collect();
+    let used: Vec<usize> = (0..cams).filter(|&c| used_cams[c]).collect();
+    for c in (1..cams).filter(|&c| !used_cams[c]) {
+        let why = missing
+            .get(c)
+            .cloned()
+            .unwrap_or_else(|| format!("cam{c}: no images"));
+        stats.warnings.push(format!(
+            "{why}; poses from {}, cam{c} of the camera chain not used",
+            used_cameras_words(&used)
+        ));
     }
     let Some(first) = lists.first() else {
         return Vec::new();
@@ -299,9 +348,14 @@ pub fn pair_frames(
         }
     }
     if stats.unpaired_cam0 > 0 || stats.unpaired_other > 0 {
+        let posed = if used.len() > 2 {
+            "posed from the cameras that have an image"
+        } else {
+            "posed from cam0 alone"
+        };
         stats.warnings.push(format!(
-            "{} cam0 images without a partner within {} ms (posed from cam0 alone), {} images of \
-             other cameras without a cam0 partner (dropped)",
+            "{} cam0 images without a partner within {} ms ({posed}), {} images of other cameras \
+             without a cam0 partner (dropped)",
             stats.unpaired_cam0,
             tolerance_ns as f64 * 1e-6,
             stats.unpaired_other

@@ -83,6 +83,7 @@ pub fn read_tum(path: &Path, epoch: Option<Epoch>) -> Result<TumPoses> {
 
 /// Parses the text of a TUM file as [`read_tum`] does; `path` names the file in messages.
 pub fn parse_tum(text: &str, path: &Path, epoch: Option<Epoch>) -> Result<TumPoses> {
+    refuse_euroc(text, path)?;
     let mut epoch = epoch;
     let mut poses = Vec::new();
     let mut lines = Vec::new();
@@ -153,6 +154,7 @@ pub fn parse_tum(text: &str, path: &Path, epoch: Option<Epoch>) -> Result<TumPos
         lines.push(line);
     }
 
+    check_time_unit(&poses, &lines, text, path)?;
     let segments = clock_segments(&mut poses, &lines, &starts);
     match epoch {
         Some(epoch) if !poses.is_empty() => Ok(TumPoses {
@@ -164,6 +166,106 @@ pub fn parse_tum(text: &str, path: &Path, epoch: Option<Epoch>) -> Result<TumPos
         }),
         _ => Err(Error::parse(path, last_line(text), "no poses in file")),
     }
+}
+
+/// A median interval between poses longer than this, s, is no camera's: the times are in
+/// another unit than seconds (or the file holds no trajectory to calibrate against).
+pub const MAX_POSE_INTERVAL_S: f64 = 5.0;
+
+/// Refuses a EuRoC ground-truth CSV (`#timestamp, p_RS_R_x [m], ..., q_RS_w [], ...`, as in
+/// `mav0/state_groundtruth_estimate0/data.csv`, `vicon0/` or `leica0/`), recognised by its
+/// header: its times are nanoseconds, its quaternion comes w first, and its poses are of the
+/// body (the IMU frame S), not of the camera. Reading it needs the camera's pose on the body
+/// (cam0's `T_BS` in `mav0/cam0/sensor.yaml`), which the file does not hold: calibrating
+/// against the body's poses would give the DVL's pose on the IMU labelled as on the camera.
+fn refuse_euroc(text: &str, path: &Path) -> Result<()> {
+    let Some((k, header)) = text.lines().enumerate().find(|(_, l)| !l.trim().is_empty()) else {
+        return Ok(());
+    };
+    if !(header.trim_start().starts_with('#') && header.contains("p_RS_R_x")) {
+        return Ok(());
+    }
+    let what = if header.contains("q_RS_w") {
+        "its times are nanoseconds, its quaternion is w first (q_RS_w q_RS_x q_RS_y q_RS_z), and \
+         its poses are of the body (EuRoC's IMU frame S) in the world, not of the camera"
+    } else {
+        "it holds positions only (no orientation), of the body (EuRoC's IMU frame S) in the \
+         world, in nanoseconds"
+    };
+    Err(Error::parse(
+        path,
+        k + 1,
+        format!(
+            "this is a EuRoC ground-truth CSV (header '#timestamp, p_RS_R_x [m], ...'), not a TUM \
+             pose file: {what}. dvlcal needs camera poses T_world_cam in TUM (seconds; tx ty tz \
+             qx qy qz qw): calibrate from the images instead (--images mav0 with the board), or \
+             convert each pose to T_world_cam = T_world_S * T_BS, with T_BS of cam0 from \
+             mav0/cam0/sensor.yaml, writing the time in seconds and the quaternion x y z w"
+        ),
+    ))
+}
+
+/// Refuses pose times that are not seconds: a median interval between poses longer than
+/// [`MAX_POSE_INTERVAL_S`] names the unit the times appear to be in (the one that makes the
+/// interval a camera's, 0.5 to 500 Hz, preferring one that makes the first stamp a Unix time of
+/// 2000 to 2100) and how to convert them. Reading them in that unit instead would rest the
+/// clock offset, the calibration's own result, on a guess.
+fn check_time_unit(
+    poses: &[PoseMeasurement],
+    lines: &[usize],
+    text: &str,
+    path: &Path,
+) -> Result<()> {
+    let mut gaps: Vec<f64> = poses
+        .windows(2)
+        .map(|w| w[1].t - w[0].t)
+        .filter(|g| *g > 0.0)
+        .collect();
+    gaps.sort_by(f64::total_cmp);
+    let Some(&gap) = gaps.get(gaps.len() / 2) else {
+        return Ok(());
+    };
+    if gap <= MAX_POSE_INTERVAL_S {
+        return Ok(());
+    }
+    let line = lines.first().copied().unwrap_or(1);
+    let first = content_lines(text)
+        .next()
+        .and_then(|(_, l)| l.split(|c: char| c.is_whitespace() || c == ',').next())
+        .and_then(|t| t.parse::<f64>().ok())
+        .unwrap_or(f64::NAN);
+    const UNITS: [(&str, &str, f64); 3] = [
+        ("milliseconds", "1e3", 1e-3),
+        ("microseconds", "1e6", 1e-6),
+        ("nanoseconds", "1e9", 1e-9),
+    ];
+    let camera = |u: f64| (0.002..=2.0).contains(&(gap * u));
+    let unix = |u: f64| (946_684_800.0..=4_102_444_800.0).contains(&(first * u));
+    let unit = UNITS
+        .iter()
+        .find(|(_, _, u)| camera(*u) && unix(*u))
+        .or_else(|| UNITS.iter().find(|(_, _, u)| camera(*u)));
+    let msg = match unit {
+        Some((name, div, u)) => format!(
+            "the time stamps appear to be in {name}, not seconds: read as seconds the poses are \
+             {gap} s apart (the median interval), in {name} a camera at {:.3} Hz{}. TUM times are \
+             seconds: divide \
+             the first column by {div}, e.g. awk '!/^#/ {{ $1 = sprintf(\"%.9f\", $1 / {div}) }} \
+             1' POSES > POSES_s.txt",
+            1.0 / (gap * u),
+            if unix(*u) {
+                format!(", and the first stamp a Unix time in {name}")
+            } else {
+                String::new()
+            }
+        ),
+        None => format!(
+            "the poses are {gap} s apart (the median interval): no camera gives a trajectory \
+             from poses that far apart; TUM times are seconds: if these are in another unit, \
+             convert them"
+        ),
+    };
+    Err(Error::parse(path, line, msg))
 }
 
 /// The camera clock segments starting at the poses `starts`, each after the first moved to

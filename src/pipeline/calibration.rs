@@ -72,6 +72,7 @@ pub fn calibrate_dataset(
     note_pose_covariances(&mut file, data);
     note_board_size(&mut file, data);
     note_focal_lengths(&mut file, data);
+    super::vision::note_image_scan(&mut file, data.vision.as_ref());
     Ok(CalibrationRun {
         outcome,
         file,

@@ -230,7 +230,8 @@ impl Dataset {
                 };
                 let ob = OpenBag::open(bag, &files.bag_options)?;
                 notes.extend(ob.roles.notes.iter().cloned());
-                if ob.roles.images.is_empty() {
+                // A pose topic named by the user wins over the bag's images.
+                if ob.roles.images.is_empty() || files.bag_options.pose_topic.is_some() {
                     let p = read_bag_poses(&ob)?;
                     notes.push(format!("camera poses from {}", p.source));
                     notes.extend(p.warnings);

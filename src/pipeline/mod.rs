@@ -27,10 +27,12 @@
 mod board;
 mod calibration;
 mod cameras;
+pub mod chain_order;
 mod dataset;
 mod evaluate;
 mod exports;
 mod simulate;
+pub mod unused;
 mod vision;
 
 pub use board::write_board_svg;

@@ -5,9 +5,11 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use super::chain_order::check_chain_order;
 use crate::error::{Error, Result};
 use crate::io::bag::frames::BagFrames;
 use crate::io::bag::open::OpenBag;
+use crate::io::calib_yaml::{CalibrationFile, CalibrationInfo};
 use crate::io::camchain::read_camchain;
 use crate::io::frames::FrameSource;
 pub use crate::io::frames_csv::frames_csv_path;
@@ -112,6 +114,10 @@ pub struct VisionRun {
     pub stats: DetectStats,
     /// Wall time of detection and PnP, s.
     pub seconds: f64,
+    /// When the poses reproject badly and the camera chain read in another order (`T_cn_cnm1`
+    /// inverted, cam0 and cam1 swapped) fits the same frames far better: the sentence that says
+    /// so ([`super::chain_order`]).
+    pub chain_order: Option<String>,
 }
 
 /// Scans `images`, detects the board's tags and solves every frame on a pool of
@@ -241,6 +247,17 @@ fn solve_poses(
             pool.install(|| detect_source(src, &scaled, &chain, &det, &pnp, opts.progress))?;
         b.applied = true;
     }
+    // Stereo that reprojects badly: is the chain the other way round? (A diagnosis only: its
+    // own failure leaves the error as it is.)
+    let poor = stats.rms_px.is_nan() || stats.rms_px > MAX_REPROJECTION_RMS_PX;
+    let chain_order = if chain.cams.len() >= 2 && poor {
+        pool.install(|| check_chain_order(src, board, &chain, &det, &pnp))
+            .ok()
+            .flatten()
+            .and_then(|c| c.hint(MAX_REPROJECTION_RMS_PX))
+    } else {
+        None
+    };
     let focal = focal_scales(&results, chain.cams.len());
     stats.problems.splice(0..0, unreadable.iter().cloned());
     let seconds = start.elapsed().as_secs_f64();
@@ -258,6 +275,7 @@ fn solve_poses(
         scan,
         stats,
         seconds,
+        chain_order,
     })
 }
 
@@ -290,6 +308,16 @@ pub fn posed_frames(results: &[FrameResult], epoch: &Epoch) -> Vec<PoseMeasureme
         .collect()
 }
 
+/// Records in the result file the warnings of the image folder's (or bag's) scan of `run`:
+/// cameras of the chain without images, camera folders the chain does not use, images without
+/// a partner, file names read in another unit.
+pub(crate) fn note_image_scan(file: &mut CalibrationFile, run: Option<&VisionRun>) {
+    if let Some(run) = run.filter(|r| !r.scan.warnings.is_empty()) {
+        let info = file.info.get_or_insert_with(CalibrationInfo::default);
+        info.warnings.extend(run.scan.warnings.iter().cloned());
+    }
+}
+
 impl VisionRun {
     /// The poses as a TUM file of them reads back ([`as_read_back`]): what the calibration
     /// takes, so that calibrating from images and from `dvlcal detect`'s TUM file and frames
@@ -314,15 +342,20 @@ impl VisionRun {
             ));
         }
         if self.stats.rms_px.is_nan() || self.stats.rms_px > MAX_REPROJECTION_RMS_PX {
+            let why = match &self.chain_order {
+                Some(order) => order.clone(),
+                None => "check the intrinsics and distortion (of this resolution?), the tag size \
+                         and spacing (metres?), and that the board file is the board in the \
+                         images"
+                    .into(),
+            };
             return Err(Error::dataset(
                 &self.images,
                 format!(
                     "the poses reproject the board's corners with {:.1} px RMS (a good camera \
                      model and board give well under 1 px; at most {MAX_REPROJECTION_RMS_PX} px is \
-                     accepted): check the intrinsics and distortion (of this resolution?), the \
-                     tag size and spacing (metres?), and that the board file is the board in \
-                     the images",
-                    self.stats.rms_px
+                     accepted): {why}",
+                    self.stats.rms_px,
                 ),
             ));
         }

@@ -83,7 +83,9 @@ fn advice(e: &Error) -> &'static str {
              translation without any rotation) or data that do not fit the model at all. The \
              counts and spans below show what the calibration had to work with."
         }
-        Error::InvalidOption { .. } => "An option value cannot be used; see its message.",
+        Error::InvalidOption { .. } | Error::UnusedOption(_) => {
+            "An option value cannot be used; see its message."
+        }
         Error::Parse { .. } | Error::Io { .. } => {
             "An input file could not be read or has a line that cannot be used; the message \
              names it."

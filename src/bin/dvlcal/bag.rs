@@ -15,10 +15,16 @@ use dvlcal::io::bag::roles::{BagOptions, BagTime};
 pub struct BagArgs {
     /// Image topics of a bag, cam0 first: one topic, or LEFT,RIGHT (default: the
     /// sensor_msgs/Image or CompressedImage topics, paired by name).
-    #[arg(long, value_name = "L[,R]", value_delimiter = ',')]
+    #[arg(
+        long,
+        value_name = "L[,R]",
+        value_delimiter = ',',
+        conflicts_with = "pose_topic"
+    )]
     pub image_topics: Option<Vec<String>>,
-    /// Pose topic of a bag without images (PoseStamped, PoseWithCovarianceStamped,
-    /// TransformStamped, Odometry, or /tf with --pose-frame): T_world_cam.
+    /// Pose topic of a bag (PoseStamped, PoseWithCovarianceStamped, TransformStamped,
+    /// Odometry, or /tf with --pose-frame): T_world_cam. Without it the poses come from the
+    /// bag's images when it has any; with it from this topic, images or not.
     #[arg(long, value_name = "TOPIC")]
     pub pose_topic: Option<String>,
     /// Child frame whose transforms on a tf2_msgs/TFMessage topic are the camera's poses.
@@ -40,6 +46,31 @@ impl BagArgs {
             pose_topic: self.pose_topic.clone(),
             pose_frame: self.pose_frame.clone(),
             time: self.bag_time,
+        }
+    }
+}
+
+/// The bag options of the commands that read a bag's images only (no pose or DVL topics).
+#[derive(Args, Debug, Clone, Default)]
+pub struct ImageBagArgs {
+    /// Image topics of a bag, cam0 first: one topic, or LEFT,RIGHT (default: the
+    /// sensor_msgs/Image or CompressedImage topics, paired by name).
+    #[arg(long, value_name = "L[,R]", value_delimiter = ',')]
+    pub image_topics: Option<Vec<String>>,
+    /// Times of a bag's images: header (header.stamp; a zero stamp falls back to the record
+    /// time, with a warning) or record (when the recorder received them).
+    #[arg(long, value_name = "T", default_value = "header")]
+    pub bag_time: BagTime,
+}
+
+impl ImageBagArgs {
+    /// The library's options: the image topics and their time, no pose or DVL topic.
+    pub fn options(&self) -> BagOptions {
+        let (image_topics, time) = (self.image_topics.clone(), self.bag_time);
+        BagOptions {
+            image_topics,
+            time,
+            ..BagOptions::default()
         }
     }
 }

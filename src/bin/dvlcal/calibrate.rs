@@ -17,7 +17,7 @@ use dvlcal::io::exports::FrameNames;
 use dvlcal::io::provenance::command_line;
 use dvlcal::pipeline::{
     CameraOutputs, OutputOptions, SEPARATE_CAMERA_RECORDING, calibrate_dataset,
-    calibration_context, write_failure_report, write_report, write_results,
+    calibration_context, unused, write_failure_report, write_report, write_results,
 };
 use dvlcal::types::CalibrationParams;
 
@@ -70,6 +70,14 @@ pub struct EstimatorArgs {
 }
 
 impl EstimatorArgs {
+    /// The long flags of these settings.
+    pub fn flags() -> Vec<String> {
+        let cmd = <Self as clap::Args>::augment_args(clap::Command::new("estimator"));
+        cmd.get_arguments()
+            .filter_map(|a| a.get_long().map(|l| format!("--{l}")))
+            .collect()
+    }
+
     fn priors(&self) -> Priors {
         Priors {
             lever_arm: self.lever_arm_prior.as_ref().map(|p| LeverArmPrior {
@@ -215,6 +223,12 @@ fn flagged(e: Error) -> Error {
 }
 
 pub fn run(a: CalibrateArgs) -> Result<()> {
+    let given = crate::given();
+    let method = a
+        .method
+        .to_possible_value()
+        .map(|v| v.get_name().to_owned());
+    unused::method_options(method.as_deref().unwrap_or(""), &given)?;
     let guess = match &a.init {
         Some(p) => Some(read_calibration_guess(p)?),
         None => None,
@@ -232,10 +246,12 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
     }
     let read = a.dvl_input.read_options(a.strict);
     let files = find(a.dataset.as_deref(), &a.files, &read)?;
+    unused::input_options(&files, &given)?;
     // Without a camchain the cameras are calibrated first; where their camchain (and report)
     // will go is checked before the long run.
     let cameras_out = CameraOutputs::plan(&a.out, a.report.as_deref(), &files)?;
     let mut data = read_files(files, &a.vision.options(), &read)?;
+    unused::image_options(&data, &given)?;
     if let (Some(cams), Some(to)) = (&data.cameras, &cameras_out) {
         let command = std::env::args().collect::<Vec<_>>().join(" ");
         for p in to.write(cams, Some(command))? {
@@ -250,9 +266,19 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
         }
     }
     let st = &mut data.log.stats;
-    if let (None, Some(c)) = (st.sound_speed_mps, a.dvl_sound_speed) {
-        st.sound_speed_mps = Some(c);
-        st.sound_speed_source = Some("--dvl-sound-speed".into());
+    match (st.sound_speed_mps, a.dvl_sound_speed) {
+        (None, Some(c)) => {
+            st.sound_speed_mps = Some(c);
+            st.sound_speed_source = Some("--dvl-sound-speed".into());
+        }
+        (Some(logged), Some(c)) => eprintln!(
+            "warning: --dvl-sound-speed {c} m/s not used: the DVL log's configuration reply \
+             gives the sound speed it was set to, {logged} m/s{}",
+            st.sound_speed_source
+                .as_deref()
+                .map_or(String::new(), |s| format!(" ({s})"))
+        ),
+        _ => {}
     }
     let run = match calibrate_dataset(&data, &opts, a.vision.detect.threads) {
         Ok(run) => run,

@@ -27,7 +27,7 @@ pub struct CalibrateCamerasArgs {
     #[arg(long, value_name = "BAG")]
     pub bag: Option<PathBuf>,
     #[command(flatten)]
-    pub bag_args: crate::bag::BagArgs,
+    pub bag_args: crate::bag::ImageBagArgs,
     /// Board YAML (dvlcal grid or tag list, or Kalibr aprilgrid target); the board must be flat.
     #[arg(long, value_name = "FILE")]
     pub target: PathBuf,
@@ -48,6 +48,9 @@ pub struct CalibrateCamerasArgs {
 }
 
 pub fn run(a: CalibrateCamerasArgs) -> Result<()> {
+    if a.images.is_some() {
+        dvlcal::pipeline::unused::image_bag_options(&crate::given())?;
+    }
     let Some(model) = CameraModel::from_name(&a.model) else {
         bail!("--model {}: use pinhole-radtan or pinhole-equi", a.model);
     };
@@ -69,7 +72,7 @@ pub fn run(a: CalibrateCamerasArgs) -> Result<()> {
         (Some(dir), _) => calibrate_cameras_from_images(dir, &a.target, &opts)
             .with_context(|| format!("calibrating the cameras of {}", dir.display()))?,
         (None, Some(bag)) => {
-            let ob = OpenBag::open(bag, &a.bag_args.options(None))?;
+            let ob = OpenBag::open(bag, &a.bag_args.options())?;
             let tol_ns = (opts.vision.pair_tolerance_ms * 1e6).round() as i64;
             let plan = plan_frames(&ob, tol_ns)?;
             calibrate_cameras_from_bag(&ob, &plan, &a.target, &opts)

@@ -53,17 +53,6 @@ impl DatasetArgs {
     }
 }
 
-/// Finds and reads a dataset, printing what was found (for a folder), the image pipeline's
-/// summary and its warnings, and the DVL log's skipped lines.
-pub fn load(
-    dir: Option<&Path>,
-    args: &DatasetArgs,
-    vision: &VisionOptions,
-    read: &DvlReadOptions,
-) -> Result<Dataset> {
-    read_files(find(dir, args, read)?, vision, read)
-}
-
 /// Finds a dataset's files, printing what was found (for a folder).
 pub fn find(dir: Option<&Path>, args: &DatasetArgs, read: &DvlReadOptions) -> Result<DatasetFiles> {
     let files = dataset_files(dir, &args.overrides(read))?;

@@ -82,7 +82,7 @@ pub struct DetectArgs {
     #[arg(long, value_name = "BAG")]
     pub bag: Option<PathBuf>,
     #[command(flatten)]
-    pub bag_args: crate::bag::BagArgs,
+    pub bag_args: crate::bag::ImageBagArgs,
     /// Kalibr camchain YAML (intrinsics, distortion, T_cn_cnm1).
     #[arg(long, value_name = "FILE")]
     pub camchain: PathBuf,
@@ -97,6 +97,9 @@ pub struct DetectArgs {
 }
 
 pub fn run(a: DetectArgs) -> Result<()> {
+    if a.images.is_some() {
+        dvlcal::pipeline::unused::image_bag_options(&crate::given())?;
+    }
     let frames = frames_csv_path(&a.out);
     for out in [&a.out, &frames] {
         dvlcal::files::refuse_input("--out", out, [a.camchain.as_path(), a.target.as_path()])?;
@@ -106,7 +109,7 @@ pub fn run(a: DetectArgs) -> Result<()> {
     let run = match (&a.images, &a.bag) {
         (Some(dir), _) => poses_from_images(dir, &a.camchain, &a.target, &opts)?,
         (None, Some(bag)) => {
-            let ob = OpenBag::open(bag, &a.bag_args.options(None))?;
+            let ob = OpenBag::open(bag, &a.bag_args.options())?;
             for n in &ob.roles.notes {
                 eprintln!("note: {n}");
             }

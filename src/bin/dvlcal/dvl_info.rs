@@ -51,6 +51,7 @@ pub struct DvlInfoArgs {
 }
 
 pub fn run(args: DvlInfoArgs) -> anyhow::Result<()> {
+    dvlcal::pipeline::unused::dvl_topic_option(&args.log, &crate::given())?;
     let opts = args.input.read_options(args.strict);
     let log = read_dvl_log(&args.log, &opts)?;
     let mut text = if args.json {

@@ -10,10 +10,10 @@ use clap::Args;
 use dvlcal::eval::odometry::OdometryOptions;
 use dvlcal::io::calib_yaml::read_calibration_guess;
 use dvlcal::io::write_atomic;
-use dvlcal::pipeline::{baselines, cross_validate, odometry_table};
+use dvlcal::pipeline::{baselines, cross_validate, odometry_table, unused};
 
 use crate::calibrate::{EstimatorArgs, MethodArg, options};
-use crate::dataset::{DatasetArgs, load};
+use crate::dataset::{DatasetArgs, find, read_files};
 use crate::detect::VisionTuning;
 use crate::dvl_info::DvlInputArgs;
 
@@ -66,16 +66,29 @@ pub fn run(a: EvaluateArgs) -> Result<()> {
     if cross && a.datasets.len() < 2 {
         bail!("cross-validation needs two or more datasets; give --calib FILE to check one");
     }
+    let given = crate::given();
+    let estimator = EstimatorArgs::flags();
+    let estimator: Vec<&str> = estimator.iter().map(String::as_str).collect();
+    unused::evaluate_options(cross, &given, &estimator)?;
     let read = a.dvl_input.read_options(false);
     let vision = a.vision.options();
-    let mut data = Vec::with_capacity(a.datasets.len());
+    let args = DatasetArgs {
+        bag_args: a.bag_args.clone(),
+        ..DatasetArgs::default()
+    };
+    let mut found = Vec::with_capacity(a.datasets.len());
     for d in &a.datasets {
-        let args = DatasetArgs {
-            bag_args: a.bag_args.clone(),
-            ..DatasetArgs::default()
-        };
-        data.push(load(Some(d), &args, &vision, &read)?);
+        found.push(find(Some(d), &args, &read)?);
     }
+    // An option that applies to some dataset is used; one that applies to none is refused.
+    let checks = found.iter().map(|f| unused::input_options(f, &given));
+    checks.reduce(|a, b| a.or(b)).transpose()?;
+    let mut data = Vec::with_capacity(a.datasets.len());
+    for files in found {
+        data.push(read_files(files, &vision, &read)?);
+    }
+    let checks = data.iter().map(|d| unused::image_options(d, &given));
+    checks.reduce(|a, b| a.or(b)).transpose()?;
     let mut report = String::new();
     if let Some(p) = &a.calib {
         let c = read_calibration_guess(p)?;

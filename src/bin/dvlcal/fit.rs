@@ -54,6 +54,7 @@ pub fn run(a: FitArgs) -> Result<()> {
     )?;
     dvlcal::files::prepare_output("--out", &a.out)?;
     let (tum, table) = read_tum_with_covariances(&a.poses, None)?;
+    dvlcal::pipeline::unused::pose_sigma_option(&a.poses, table.as_deref(), &crate::given())?;
     let mut opts = FitOptions::default();
     if let Some(q) = &a.qc {
         opts.qc = Some(qc_from_arg(q)?);

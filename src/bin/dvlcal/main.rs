@@ -17,6 +17,9 @@ mod record_dvl;
 mod simulate;
 mod tags;
 
+use std::sync::OnceLock;
+
+use clap::parser::ValueSource;
 use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 
 #[derive(Parser)]
@@ -97,6 +100,16 @@ fn command() -> clap::Command {
     cmd
 }
 
+/// The options written on the command line (`--init`), not those left at their defaults.
+static GIVEN: OnceLock<Vec<String>> = OnceLock::new();
+
+/// The flags written on the command line, for the library's checks of unused options.
+pub fn given() -> Vec<&'static str> {
+    GIVEN
+        .get()
+        .map_or(Vec::new(), |g| g.iter().map(String::as_str).collect())
+}
+
 fn main() {
     // Rust ignores SIGPIPE, so printing to a closed pipe (`dvlcal calibrate ... | head -1`)
     // would panic; with the default action the program ends quietly, as Unix tools do.
@@ -105,7 +118,20 @@ fn main() {
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
-    let cli = Cli::from_arg_matches(&command().get_matches()).unwrap_or_else(|e| e.exit());
+    let matches = command().get_matches();
+    if let Some((name, sub)) = matches.subcommand()
+        && let Some(def) = command().find_subcommand(name)
+    {
+        let typed = |a: &&clap::Arg| {
+            sub.value_source(a.get_id().as_str()) == Some(ValueSource::CommandLine)
+        };
+        let flags = def
+            .get_arguments()
+            .filter(typed)
+            .filter_map(|a| a.get_long());
+        let _ = GIVEN.set(flags.map(|l| format!("--{l}")).collect());
+    }
+    let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
     let result = match cli.command {
         Command::Simulate(a) => simulate::run(a),
         Command::FitTrajectory(a) => fit::run(a),
@@ -123,6 +149,12 @@ fn main() {
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");
-        std::process::exit(1);
+        let usage = e.chain().any(|c| {
+            matches!(
+                c.downcast_ref(),
+                Some(dvlcal::error::Error::UnusedOption(_))
+            )
+        });
+        std::process::exit(if usage { 2 } else { 1 });
     }
 }

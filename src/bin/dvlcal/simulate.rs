@@ -96,7 +96,7 @@ pub struct SimulateArgs {
     #[arg(long)]
     pub force: bool,
     /// Worker threads for the images (0: one per core).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, requires = "images", default_value_t = 0)]
     pub threads: usize,
 }
 

@@ -3,7 +3,7 @@
 
 use serde::Deserialize;
 
-use super::report::{Parsed, Reject, VelocityReport, content_hash};
+use super::report::{Parsed, Reject, VelocityReport, content_hash, not_microseconds};
 use crate::time::RawTime;
 
 /// The key `record-dvl` adds to every line: host receive time, Unix microseconds.
@@ -29,11 +29,25 @@ struct Fields<'a> {
     #[serde(default)]
     velocity_valid: Option<bool>,
     #[serde(default)]
-    time_of_validity: Option<i64>,
+    time_of_validity: Option<serde_json::Number>,
     #[serde(default)]
-    time_of_transmission: Option<i64>,
+    time_of_transmission: Option<serde_json::Number>,
     #[serde(default)]
-    host_time_us: Option<i64>,
+    host_time_us: Option<serde_json::Number>,
+}
+
+/// A time field in whole microseconds; a fraction (seconds or milliseconds written as a decimal)
+/// or a value beyond i64 is rejected, naming the field and the unit it needs.
+fn micros(n: &Option<serde_json::Number>, name: &str) -> Result<Option<i64>, Reject> {
+    let Some(n) = n else { return Ok(None) };
+    match n.as_i64() {
+        Some(v) => Ok(Some(v)),
+        None => Err(not_microseconds(
+            name,
+            &n.to_string(),
+            n.as_f64().unwrap_or(f64::NAN),
+        )),
+    }
 }
 
 /// At most this many characters of a label taken from the input.
@@ -150,18 +164,19 @@ pub fn parse_line(line: &[u8]) -> Result<Parsed, Reject> {
             return Err(Reject::new("non-finite value", format!("'time' is {t}")));
         }
     }
+    let time_of_validity = micros(&f.time_of_validity, "time_of_validity")?;
+    let time_of_transmission = micros(&f.time_of_transmission, "time_of_transmission")?;
+    let host_time_us = micros(&f.host_time_us, HOST_TIME_KEY)?;
     Ok(Parsed::Velocity(VelocityReport {
         label,
         v,
         cov,
         valid,
         time_ms: f.time,
-        time_of_validity_us: f.time_of_validity,
-        time_of_transmission_us: f.time_of_transmission,
-        host_time: f.host_time_us.map(RawTime::from_micros),
-        host_time_kind: f
-            .host_time_us
-            .map(|_| "host receive time (host_time_us, record-dvl)"),
+        time_of_validity_us: time_of_validity,
+        time_of_transmission_us: time_of_transmission,
+        host_time: host_time_us.map(RawTime::from_micros),
+        host_time_kind: host_time_us.map(|_| "host receive time (host_time_us, record-dvl)"),
         key: content_hash(identity(line)),
     }))
 }

@@ -89,6 +89,29 @@ impl Reject {
     }
 }
 
+/// The rejection of a time field (`time_of_validity`, `time_of_transmission`, `host_time_us`)
+/// written as `shown`, a number `x` that is not whole microseconds: the A50 writes Unix times
+/// in microseconds as integers. The unit it appears to be in is named (Unix seconds or
+/// milliseconds from 2000 to 2100), with the conversion.
+pub fn not_microseconds(name: &str, shown: &str, x: f64) -> Reject {
+    let unix = |per_s: f64| (946_684_800.0..=4_102_444_800.0).contains(&(x / per_s));
+    let guess = if unix(1.0) {
+        " (it looks like Unix seconds: multiply by 1e6 and write it without a fraction)"
+    } else if unix(1e3) {
+        " (it looks like Unix milliseconds: multiply by 1e3 and write it without a fraction)"
+    } else {
+        ""
+    };
+    let shown: String = shown.chars().take(32).collect();
+    Reject::new(
+        "time not in integer microseconds",
+        format!(
+            "'{name}' is {shown}: the A50 writes it as an integer, microseconds since 1970 \
+             (Unix time, us){guess}"
+        ),
+    )
+}
+
 /// A 64-bit hash of a byte string (the identity of a report's text).
 pub fn content_hash(bytes: &[u8]) -> u64 {
     let mut h = std::collections::hash_map::DefaultHasher::new();

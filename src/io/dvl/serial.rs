@@ -8,7 +8,7 @@
 //! (time, vx, vy, vz, fom, altitude, valid, status: velocity without absolute time), and `wru`,
 //! `wrp`, `wrt` and other replies (counted as other reports).
 
-use super::report::{Parsed, Reject, VelocityReport, content_hash, crc8};
+use super::report::{Parsed, Reject, VelocityReport, content_hash, crc8, not_microseconds};
 
 /// Parses one line of a serial capture.
 ///
@@ -110,12 +110,19 @@ fn num(field: &str, name: &str) -> Result<f64, Reject> {
 }
 
 fn int(field: &str, name: &str) -> Result<i64, Reject> {
-    field.trim().parse().map_err(|_| {
-        Reject::new(
-            "non-numeric field",
-            format!("{name}: '{}' is not an integer", clip(field)),
-        )
-    })
+    field
+        .trim()
+        .parse()
+        .map_err(|_| match field.trim().parse::<f64>() {
+            // A time with a fraction: seconds or milliseconds where microseconds belong.
+            Ok(x) if x.is_finite() && name.starts_with("time_of") => {
+                not_microseconds(name, field.trim(), x)
+            }
+            _ => Reject::new(
+                "non-numeric field",
+                format!("{name}: '{}' is not an integer", clip(field)),
+            ),
+        })
 }
 
 fn flag(field: &str, name: &str) -> Result<bool, Reject> {
