@@ -5,10 +5,11 @@
 //! and an index on it; newer versions add `schema`, `metadata` and `message_definitions`
 //! tables, which are not needed here. The database is opened read-only and the messages are
 //! streamed row by row from one statement in record order (`timestamp`, then `id`), so memory
-//! holds one message at a time. SQLite itself checks the file's structure: a damaged database
-//! gives errors, which end the pass over that file with a description of what was read.
+//! holds one message at a time. SQLite itself checks the file's structure: a damaged page
+//! gives an error, after which the file's remaining rows are read one at a time by id, stepping
+//! past each row that cannot be read, and the loss is counted in the summary.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashSet};
 use std::path::{Path, PathBuf};
 
 use rusqlite::types::ValueRef;
@@ -64,8 +65,11 @@ struct TopicRow {
     format: String,
 }
 
+/// The message counts per topic id, or why they could not be counted.
+type Counts = std::result::Result<BTreeMap<i64, u64>, String>;
+
 /// The rows of `topics` and the number of messages per topic id.
-fn read_tables(path: &Path, db: &Connection) -> Result<(Vec<TopicRow>, BTreeMap<i64, u64>)> {
+fn read_tables(path: &Path, db: &Connection) -> Result<(Vec<TopicRow>, Counts)> {
     let tables: Vec<String> = db
         .prepare("SELECT name FROM sqlite_master WHERE type = 'table'")
         .and_then(|mut s| {
@@ -99,17 +103,26 @@ fn read_tables(path: &Path, db: &Connection) -> Result<(Vec<TopicRow>, BTreeMap<
             .collect::<rusqlite::Result<Vec<TopicRow>>>()
         })
         .map_err(|e| db_err(path, e))?;
-    // One pass over the table's rows (the message data is not read).
+    // One pass over the table's rows (the message data is not read). A damaged table fails
+    // here; the messages are still read past the damage, so the counts are left unknown.
     let counts = db
         .prepare("SELECT topic_id, COUNT(*) FROM messages GROUP BY topic_id")
         .and_then(|mut s| {
             s.query_map([], |r| Ok((r.get::<_, i64>(0)?, r.get::<_, i64>(1)?)))?
                 .collect::<rusqlite::Result<Vec<(i64, i64)>>>()
         })
-        .map_err(|e| db_err(path, e))?
-        .into_iter()
-        .map(|(id, n)| (id, u64::try_from(n).unwrap_or(0)))
-        .collect();
+        .map(|c| {
+            c.into_iter()
+                .map(|(id, n)| (id, u64::try_from(n).unwrap_or(0)))
+                .collect()
+        })
+        .map_err(|e| {
+            format!(
+                "{}: the messages table could not be counted ({e}): it is damaged, and its \
+                 messages are read row by row past the damage",
+                path.display()
+            )
+        });
     Ok((rows, counts))
 }
 
@@ -155,6 +168,8 @@ impl SqliteBag {
             problems: Vec::new(),
         };
         let mut declared: Vec<u64> = Vec::new();
+        // Whether every file's messages could be counted.
+        let mut counted = true;
         for path in files {
             // SQLite reads the missing pages of a cut database as zeros, which can give
             // messages of zeros rather than an error: such a file is refused.
@@ -169,6 +184,15 @@ impl SqliteBag {
             }
             let db = open_db(path)?;
             let (rows, counts) = read_tables(path, &db)?;
+            let counts = match counts {
+                Ok(c) => Some(c),
+                Err(problem) => {
+                    bag.problems.push(problem);
+                    counted = false;
+                    None
+                }
+            };
+            let count_of = |id: &i64| counts.as_ref().and_then(|c| c.get(id)).copied();
             let mut file = DbFile {
                 path: path.clone(),
                 topics: BTreeMap::new(),
@@ -221,12 +245,13 @@ impl SqliteBag {
                     Some(_) => true,
                 };
                 if let Some(d) = declared.get_mut(i) {
-                    *d = d.saturating_add(counts.get(&row.id).copied().unwrap_or(0));
+                    *d = d.saturating_add(count_of(&row.id).unwrap_or(0));
                 }
                 file.topics.insert(row.id, (i, readable));
             }
             let orphans: u64 = counts
                 .iter()
+                .flatten()
                 .filter(|(id, _)| !file.topics.contains_key(id))
                 .map(|(_, n)| *n)
                 .sum();
@@ -240,7 +265,7 @@ impl SqliteBag {
             bag.files.push(file);
         }
         for (t, n) in bag.topics.iter_mut().zip(declared) {
-            t.declared_count = Some(n);
+            t.declared_count = counted.then_some(n);
         }
         Ok(bag)
     }
@@ -255,7 +280,9 @@ impl SqliteBag {
         &self.problems
     }
 
-    /// See [`super::Bag::messages`].
+    /// See [`super::Bag::messages`]. Each file is read in one pass in record order; when SQLite
+    /// meets a damaged page, the file's remaining rows are read one by one past it (see
+    /// [`salvage_keys`]), and what could not be read is counted in the summary.
     pub fn messages(
         &self,
         wanted: &dyn Fn(usize) -> bool,
@@ -278,75 +305,270 @@ impl SqliteBag {
             // The ids are integers read from the database, so they can be written into the
             // statement; the filter keeps SQLite from loading other topics' data.
             let sql = format!(
-                "SELECT topic_id, timestamp, data FROM messages WHERE topic_id IN ({}) \
+                "SELECT id, topic_id, timestamp, data FROM messages WHERE topic_id IN ({}) \
                  ORDER BY timestamp, id",
                 ids.join(", ")
             );
-            let mut read = 0u64;
-            let mut bad_rows = 0u64;
-            let mut stmt = match db.prepare(&sql) {
-                Ok(s) => s,
-                Err(e) => {
-                    summary.problems.push(format!(
-                        "{}: its messages could not be read ({e}): all are lost",
-                        path.display()
-                    ));
-                    continue;
-                }
+            let mut pass = Pass {
+                file,
+                counts: &mut counts,
+                f: &mut *f,
+                read: 0,
+                bad_rows: 0,
+                delivered: HashSet::new(),
             };
-            let mut rows = match stmt.query([]) {
-                Ok(r) => r,
-                Err(e) => {
-                    summary.problems.push(format!(
-                        "{}: its messages could not be read ({e}): all are lost",
-                        path.display()
-                    ));
-                    continue;
-                }
+            let failure = match db.prepare(&sql) {
+                Ok(mut stmt) => pass.stream(&mut stmt)?,
+                Err(e) => Some(e),
             };
-            loop {
-                let row = match rows.next() {
-                    Ok(Some(row)) => row,
-                    Ok(None) => break,
-                    Err(e) => {
-                        summary.problems.push(format!(
-                            "{}: reading stopped after {read} messages ({e}): the rest of the \
-                             file's messages are lost",
-                            path.display()
+            if let Some(e) = failure {
+                let before = pass.read;
+                match salvage_keys(&db) {
+                    Ok(keys) => {
+                        let lost = pass.read_by_id(&db, keys.keys)?;
+                        summary.problems.push(salvage_note(
+                            path,
+                            &e,
+                            before,
+                            &pass,
+                            &lost,
+                            keys.lost,
+                            &self.topics,
                         ));
-                        break;
                     }
-                };
-                let (Ok(ValueRef::Integer(id)), Ok(ValueRef::Integer(t)), Ok(ValueRef::Blob(data))) =
-                    (row.get_ref(0), row.get_ref(1), row.get_ref(2))
-                else {
-                    bad_rows += 1;
-                    continue;
-                };
-                let Some(&(topic, _)) = file.topics.get(&id) else {
-                    continue;
-                };
-                let Some(n) = counts.get_mut(topic) else {
-                    continue;
-                };
-                *n += 1;
-                read += 1;
-                summary.messages += 1;
-                f(BagMessage {
-                    topic,
-                    log_time_ns: t,
-                    data,
-                    index: *n,
-                })?;
+                    Err(e2) => summary.problems.push(format!(
+                        "{}: reading stopped after {before} messages ({e}), and the rows past \
+                         the damage could not be found ({e2}): the rest of the file's messages \
+                         are lost",
+                        path.display()
+                    )),
+                }
             }
-            if bad_rows > 0 {
+            summary.messages += pass.read;
+            if pass.bad_rows > 0 {
                 summary.problems.push(format!(
-                    "{}: {bad_rows} rows of the messages table are not (integer topic id, \
-                     integer time stamp, blob of data): skipped",
-                    path.display()
+                    "{}: {} rows of the messages table are not (integer topic id, integer time \
+                     stamp, blob of data): skipped",
+                    path.display(),
+                    pass.bad_rows
                 ));
             }
         }
         Ok(summary)
     }
+}
+
+/// Largest number of row ids in a row that cannot be read before the rest of a damaged table
+/// is given up (each costs one lookup; a destroyed interior page can hide many rows).
+const MAX_UNREADABLE_IN_A_ROW: u64 = 100_000;
+
+/// One pass over the messages of one storage file.
+struct Pass<'a> {
+    file: &'a DbFile,
+    /// Messages handed out so far, per topic of the bag (they number the messages).
+    counts: &'a mut [u64],
+    f: &'a mut dyn FnMut(BagMessage<'_>) -> Result<()>,
+    /// Messages of this file handed out.
+    read: u64,
+    /// Rows whose columns are not of the expected types.
+    bad_rows: u64,
+    /// Row ids handed out (so that a second pass past damage skips them).
+    delivered: HashSet<i64>,
+}
+
+impl Pass<'_> {
+    /// Hands one row to the callback, numbered within its topic.
+    fn deliver(&mut self, row_id: i64, topic_id: i64, t: i64, data: &[u8]) -> Result<()> {
+        let Some(&(topic, _)) = self.file.topics.get(&topic_id) else {
+            return Ok(());
+        };
+        let Some(n) = self.counts.get_mut(topic) else {
+            return Ok(());
+        };
+        *n += 1;
+        self.read += 1;
+        self.delivered.insert(row_id);
+        (self.f)(BagMessage {
+            topic,
+            log_time_ns: t,
+            data,
+            index: *n,
+        })
+    }
+
+    /// Streams the rows of `stmt` (id, topic id, time stamp, data); returns SQLite's error when
+    /// it stops early.
+    fn stream(&mut self, stmt: &mut rusqlite::Statement<'_>) -> Result<Option<rusqlite::Error>> {
+        let mut rows = match stmt.query([]) {
+            Ok(r) => r,
+            Err(e) => return Ok(Some(e)),
+        };
+        loop {
+            let row = match rows.next() {
+                Ok(Some(row)) => row,
+                Ok(None) => return Ok(None),
+                Err(e) => return Ok(Some(e)),
+            };
+            match (
+                row.get_ref(0),
+                row.get_ref(1),
+                row.get_ref(2),
+                row.get_ref(3),
+            ) {
+                (
+                    Ok(ValueRef::Integer(row_id)),
+                    Ok(ValueRef::Integer(id)),
+                    Ok(ValueRef::Integer(t)),
+                    Ok(ValueRef::Blob(data)),
+                ) => self.deliver(row_id, id, t, data)?,
+                _ => self.bad_rows += 1,
+            }
+        }
+    }
+
+    /// Reads the rows `keys` (time stamp, row id, topic id) not yet handed out, of the topics
+    /// read, one by one in record order; returns the number per topic id that could not be read.
+    fn read_by_id(
+        &mut self,
+        db: &Connection,
+        mut keys: Vec<(i64, i64, i64)>,
+    ) -> Result<BTreeMap<i64, u64>> {
+        let path = &self.file.path;
+        let mut lost = BTreeMap::new();
+        keys.retain(|(_, row_id, topic_id)| {
+            !self.delivered.contains(row_id)
+                && self.file.topics.get(topic_id).is_some_and(|(_, r)| *r)
+        });
+        keys.sort_unstable();
+        let mut stmt = db
+            .prepare("SELECT data FROM messages WHERE id = ?1")
+            .map_err(|e| db_err(path, e))?;
+        for (t, row_id, topic_id) in keys {
+            let mut rows = match stmt.query([row_id]) {
+                Ok(r) => r,
+                Err(_) => {
+                    *lost.entry(topic_id).or_insert(0) += 1;
+                    continue;
+                }
+            };
+            match rows.next() {
+                Ok(Some(row)) => match row.get_ref(0) {
+                    Ok(ValueRef::Blob(data)) => self.deliver(row_id, topic_id, t, data)?,
+                    _ => self.bad_rows += 1,
+                },
+                Ok(None) | Err(_) => *lost.entry(topic_id).or_insert(0) += 1,
+            }
+        }
+        Ok(lost)
+    }
+}
+
+/// The keys of the rows of a damaged messages table, and the row ids that could not be read.
+struct Salvage {
+    /// (time stamp, row id, topic id) of every row read.
+    keys: Vec<(i64, i64, i64)>,
+    /// Row ids at which reading failed (rosbag2 numbers its rows without gaps, so each is a
+    /// message lost; its topic is unknown).
+    lost: u64,
+}
+
+/// The keys of every row of the messages table that SQLite can still reach: the table is read
+/// in row id order, and wherever a read fails it starts again at the next row id, so one
+/// damaged page costs only the rows it holds. Row ids up to the largest are tried, at most
+/// [`MAX_UNREADABLE_IN_A_ROW`] failing ones in a row (the rest are then counted as lost).
+fn salvage_keys(db: &Connection) -> rusqlite::Result<Salvage> {
+    let bound = |sql: &str| db.query_row(sql, [], |r| r.get::<_, Option<i64>>(0));
+    let mut out = Salvage {
+        keys: Vec::new(),
+        lost: 0,
+    };
+    let (Some(mut next), Some(last)) = (
+        bound("SELECT min(id) FROM messages")?,
+        bound("SELECT max(id) FROM messages")?,
+    ) else {
+        return Ok(out);
+    };
+    let mut stmt =
+        db.prepare("SELECT id, topic_id, timestamp FROM messages WHERE id >= ?1 ORDER BY id")?;
+    let mut failing = 0u64;
+    while next <= last {
+        if let Ok(mut rows) = stmt.query([next]) {
+            loop {
+                match rows.next() {
+                    Ok(Some(row)) => {
+                        let id: i64 = row.get(0)?;
+                        if let (Ok(ValueRef::Integer(topic)), Ok(ValueRef::Integer(t))) =
+                            (row.get_ref(1), row.get_ref(2))
+                        {
+                            out.keys.push((t, id, topic));
+                        }
+                        failing = 0;
+                        match id.checked_add(1) {
+                            Some(n) => next = n,
+                            None => return Ok(out),
+                        }
+                    }
+                    Ok(None) => return Ok(out),
+                    Err(_) => break,
+                }
+            }
+        }
+        // The row at `next` cannot be read: step past it.
+        out.lost += 1;
+        failing += 1;
+        if failing >= MAX_UNREADABLE_IN_A_ROW {
+            out.lost += u64::try_from(last - next).unwrap_or(0);
+            return Ok(out);
+        }
+        next += 1;
+    }
+    Ok(out)
+}
+
+/// What a damaged file cost: `e` stopped the pass in record order after `before` messages;
+/// the rows past the damage were read one by one.
+fn salvage_note(
+    path: &Path,
+    e: &rusqlite::Error,
+    before: u64,
+    pass: &Pass<'_>,
+    lost: &BTreeMap<i64, u64>,
+    unreachable: u64,
+    topics: &[Topic],
+) -> String {
+    let lost_known: u64 = lost.values().sum();
+    let mut s = format!(
+        "{}: damaged ({e}): reading in record order stopped after {before} messages; reading \
+         row by row past the damage gave {} more. Lost: {}",
+        path.display(),
+        pass.read - before,
+        plural(lost_known + unreachable, "message")
+    );
+    let mut parts: Vec<String> = lost
+        .iter()
+        .map(|(id, n)| {
+            let name = pass
+                .file
+                .topics
+                .get(id)
+                .and_then(|(t, _)| topics.get(*t))
+                .map_or_else(|| format!("topic id {id}"), |t| t.name.clone());
+            format!("{n} of {name}")
+        })
+        .collect();
+    if unreachable > 0 {
+        parts.push(format!(
+            "{} of unknown topic that could not be read",
+            plural(unreachable, "row")
+        ));
+    }
+    if !parts.is_empty() {
+        s.push_str(&format!(" ({})", parts.join(", ")));
+    }
+    s
+}
+
+/// `n` and `what`, with an `s` unless `n` is 1.
+fn plural(n: u64, what: &str) -> String {
+    format!("{n} {what}{}", if n == 1 { "" } else { "s" })
 }
