@@ -145,3 +145,59 @@ fn a_damaged_sqlite3_page_costs_only_its_rows_and_the_loss_is_counted() {
         "{stdout}"
     );
 }
+
+const POSES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/sample_data/poses");
+
+/// A copy of the pose dataset (TUM poses and a DVL log) in `dir`.
+fn pose_dataset(dir: &Path) -> PathBuf {
+    std::fs::create_dir_all(dir).unwrap();
+    for f in ["poses.txt", "dvl.jsonl"] {
+        std::fs::copy(Path::new(POSES).join(f), dir.join(f)).unwrap();
+    }
+    dir.to_path_buf()
+}
+
+#[cfg(unix)]
+#[test]
+fn paths_that_are_not_utf8_are_read_and_written_with_their_bytes() {
+    use std::ffi::OsStr;
+    use std::os::unix::ffi::OsStrExt;
+    let tmp = TmpDir::new("lost-bytes");
+    // Latin-1 names, as an old file system or a copied SD card gives them.
+    let data = pose_dataset(&tmp.0.join(OsStr::from_bytes(b"data-\xe9t\xe9")));
+    let out_dir = tmp.0.join(OsStr::from_bytes(b"r\xffx"));
+    let result = out_dir.join(OsStr::from_bytes(b"cal\xfd.yaml"));
+    let report = out_dir.join(OsStr::from_bytes(b"rep\xfc.html"));
+    let r = std::process::Command::new(env!("CARGO_BIN_EXE_dvlcal"))
+        .arg("calibrate")
+        .arg(&data)
+        .arg("--out")
+        .arg(&result)
+        .arg("--report")
+        .arg(&report)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&r.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert!(r.status.success(), "{stderr}");
+    // Every output under the name given, its bytes kept (the exports too).
+    for name in [
+        &b"cal\xfd.yaml"[..],
+        b"cal\xfd-tf.txt",
+        b"cal\xfd-urdf.xml",
+        b"cal\xfd-camchain-imucam.yaml",
+        b"rep\xfc.html",
+    ] {
+        let p = out_dir.join(OsStr::from_bytes(name));
+        assert!(p.is_file(), "{} missing", p.display());
+    }
+    // The provenance keeps the command line exact, the odd bytes escaped for a shell.
+    let yaml = std::fs::read_to_string(&result).unwrap();
+    let line = yaml
+        .lines()
+        .find(|l| l.trim_start().starts_with("command_line:"))
+        .expect("a command line in the provenance");
+    assert!(line.contains(r"$'"), "{line}");
+    assert!(line.contains(r"cal\xfd.yaml'"), "{line}");
+    assert!(line.contains(r"data-\xe9t\xe9'"), "{line}");
+}

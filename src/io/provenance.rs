@@ -75,23 +75,54 @@ impl Provenance {
 }
 
 /// A command line from its arguments, each quoted for a POSIX shell when it holds anything but
-/// plain characters.
-pub fn command_line<I: IntoIterator<Item = String>>(args: I) -> String {
+/// plain characters; an argument that is not UTF-8 (a file name in another encoding) is written
+/// with its bytes escaped (`$'r\xffx'`, as bash and zsh read it), so the line stays exact.
+pub fn command_line<I, S>(args: I) -> String
+where
+    I: IntoIterator<Item = S>,
+    S: AsRef<std::ffi::OsStr>,
+{
     args.into_iter()
-        .map(|a| {
-            let plain = !a.is_empty()
-                && a.chars().all(|c| {
-                    c.is_ascii_alphanumeric()
-                        || matches!(c, '-' | '_' | '.' | '/' | ',' | ':' | '=' | '+')
-                });
-            if plain {
-                a
-            } else {
-                format!("'{}'", a.replace('\'', r"'\''"))
+        .map(|a| match a.as_ref().to_str() {
+            Some(a) => {
+                let plain = !a.is_empty()
+                    && a.chars().all(|c| {
+                        c.is_ascii_alphanumeric()
+                            || matches!(c, '-' | '_' | '.' | '/' | ',' | ':' | '=' | '+')
+                    });
+                if plain {
+                    a.to_owned()
+                } else {
+                    format!("'{}'", a.replace('\'', r"'\''"))
+                }
             }
+            None => escaped_bytes(a.as_ref()),
         })
         .collect::<Vec<_>>()
         .join(" ")
+}
+
+/// The command line this program was started with (see [`command_line`]); never fails, whatever
+/// the bytes of its arguments.
+pub fn this_command_line() -> String {
+    command_line(std::env::args_os())
+}
+
+/// An argument as an ANSI-C quoted word: printable ASCII as it is, every other byte as `\xHH`.
+fn escaped_bytes(a: &std::ffi::OsStr) -> String {
+    let mut out = String::from("$'");
+    for &b in a.as_encoded_bytes() {
+        match b {
+            b'\'' | b'\\' => {
+                out.push('\\');
+                out.push(char::from(b));
+            }
+            0x20..=0x7e => out.push(char::from(b)),
+            _ => out.push_str(&format!("\\x{b:02x}")),
+        }
+    }
+    out.push('\'');
+    out
 }
 
 fn hex(bytes: &[u8]) -> String {
@@ -250,5 +281,14 @@ mod tests {
             line,
             r"dvlcal calibrate 'my run' --offset-range -1,2 'it'\''s'"
         );
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn arguments_that_are_not_utf8_keep_their_bytes() {
+        use std::os::unix::ffi::OsStrExt;
+        let odd = std::ffi::OsStr::from_bytes(b"r\xffx'\\/cal.yaml");
+        let line = command_line([std::ffi::OsStr::new("--out"), odd]);
+        assert_eq!(line, r"--out $'r\xffx\'\\/cal.yaml'");
     }
 }

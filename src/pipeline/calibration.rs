@@ -538,11 +538,10 @@ pub fn result_file(o: &CalibrationOutcome, log: &DvlLog) -> CalibrationFile {
 
 /// `RESULT-<suffix>` beside `RESULT` (its extension dropped).
 pub fn sibling(out: &Path, suffix: &str) -> PathBuf {
-    let stem = out
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "calibration".into());
-    out.with_file_name(format!("{stem}-{suffix}"))
+    // The stem's bytes are kept as they are (a name need not be UTF-8).
+    let mut name = out.file_stem().unwrap_or("calibration".as_ref()).to_owned();
+    name.push(format!("-{suffix}"));
+    out.with_file_name(name)
 }
 
 /// The files [`write_results`] wrote.

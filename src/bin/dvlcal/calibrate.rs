@@ -14,7 +14,7 @@ use dvlcal::error::Error;
 use dvlcal::files::prepare_output;
 use dvlcal::io::calib_yaml::{read_calibration_guess, rotation_from_rpy_deg};
 use dvlcal::io::exports::FrameNames;
-use dvlcal::io::provenance::command_line;
+use dvlcal::io::provenance::this_command_line;
 use dvlcal::pipeline::{
     CameraOutputs, OutputOptions, SEPARATE_CAMERA_RECORDING, calibrate_dataset,
     calibration_context, unused, write_failure_report, write_report, write_results,
@@ -253,7 +253,7 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
     let mut data = read_files(files, &a.vision.options(), &read)?;
     unused::image_options(&data, &given)?;
     if let (Some(cams), Some(to)) = (&data.cameras, &cameras_out) {
-        let command = std::env::args().collect::<Vec<_>>().join(" ");
+        let command = this_command_line();
         for p in to.write(cams, Some(command))? {
             println!("wrote {p} (cameras calibrated from the same images)");
         }
@@ -295,7 +295,7 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
     let output = OutputOptions {
         force: a.force,
         frames,
-        command_line: Some(command_line(std::env::args())),
+        command_line: Some(this_command_line()),
         extra_inputs: a.init.iter().map(|p| ("init".into(), p.clone())).collect(),
     };
     let paths = write_results(&a.out, &run, &data, &output)?;

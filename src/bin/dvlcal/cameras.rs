@@ -84,7 +84,7 @@ pub fn run(a: CalibrateCamerasArgs) -> Result<()> {
     run.write_camchain(&a.out)?;
     println!("wrote {}", a.out.display());
     if let Some(r) = &a.report {
-        let command = std::env::args().collect::<Vec<_>>().join(" ");
+        let command = dvlcal::io::provenance::this_command_line();
         run.write_report(r, &a.out, Some(command))?;
         println!("wrote {}", r.display());
     }
