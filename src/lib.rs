@@ -111,7 +111,7 @@ pub mod eval;
 pub mod files;
 pub mod io;
 pub mod lie;
-mod parallel;
+pub mod parallel;
 pub mod pipeline;
 pub mod report;
 pub mod rng;

@@ -75,9 +75,41 @@ pub(crate) fn map_indices<R: Send>(
         .collect()
 }
 
-/// A pool of `threads` worker threads (`None`: one per core).
+/// Worker threads per core at most: more only wait for a core (and each costs its stack).
+pub const THREADS_PER_CORE: usize = 4;
+
+/// Worker threads at most, however many cores.
+pub const MAX_THREADS: usize = 256;
+
+/// The most worker threads a run starts: [`THREADS_PER_CORE`] per core, at most
+/// [`MAX_THREADS`].
+pub fn thread_limit() -> usize {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    cores.saturating_mul(THREADS_PER_CORE).clamp(1, MAX_THREADS)
+}
+
+/// The threads used when `requested` are asked for (by the option `option`): `requested`
+/// within [`thread_limit`], with a note for the user when it was lowered. 0 (one per core, where
+/// an option allows it) is kept.
+pub fn capped_threads(option: &str, requested: usize) -> (usize, Option<String>) {
+    let limit = thread_limit();
+    if requested <= limit {
+        return (requested, None);
+    }
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    (
+        limit,
+        Some(format!(
+            "{option} {requested} is more threads than this machine can use ({cores} cores): \
+             {limit} are used ({THREADS_PER_CORE} per core, at most {MAX_THREADS})"
+        )),
+    )
+}
+
+/// A pool of `threads` worker threads (`None`: one per core), at most [`thread_limit`].
 pub fn worker_pool(threads: Option<usize>) -> crate::error::Result<rayon::ThreadPool> {
     let n = threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    let n = n.min(thread_limit());
     if n == 0 {
         return Err(crate::error::Error::option(
             "--threads",
@@ -115,5 +147,18 @@ mod tests {
         assert!(sums.iter().all(|s| s.to_bits() == sums[0].to_bits()));
         let all = map_indices(1000, 64, |i| i * 2);
         assert_eq!(all, (0..1000).map(|i| i * 2).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn thread_counts_are_capped_with_a_note() {
+        let limit = thread_limit();
+        assert!((1..=MAX_THREADS).contains(&limit));
+        assert_eq!(capped_threads("--threads", 0), (0, None));
+        assert_eq!(capped_threads("--threads", limit), (limit, None));
+        let (n, note) = capped_threads("--threads", 100_000);
+        assert_eq!(n, limit);
+        assert!(note.is_some_and(
+            |m| m.contains("--threads 100000") && m.contains(&format!("{limit} are used"))
+        ));
     }
 }

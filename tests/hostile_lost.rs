@@ -201,3 +201,58 @@ fn paths_that_are_not_utf8_are_read_and_written_with_their_bytes() {
     assert!(line.contains(r"cal\xfd.yaml'"), "{line}");
     assert!(line.contains(r"data-\xe9t\xe9'"), "{line}");
 }
+
+const STEREO: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/sample_data/stereo");
+
+#[test]
+fn an_absurd_thread_count_is_capped_and_said() {
+    // The pool the pipeline uses starts no more than the limit.
+    let limit = dvlcal::parallel::thread_limit();
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    assert!(limit <= 4 * cores && limit <= 256);
+    let pool = dvlcal::parallel::worker_pool(Some(100_000)).unwrap();
+    assert_eq!(pool.current_num_threads(), limit);
+
+    // Before the cap, `detect --threads 100000` on these 4 frames ran for more than 300 s (it was
+    // stopped there); with it, about a second, as without the option.
+    let tmp = TmpDir::new("lost-threads");
+    let images = tmp.path("images");
+    for cam in ["cam0", "cam1"] {
+        let dir = images.join(cam);
+        std::fs::create_dir_all(&dir).unwrap();
+        let mut names: Vec<_> = std::fs::read_dir(Path::new(STEREO).join(cam))
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        names.sort();
+        for n in &names[..4] {
+            std::fs::copy(Path::new(STEREO).join(cam).join(n), dir.join(n)).unwrap();
+        }
+    }
+    let start = std::time::Instant::now();
+    let r = dvlcal(&[
+        "detect",
+        "--images",
+        s(&images),
+        "--camchain",
+        &format!("{STEREO}/camchain.yaml"),
+        "--target",
+        &format!("{STEREO}/target.yaml"),
+        "--out",
+        s(&tmp.path("poses.txt")),
+        "--threads",
+        "100000",
+    ]);
+    let elapsed = start.elapsed().as_secs_f64();
+    let stderr = String::from_utf8_lossy(&r.stderr);
+    println!("detect --threads 100000: {elapsed:.2} s\n{stderr}");
+    assert!(r.status.success(), "{stderr}");
+    assert!(
+        stderr.contains(&format!(
+            "note: --threads 100000 is more threads than this machine can use ({cores} cores): \
+             {limit} are used"
+        )),
+        "{stderr}"
+    );
+    assert!(elapsed < 60.0, "{elapsed} s");
+}

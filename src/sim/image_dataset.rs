@@ -259,7 +259,7 @@ pub fn write_image_dataset(
     let threads = if s.threads == 0 {
         std::thread::available_parallelism().map_or(1, |n| n.get())
     } else {
-        s.threads
+        s.threads.min(crate::parallel::thread_limit())
     }
     .clamp(1, frames.len().max(1));
     let next = AtomicUsize::new(0);

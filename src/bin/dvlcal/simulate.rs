@@ -95,7 +95,7 @@ pub struct SimulateArgs {
     /// Write into an output folder that already holds files (they may be overwritten).
     #[arg(long)]
     pub force: bool,
-    /// Worker threads for the images (0: one per core).
+    /// Worker threads for the images (0: one per core; at most 4 per core, 256 in all).
     #[arg(long, requires = "images", default_value_t = 0)]
     pub threads: usize,
 }

@@ -34,7 +34,7 @@ pub struct TagsArgs {
     /// Report libapriltag's corners as they are, without the line-fit refinement of each side.
     #[arg(long)]
     pub no_refine_corners: bool,
-    /// Detector threads.
+    /// Detector threads (at most 4 per core, 256 in all).
     #[arg(long, value_name = "N", default_value_t = 1)]
     pub threads: usize,
     /// Largest number of corrected bits of an accepted tag (0..=3).
@@ -61,7 +61,7 @@ pub fn run(a: TagsArgs) -> Result<()> {
         sharpening: a.sharpening,
         refine_edges: !a.no_refine_edges,
         refine_corners: !a.no_refine_corners,
-        threads: a.threads,
+        threads: dvlcal::parallel::capped_threads("--threads", a.threads).0,
         max_hamming: a.max_hamming,
         kalibr_layout: true,
         board_ids: None,
