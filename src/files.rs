@@ -64,9 +64,46 @@ pub fn refuse_input<'a>(
     Ok(())
 }
 
+/// The permission bits of `path` when it is an existing file (a link is followed) that its
+/// owner may not write (`chmod a-w` or `u-w`): a file someone protected, which dvlcal never
+/// replaces. The bits themselves are read, since root may write any file.
+pub fn read_only_mode(path: &Path) -> Option<u32> {
+    let meta = std::fs::metadata(path).ok().filter(|m| m.is_file())?;
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        let mode = meta.permissions().mode() & 0o7777;
+        (mode & 0o200 == 0).then_some(mode)
+    }
+    #[cfg(not(unix))]
+    {
+        meta.permissions().readonly().then_some(0o444)
+    }
+}
+
+/// Why an output that is read-only (permission bits `mode`) is not replaced.
+pub fn read_only_reason(mode: u32) -> String {
+    format!(
+        "is read-only (mode {mode:04o}): refusing to replace it; make it writable (chmod u+w) or \
+         choose another name"
+    )
+}
+
+/// An error naming the option when the output `out` exists read-only (see [`read_only_mode`]).
+pub fn refuse_read_only(option: &'static str, out: &Path) -> Result<()> {
+    match read_only_mode(out) {
+        Some(mode) => Err(Error::option(
+            option,
+            format!("{} {}", out.display(), read_only_reason(mode)),
+        )),
+        None => Ok(()),
+    }
+}
+
 /// Makes `out` writable before the work that produces it starts: its folder is created when
 /// missing, and a probe file is created and removed in it. An error names the option and the
-/// path when `out` is a folder, or when its folder cannot be created or written.
+/// path when `out` is a folder, a read-only file (see [`read_only_mode`]), or when its folder
+/// cannot be created or written.
 pub fn prepare_output(option: &'static str, out: &Path) -> Result<()> {
     if out.is_dir() {
         return Err(Error::option(
@@ -74,6 +111,7 @@ pub fn prepare_output(option: &'static str, out: &Path) -> Result<()> {
             format!("{} is a folder; give a file name", out.display()),
         ));
     }
+    refuse_read_only(option, out)?;
     let dir = match out.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),

@@ -256,3 +256,69 @@ fn an_absurd_thread_count_is_capped_and_said() {
     );
     assert!(elapsed < 60.0, "{elapsed} s");
 }
+
+/// Writes `text` to `path` and makes it read-only (0444).
+#[cfg(unix)]
+fn read_only_file(path: &Path, text: &str) {
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::write(path, text).unwrap();
+    std::fs::set_permissions(path, std::fs::Permissions::from_mode(0o444)).unwrap();
+}
+
+#[cfg(unix)]
+#[test]
+fn read_only_outputs_are_refused_before_the_run_and_kept() {
+    // Tests may run as root, whom permission bits do not stop: the program must read the bits.
+    let tmp = TmpDir::new("lost-read-only");
+    let data = pose_dataset(&tmp.path("data"));
+    for (option, name) in [
+        ("--out", "cal.yaml"),
+        ("--report", "report.html"),
+        ("--out", "cal-tf.txt"),
+        ("--out", "cal-urdf.xml"),
+        ("--out", "cal-camchain-imucam.yaml"),
+    ] {
+        let dir = tmp.path(&name.replace('.', "_"));
+        std::fs::create_dir_all(&dir).unwrap();
+        let kept = dir.join(name);
+        read_only_file(&kept, "the user's own\n");
+        let r = dvlcal(&[
+            "calibrate",
+            s(&data),
+            "--out",
+            s(&dir.join("cal.yaml")),
+            "--report",
+            s(&dir.join("report.html")),
+        ]);
+        let stderr = String::from_utf8_lossy(&r.stderr);
+        let stdout = String::from_utf8_lossy(&r.stdout);
+        assert_eq!(r.status.code(), Some(1), "{name}: {stderr}");
+        assert!(
+            stderr.contains(option)
+                && stderr.contains(&format!("{} is read-only (mode 0444)", kept.display())),
+            "{name}: {stderr}"
+        );
+        // Refused before anything was read or written.
+        assert!(stdout.is_empty(), "{name}: {stdout}");
+        assert_eq!(
+            std::fs::read_to_string(&kept).unwrap(),
+            "the user's own\n",
+            "{name}"
+        );
+        assert_eq!(
+            std::fs::read_dir(&dir).unwrap().count(),
+            1,
+            "{name}: files written"
+        );
+    }
+
+    // Every writer of the library refuses to replace a read-only file, too.
+    let kept = tmp.path("kept.txt");
+    read_only_file(&kept, "mine\n");
+    let e = dvlcal::io::write_atomic(&kept, b"theirs\n").expect_err("a read-only file is kept");
+    assert!(
+        e.to_string().contains("kept.txt") && e.to_string().contains("read-only"),
+        "{e}"
+    );
+    assert_eq!(std::fs::read_to_string(&kept).unwrap(), "mine\n");
+}

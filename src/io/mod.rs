@@ -30,7 +30,8 @@ use crate::time::RawTime;
 
 /// Writes `bytes` to `path` atomically: the data go to a temporary file in the same directory,
 /// which is flushed to disk and then renamed over `path`. On failure the temporary file is
-/// removed and `path` is left as it was.
+/// removed and `path` is left as it was. A read-only `path` ([`crate::files::read_only_mode`])
+/// is not replaced: an error names it.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     static COUNTER: AtomicU64 = AtomicU64::new(0);
     // Replace regular files only: a symbolic link is written through (its target is replaced),
@@ -53,6 +54,15 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
         Ok(m) if !m.is_file() => return Err(not_regular(path)),
         _ => path,
     };
+    if let Some(mode) = crate::files::read_only_mode(path) {
+        return Err(Error::io(
+            path,
+            std::io::Error::new(
+                std::io::ErrorKind::PermissionDenied,
+                crate::files::read_only_reason(mode),
+            ),
+        ));
+    }
     let file_name = path.file_name().ok_or_else(|| {
         Error::io(
             path,

@@ -31,6 +31,7 @@ pub mod chain_order;
 mod dataset;
 mod evaluate;
 mod exports;
+mod outputs;
 mod simulate;
 pub mod unused;
 mod vision;
@@ -49,6 +50,7 @@ pub use dataset::{Dataset, dataset_files, describe_files};
 pub use evaluate::{
     Baseline, CrossValidation, baselines, cross_validate, odometry_check, odometry_table,
 };
+pub use outputs::{RESULT_EXPORTS, check_result_outputs};
 pub use simulate::{ImageRequest, SimulateRequest, SimulatedRecording, write_simulated_dataset};
 pub use vision::{
     MAX_REPROJECTION_RMS_PX, VisionOptions, VisionRun, detector_settings, frames_csv_path,

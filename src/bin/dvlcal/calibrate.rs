@@ -11,13 +11,13 @@ use dvlcal::calib::prior::{LeverArmPrior, Priors, RotationPrior, SigmaOrNone, Ve
 use dvlcal::calib::robust::Loss;
 use dvlcal::calib::{CalibOptions, Method, Setting, Status};
 use dvlcal::error::Error;
-use dvlcal::files::prepare_output;
 use dvlcal::io::calib_yaml::{read_calibration_guess, rotation_from_rpy_deg};
 use dvlcal::io::exports::FrameNames;
 use dvlcal::io::provenance::this_command_line;
 use dvlcal::pipeline::{
     CameraOutputs, OutputOptions, SEPARATE_CAMERA_RECORDING, calibrate_dataset,
-    calibration_context, unused, write_failure_report, write_report, write_results,
+    calibration_context, check_result_outputs, unused, write_failure_report, write_report,
+    write_results,
 };
 use dvlcal::types::CalibrationParams;
 
@@ -240,10 +240,7 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
     {
         bail!("--dvl-sound-speed must be between 1000 and 2000 m/s, got {c}");
     }
-    prepare_output("--out", &a.out)?;
-    if let Some(r) = &a.report {
-        prepare_output("--report", r)?;
-    }
+    check_result_outputs(&a.out, a.report.as_deref())?;
     let read = a.dvl_input.read_options(a.strict);
     let files = find(a.dataset.as_deref(), &a.files, &read)?;
     unused::input_options(&files, &given)?;
