@@ -322,3 +322,120 @@ fn read_only_outputs_are_refused_before_the_run_and_kept() {
     );
     assert_eq!(std::fs::read_to_string(&kept).unwrap(), "mine\n");
 }
+
+/// A dataset folder of stereo images (every `step`-th frame of the rendered sample), its board
+/// and DVL log, and no camchain: `calibrate` calibrates the cameras first.
+fn images_without_camchain(dir: &Path, step: usize) -> PathBuf {
+    for cam in ["cam0", "cam1"] {
+        let to = dir.join(cam);
+        std::fs::create_dir_all(&to).unwrap();
+        let mut names: Vec<_> = std::fs::read_dir(Path::new(STEREO).join(cam))
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        names.sort();
+        for n in names.iter().step_by(step.max(1)) {
+            std::fs::copy(Path::new(STEREO).join(cam).join(n), to.join(n)).unwrap();
+        }
+    }
+    for f in ["target.yaml", "dvl.jsonl"] {
+        std::fs::copy(Path::new(STEREO).join(f), dir.join(f)).unwrap();
+    }
+    dir.to_path_buf()
+}
+
+#[test]
+fn the_camchain_calibrated_by_calibrate_never_replaces_a_users_file() {
+    use dvlcal::io::dataset::{DatasetOverrides, discover};
+    use dvlcal::pipeline::CameraOutputs;
+    let tmp = TmpDir::new("lost-camchain");
+    let data = tmp.path("data");
+    std::fs::create_dir_all(data.join("cam0")).unwrap();
+    for f in ["target.yaml", "dvl.jsonl"] {
+        std::fs::copy(Path::new(STEREO).join(f), data.join(f)).unwrap();
+    }
+    let files = discover(&data, &DatasetOverrides::default()).unwrap();
+    assert!(files.calibrates_cameras());
+    let out_dir = tmp.path("out");
+    std::fs::create_dir_all(&out_dir).unwrap();
+    let out = out_dir.join("cal.yaml");
+    let beside = out_dir.join("camchain.yaml");
+    let named = out_dir.join("cal-camchain.yaml");
+    let plan = |report: Option<&Path>| CameraOutputs::plan(&out, report, &files);
+
+    // Nothing there: camchain.yaml beside the result.
+    let p = plan(None).unwrap().unwrap();
+    assert_eq!(
+        (p.camchain.as_path(), p.renamed.as_deref()),
+        (beside.as_path(), None)
+    );
+    // A camchain this result's earlier run wrote (its first line marks it) is replaced.
+    let earlier = "# camchain of result cal.yaml: the cameras calibrated by dvlcal calibrate \
+                   from its images\ncam0: {}\n";
+    std::fs::write(&beside, earlier).unwrap();
+    assert_eq!(plan(None).unwrap().unwrap().camchain, beside);
+    // One of another result's, or of `calibrate-cameras`, or the user's own, is kept.
+    for other in [
+        earlier.replace("cal.yaml", "other.yaml"),
+        "# dvlcal calibrate-cameras 0.1.0: pinhole-radtan model\ncam0: {}\n".into(),
+        "cam0: {}\n".into(),
+    ] {
+        std::fs::write(&beside, &other).unwrap();
+        let p = plan(None).unwrap().unwrap();
+        assert_eq!(p.camchain, named, "{other}");
+        let why = p.renamed.expect("the reason for the other name");
+        assert!(
+            why.contains(&beside.display().to_string())
+                && why.contains("kept")
+                && why.contains(&named.display().to_string()),
+            "{why}"
+        );
+    }
+    // Both names taken by files not written for this result: refused, naming both.
+    std::fs::write(&named, "cam0: {}\n").unwrap();
+    let e = plan(None).unwrap_err().to_string();
+    assert!(
+        e.contains("--out")
+            && e.contains(&beside.display().to_string())
+            && e.contains(&named.display().to_string()),
+        "{e}"
+    );
+    std::fs::remove_file(&named).unwrap();
+    // This result's own camchain made read-only is not replaced either.
+    #[cfg(unix)]
+    {
+        std::fs::remove_file(&beside).unwrap();
+        read_only_file(&beside, earlier);
+        assert_eq!(plan(None).unwrap().unwrap().camchain, named);
+        // A read-only camera report is refused before the run.
+        let report = out_dir.join("r.html");
+        read_only_file(&out_dir.join("r-cameras.html"), "mine");
+        let e = plan(Some(&report)).unwrap_err().to_string();
+        assert!(e.contains("--report") && e.contains("read-only"), "{e}");
+    }
+
+    // The whole program: the user's camchain.yaml beside the result stays as it was, the
+    // cameras go to the other name, and the output says which.
+    let data = images_without_camchain(&tmp.path("images"), 6);
+    let run_dir = tmp.path("run");
+    std::fs::create_dir_all(&run_dir).unwrap();
+    std::fs::write(run_dir.join("camchain.yaml"), "my own camchain\n").unwrap();
+    let result = run_dir.join("calibration.yaml");
+    let r = dvlcal(&["calibrate", s(&data), "--out", s(&result), "--no-progress"]);
+    let stdout = String::from_utf8_lossy(&r.stdout);
+    let written = run_dir.join("calibration-camchain.yaml");
+    assert_eq!(
+        std::fs::read_to_string(run_dir.join("camchain.yaml")).unwrap(),
+        "my own camchain\n"
+    );
+    assert!(
+        stdout.contains(&format!(
+            "wrote {} (cameras calibrated from the same images)",
+            written.display()
+        )) && stdout.contains("is not a camchain written for this result: it is kept"),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&r.stderr)
+    );
+    let chain = dvlcal::io::camchain::read_camchain(&written).expect("the camchain written loads");
+    assert_eq!(chain.cams.len(), 2);
+}

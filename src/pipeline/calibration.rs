@@ -17,7 +17,6 @@ use crate::io::calib_yaml::{
     ObservabilityFlags, ResultStatus, RunFigures, WorstResidual, write_calib_yaml,
 };
 use crate::io::camchain::kalibr_entry;
-use crate::io::dataset::DatasetFiles;
 use crate::io::dvl::DvlLog;
 use crate::io::exports::{
     FrameNames, KalibrCamera, kalibr_camchain_imucam, ros_static_transform, urdf_robot,
@@ -699,67 +698,6 @@ pub fn write_results(
         camchain_imucam: Some(imucam),
         urdf: Some(urdf),
     })
-}
-
-/// Where `dvlcal calibrate` writes the cameras it calibrated from a dataset's images (a dataset
-/// without a camchain): `camchain.yaml` beside the result, and with a DVL report `R.html` the
-/// camera report `R-cameras.html` beside it.
-#[derive(Clone, Debug, PartialEq)]
-pub struct CameraOutputs {
-    /// The camchain YAML.
-    pub camchain: PathBuf,
-    /// The camera calibration report, when a DVL report is written.
-    pub report: Option<PathBuf>,
-}
-
-impl CameraOutputs {
-    /// The outputs for the result `out` and the DVL report `report`, when `files` have images
-    /// without a camchain (`None` otherwise). Errors, before anything is run, when one of them
-    /// would overwrite an input of the run or the result.
-    pub fn plan(
-        out: &Path,
-        report: Option<&Path>,
-        files: &DatasetFiles,
-    ) -> Result<Option<CameraOutputs>> {
-        // A bag without a camchain may need its cameras calibrated too (a stereo pair, or no
-        // CameraInfo): the paths are reserved, and used only if it does.
-        let bag_may = files.bag.is_some() && files.camchain.is_none();
-        if !files.calibrates_cameras() && !bag_may {
-            return Ok(None);
-        }
-        let camchain = out.with_file_name("camchain.yaml");
-        if camchain == out || crate::files::same_file(&camchain, out) {
-            return Err(Error::option(
-                "--out",
-                format!(
-                    "{}: the camchain calibrated from the images is written to {} beside the \
-                     result; name the result otherwise",
-                    out.display(),
-                    camchain.display()
-                ),
-            ));
-        }
-        let inputs = files.inputs();
-        let inputs = || inputs.iter().map(|p| p.as_path());
-        crate::files::refuse_input("--out", &camchain, inputs())?;
-        let report = report.map(|r| sibling(r, "cameras.html"));
-        if let Some(r) = &report {
-            crate::files::refuse_input("--report", r, inputs().chain([out, camchain.as_path()]))?;
-        }
-        Ok(Some(CameraOutputs { camchain, report }))
-    }
-
-    /// Writes the camchain and the report (with `command`, the command line) of `cams`; returns
-    /// the paths written, for the user.
-    pub fn write(&self, cams: &CameraCalRun, command: Option<String>) -> Result<Vec<String>> {
-        cams.write_camchain(&self.camchain)?;
-        let mut written = vec![self.camchain.display().to_string()];
-        if let Some(r) = &self.report {
-            cams.write_report(r, &self.camchain, command)?;
-            written.push(r.display().to_string());
-        }
-        Ok(written)
-    }
 }
 
 /// Renders the HTML report of a run and writes it atomically to `path`. `result` is the result

@@ -38,9 +38,9 @@ mod vision;
 
 pub use board::write_board_svg;
 pub use calibration::{
-    CalibrationRun, CameraOutputs, OutputOptions, ResultPaths, calibrate_dataset,
-    calibration_context, dataset_inputs, frame_names, method_name, result_file, sibling,
-    write_failure_report, write_report, write_results,
+    CalibrationRun, OutputOptions, ResultPaths, calibrate_dataset, calibration_context,
+    dataset_inputs, frame_names, method_name, result_file, sibling, write_failure_report,
+    write_report, write_results,
 };
 pub use cameras::{
     CameraCalOptions, CameraCalRun, SEPARATE_CAMERA_RECORDING, calibrate_cameras_from_bag,
@@ -50,7 +50,7 @@ pub use dataset::{Dataset, dataset_files, describe_files};
 pub use evaluate::{
     Baseline, CrossValidation, baselines, cross_validate, odometry_check, odometry_table,
 };
-pub use outputs::{RESULT_EXPORTS, check_result_outputs};
+pub use outputs::{CameraOutputs, RESULT_EXPORTS, check_result_outputs};
 pub use simulate::{ImageRequest, SimulateRequest, SimulatedRecording, write_simulated_dataset};
 pub use vision::{
     MAX_REPROJECTION_RMS_PX, VisionOptions, VisionRun, detector_settings, frames_csv_path,
