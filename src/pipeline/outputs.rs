@@ -138,7 +138,8 @@ impl CameraOutputs {
     }
 
     /// Writes the camchain (marked as the result `out`'s) and the report (with `command`, the
-    /// command line) of `cams`; returns the paths written, for the user.
+    /// command line) of `cams`; returns the lines that tell the user what was written where
+    /// (and why the camchain is not `camchain.yaml`, when it is not).
     pub fn write(
         &self,
         out: &Path,
@@ -147,11 +148,18 @@ impl CameraOutputs {
     ) -> Result<Vec<String>> {
         let text = format!("{}\n{}", camchain_mark(out), cams.camchain_yaml());
         write_atomic(&self.camchain, text.as_bytes())?;
-        let mut written = vec![self.camchain.display().to_string()];
+        let mut lines: Vec<String> = self.renamed.iter().map(|w| format!("note: {w}")).collect();
+        let mut wrote = |p: &Path| {
+            lines.push(format!(
+                "wrote {} (cameras calibrated from the same images)",
+                p.display()
+            ))
+        };
+        wrote(&self.camchain);
         if let Some(r) = &self.report {
             cams.write_report(r, &self.camchain, command)?;
-            written.push(r.display().to_string());
+            wrote(r);
         }
-        Ok(written)
+        Ok(lines)
     }
 }

@@ -98,10 +98,8 @@ pub struct CalibrateArgs {
     /// board YAML and a DVL log, recognised by their content (a bag may stand in for the
     /// images and the log); or a bag itself (ROS 1 .bag, ROS 2 .mcap / .db3 / bag folder).
     /// Options below override parts.
-    /// Without a camchain the cameras are calibrated from the same images first (written as
-    /// camchain.yaml beside --out, or RESULT-camchain.yaml when a camchain.yaml there was not
-    /// written for this result, which is kept; with --report R.html a camera report
-    /// R-cameras.html).
+    /// Without a camchain the cameras are calibrated from the same images first (camchain.yaml
+    /// beside --out, or RESULT-camchain.yaml to keep another's; --report R.html: R-cameras.html).
     #[arg(value_name = "DATASET")]
     pub dataset: Option<PathBuf>,
     #[command(flatten)]
@@ -253,11 +251,8 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
     unused::image_options(&data, &given)?;
     if let (Some(cams), Some(to)) = (&data.cameras, &cameras_out) {
         let command = this_command_line();
-        if let Some(why) = &to.renamed {
-            println!("note: {why}");
-        }
-        for p in to.write(&a.out, cams, Some(command))? {
-            println!("wrote {p} (cameras calibrated from the same images)");
+        for line in to.write(&a.out, cams, Some(command))? {
+            println!("{line}");
         }
         if cams.is_weak() {
             eprintln!(

@@ -16,7 +16,7 @@ use dvlcal::pipeline::{VisionOptions, frames_csv_path, poses_from_bag, poses_fro
 /// Detection settings shared by every command that reads images.
 #[derive(Args, Debug, Clone)]
 pub struct DetectTuning {
-    /// Worker threads (one image pair per thread at a time; default: all cores; 4 per core at most).
+    /// Worker threads (one image pair per thread at a time; default: all cores; 4 per core max).
     #[arg(long, value_name = "N")]
     pub threads: Option<usize>,
     /// Decimation factor of the image for quad detection (no unit; corners are refined at full

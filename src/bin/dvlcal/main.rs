@@ -130,7 +130,6 @@ fn main() {
             .filter(typed)
             .filter_map(|a| a.get_long());
         let _ = GIVEN.set(flags.map(|l| format!("--{l}")).collect());
-        // The library lowers an absurd thread count itself; the user is told here.
         if let Ok(Some(&n)) = sub.try_get_one::<usize>("threads")
             && let (_, Some(note)) = dvlcal::parallel::capped_threads("--threads", n)
         {
