@@ -64,11 +64,16 @@ fn kalibr_layout_pairs_by_time_and_counts_the_rest() {
         (st.complete, st.unpaired_cam0, st.unpaired_other),
         (1, 3, 2)
     );
-    // Mono chain: cam1 is not looked at.
+    // Mono chain: cam1's images are not used, and the one warning says so with their count.
     let (frames, st) = scan_images(&d, 1, 0).unwrap();
     assert_eq!(frames.len(), 4);
     assert_eq!(frames[0].images.len(), 1);
-    assert!(st.warnings.is_empty());
+    assert_eq!(st.warnings.len(), 1, "{:?}", st.warnings);
+    assert!(
+        st.warnings[0].contains("cam1") && st.warnings[0].contains("3 images not used"),
+        "{:?}",
+        st.warnings
+    );
 }
 
 #[test]
