@@ -12,6 +12,7 @@
 //! - [`a50`]: simulated DVL samples as the A50's json_v3 reports.
 //! - [`render`]: camera images of a board, rendered from libapriltag's own tag patterns.
 //! - [`image_dataset`]: the stereo images of a simulated recording, written as a dataset folder.
+//! - [`imu`](mod@imu): an IMU on a simulated motion, with noise and walking biases.
 //! - [`camcal_views`]: board poses of a camera calibration, spread over the image, distances and
 //!   tilts as a person waving a board in front of a stereo rig shows them.
 
@@ -20,6 +21,7 @@ pub mod camcal_views;
 pub mod corrupt;
 pub mod dataset;
 pub mod image_dataset;
+pub mod imu;
 pub mod motion;
 pub mod render;
 pub mod track;

@@ -3,6 +3,7 @@
 
 pub mod board;
 pub mod camera;
+pub mod imu;
 
 use nalgebra::{Matrix3, Matrix6, Vector3};
 
