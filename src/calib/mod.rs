@@ -29,6 +29,7 @@ pub mod cosensor;
 pub mod diagnostics;
 pub mod given;
 pub mod halves;
+pub mod imu;
 pub mod init;
 pub(crate) mod joint;
 pub mod model;

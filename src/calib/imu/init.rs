@@ -1,0 +1,189 @@
+//! A first estimate of the IMU's calibration from the camera trajectory alone, for the joint
+//! refinement to start from:
+//!
+//! 1. the clock offset that best aligns the gyro's rate magnitude with the trajectory's
+//!    (magnitudes do not depend on the unknown rotation);
+//! 2. the rotation and the gyro bias from the rates so aligned (the rotation that best maps the
+//!    camera's rates onto the gyro's, both centred: Kabsch's solution);
+//! 3. the lever arm, gravity and the accelerometer bias from the specific forces, which are
+//!    linear in them once the rotation is known (gravity then scaled to its magnitude and the
+//!    other two solved again).
+
+use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
+
+use super::bins::ImuBin;
+use super::state::{BiasNodes, ImuState};
+use crate::error::{Error, Result};
+use crate::lie::{Se3, hat};
+use crate::trajectory::Trajectory;
+use crate::types::imu::ImuBias;
+
+/// The first estimate; `spacing` the bias nodes' spacing, `max_offset` the largest clock offset
+/// searched (s), `gravity` its magnitude.
+pub fn initial_state(
+    traj: &Trajectory,
+    bins: &[ImuBin],
+    spacing: f64,
+    max_offset: f64,
+    gravity: f64,
+) -> Result<ImuState> {
+    let offset = search_offset(traj, bins, max_offset)?;
+    // Pairs of camera and gyro rates, camera state at each bin.
+    let mut states = Vec::new();
+    for b in bins {
+        if let Ok(s) = traj.state(b.t + offset) {
+            states.push((b, s));
+        }
+    }
+    if states.len() < 20 {
+        return Err(Error::Input(format!(
+            "only {} IMU bins overlap the camera trajectory at the clock offset found ({offset:.3} s)",
+            states.len()
+        )));
+    }
+    let n = states.len() as f64;
+    let w_cam = |s: &crate::trajectory::TrajectoryState| -> Vector3<f64> {
+        s.twist.fixed_rows::<3>(3).into_owned()
+    };
+    let mean_c: Vector3<f64> = states.iter().map(|(_, s)| w_cam(s)).sum::<Vector3<f64>>() / n;
+    let mean_i: Vector3<f64> = states.iter().map(|(b, _)| b.gyro).sum::<Vector3<f64>>() / n;
+    let mut h = Matrix3::zeros();
+    for (b, s) in &states {
+        h += (w_cam(s) - mean_c) * (b.gyro - mean_i).transpose();
+    }
+    // Q = R_imu_cam minimises sum |w_imu - Q w_cam|^2 over the centred rates.
+    let svd = h.svd(true, true);
+    let (u, vt) = match (svd.u, svd.v_t) {
+        (Some(u), Some(vt)) => (u, vt),
+        _ => return Err(Error::Numerical("IMU initial rotation: SVD failed".into())),
+    };
+    let v = vt.transpose();
+    let d = (v * u.transpose()).determinant().signum();
+    let q = v * Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, d)) * u.transpose();
+    let gyro_bias = mean_i - q * mean_c;
+
+    // Specific force: Q^T f - a0 = A p - R_wc^T g + Q^T b_a, with A = hat(w') + hat(w)^2.
+    let solve = |g_fixed: Option<Vector3<f64>>| -> Option<DVector<f64>> {
+        let cols = if g_fixed.is_some() { 6 } else { 9 };
+        let mut ata = DMatrix::<f64>::zeros(cols, cols);
+        let mut atb = DVector::<f64>::zeros(cols);
+        for (b, s) in &states {
+            let v: Vector3<f64> = s.twist.fixed_rows::<3>(0).into_owned();
+            let w = w_cam(s);
+            let dv: Vector3<f64> = s.rate.fixed_rows::<3>(0).into_owned();
+            let dw: Vector3<f64> = s.rate.fixed_rows::<3>(3).into_owned();
+            let mut rhs = q.transpose() * b.accel - (dv + w.cross(&v));
+            let mut a = DMatrix::<f64>::zeros(3, cols);
+            a.view_mut((0, 0), (3, 3))
+                .copy_from(&(hat(&dw) + hat(&w) * hat(&w)));
+            a.view_mut((0, 3), (3, 3)).copy_from(&Matrix3::identity());
+            match g_fixed {
+                Some(g) => rhs += s.pose.rot.transpose() * g,
+                None => a
+                    .view_mut((0, 6), (3, 3))
+                    .copy_from(&-s.pose.rot.transpose()),
+            }
+            ata += a.transpose() * &a;
+            atb += a.transpose() * DVector::from_column_slice(rhs.as_slice());
+        }
+        ata.cholesky().map(|c| c.solve(&atb))
+    };
+    let free = solve(None).ok_or_else(|| {
+        Error::Numerical("IMU initial lever arm and gravity: singular system".into())
+    })?;
+    let g_dir = Vector3::new(free[6], free[7], free[8]);
+    if !(g_dir.norm() > 0.5 * gravity && g_dir.norm() < 1.5 * gravity) {
+        return Err(Error::Input(format!(
+            "the accelerometer's gravity comes out at {:.2} m/s^2 against {gravity:.2}: is the \
+             accelerometer in m/s^2 (not g), and does the IMU belong to this recording?",
+            g_dir.norm()
+        )));
+    }
+    let g = g_dir.normalize() * gravity;
+    let fixed = solve(Some(g)).ok_or_else(|| {
+        Error::Numerical("IMU initial lever arm: singular system".into())
+    })?;
+    let lever = Vector3::new(fixed[0], fixed[1], fixed[2]);
+    let accel_bias = q * Vector3::new(fixed[3], fixed[4], fixed[5]);
+    let (t0, t1) = (
+        bins.first().map_or(0.0, |b| b.t),
+        bins.last().map_or(0.0, |b| b.t),
+    );
+    Ok(ImuState {
+        t_cam_imu: Se3::new(q.transpose(), lever),
+        time_offset_s: offset,
+        gravity_rotation: ImuState::gravity_rotation_of(&g),
+        gravity_magnitude: gravity,
+        bias: BiasNodes::spanning(
+            t0,
+            t1,
+            spacing,
+            ImuBias {
+                gyro: gyro_bias,
+                accel: accel_bias,
+            },
+        ),
+    })
+}
+
+/// The clock offset (`t_cam = t_imu + offset`) within `max_offset` that best aligns the gyro's
+/// rate magnitudes with the trajectory's: a grid at a fifth of the bin spacing, then a parabola
+/// through the best point and its neighbours.
+fn search_offset(traj: &Trajectory, bins: &[ImuBin], max_offset: f64) -> Result<f64> {
+    let (a, b) = traj.span();
+    // The trajectory's rate magnitude on a fine grid.
+    let step = 0.002;
+    let n = ((b - a) / step).floor() as usize + 1;
+    let mut grid = Vec::with_capacity(n);
+    for i in 0..n {
+        let t = a + i as f64 * step;
+        let w = traj.twist(t)?;
+        grid.push(w.fixed_rows::<3>(3).norm());
+    }
+    let at = |t: f64| -> Option<f64> {
+        let x = (t - a) / step;
+        if x < 0.0 || x > (n - 1) as f64 {
+            return None;
+        }
+        let i = (x.floor() as usize).min(n.saturating_sub(2));
+        let u = x - i as f64;
+        Some(grid[i] * (1.0 - u) + grid[(i + 1).min(n - 1)] * u)
+    };
+    let mags: Vec<f64> = bins.iter().map(|b| b.gyro.norm()).collect();
+    let score = |d: f64| -> Option<f64> {
+        let mut sum = 0.0;
+        let mut count = 0usize;
+        for (bin, m) in bins.iter().zip(&mags) {
+            if let Some(c) = at(bin.t + d) {
+                sum += (c - m).powi(2);
+                count += 1;
+            }
+        }
+        (count * 2 > bins.len()).then(|| sum / count as f64)
+    };
+    let dstep = 0.002;
+    let k = (max_offset / dstep).ceil() as i64;
+    let mut best: Option<(i64, f64)> = None;
+    let mut scores = std::collections::HashMap::new();
+    for i in -k..=k {
+        if let Some(s) = score(i as f64 * dstep) {
+            scores.insert(i, s);
+            if best.is_none_or(|(_, b)| s < b) {
+                best = Some((i, s));
+            }
+        }
+    }
+    let (i, s0) = best.ok_or_else(|| {
+        Error::Input(format!(
+            "the IMU's times do not overlap the camera's within {max_offset} s of each other"
+        ))
+    })?;
+    let mut d = i as f64 * dstep;
+    if let (Some(sm), Some(sp)) = (scores.get(&(i - 1)), scores.get(&(i + 1))) {
+        let curv = sp + sm - 2.0 * s0;
+        if curv > 0.0 {
+            d += 0.5 * dstep * (sm - sp) / curv;
+        }
+    }
+    Ok(d)
+}

@@ -1,0 +1,232 @@
+//! The IMU as a co-sensor of the camera: its rotation, lever arm and clock offset relative to
+//! the camera, its biases and the direction of gravity, estimated jointly with the camera's
+//! trajectory.
+//!
+//! - [`state`]: what is estimated besides the trajectory, and how a step moves it.
+//! - [`bins`]: the IMU's samples averaged in short bins, once.
+//! - [`init`]: a first estimate from the camera trajectory alone.
+//! - [`factors`]: each bin's prediction and Jacobians; camera poses on some of the knots.
+//! - [`solve`]: Gauss-Newton on knots and calibration together, and the calibration's
+//!   covariance with the trajectory marginalised.
+//!
+//! The trajectory is the camera's white-noise-on-jerk GP with knots between the pose times as
+//! well (the IMU measures the motion between poses, which the knots at pose times alone would
+//! smooth over).
+
+pub(crate) mod bins;
+pub(crate) mod factors;
+pub(crate) mod init;
+pub(crate) mod solve;
+pub mod state;
+
+use nalgebra::{DMatrix, Vector3};
+
+use crate::error::{Error, Result};
+use crate::trajectory::solver::measurement_information;
+use crate::trajectory::{FitOptions, JerkDensity, Knot, Trajectory};
+use crate::types::PoseMeasurement;
+use crate::types::imu::{ImuNoise, ImuSample, STANDARD_GRAVITY};
+use factors::{SparsePoseFactors, bin_information};
+pub use state::{BiasNodes, ImuState};
+
+/// How the camera-IMU calibration runs.
+#[derive(Clone, Debug)]
+pub struct ImuOptions {
+    /// `|g|`, m/s^2.
+    pub gravity_magnitude: f64,
+    /// Knots per interval between poses (1: knots at the pose times only); `None`: as many as
+    /// put knots about 25 ms apart (4 for poses at 10 Hz, 1 for motion capture at 100 Hz).
+    pub knots_per_pose: Option<usize>,
+    /// Estimate the factors by which the stated gyro and accelerometer noise are off from the
+    /// residuals (their redundancy-weighted chi-square) and use them (`false`: as stated).
+    pub estimate_noise: bool,
+    /// The longest span of IMU samples averaged into one bin, s.
+    pub bin_width_s: f64,
+    /// The longest spacing of the bias nodes, s.
+    pub bias_spacing_s: f64,
+    /// The largest clock offset searched, s.
+    pub max_offset_s: f64,
+    /// Gauss-Newton iterations at most.
+    pub max_iterations: usize,
+}
+
+impl Default for ImuOptions {
+    fn default() -> Self {
+        ImuOptions {
+            gravity_magnitude: STANDARD_GRAVITY,
+            knots_per_pose: None,
+            estimate_noise: true,
+            bin_width_s: 0.02,
+            bias_spacing_s: 10.0,
+            max_offset_s: 0.5,
+            max_iterations: 30,
+        }
+    }
+}
+
+/// The camera-IMU calibration.
+#[derive(Clone, Debug)]
+pub struct ImuEstimate {
+    /// The estimate.
+    pub state: ImuState,
+    /// Covariance of the parameter vector (see [`state`] for its layout).
+    pub covariance: DMatrix<f64>,
+    /// Gauss-Newton iterations of the last solution.
+    pub iterations: usize,
+    /// Whether it converged.
+    pub converged: bool,
+    /// IMU bins used (inside the camera's span).
+    pub bins_used: usize,
+    /// IMU bins in all.
+    pub bins_total: usize,
+    /// The trajectory's knot times.
+    pub times: Vec<f64>,
+    /// The trajectory's knot states at the solution.
+    pub knots: Vec<Knot>,
+    /// The cost at the solution.
+    pub cost: f64,
+    /// The factors the stated gyro and accelerometer noise densities were multiplied by (the
+    /// square roots of their chi-square over redundancy; 1 when not estimated).
+    pub noise_factor: (f64, f64),
+}
+
+impl ImuEstimate {
+    /// Standard deviations of the rotation (rad, per axis, IMU frame), the lever arm (m, per
+    /// axis) and the clock offset (s).
+    pub fn std(&self) -> (Vector3<f64>, Vector3<f64>, f64) {
+        let s = |i: usize| self.covariance[(i, i)].max(0.0).sqrt();
+        (
+            Vector3::new(s(0), s(1), s(2)),
+            Vector3::new(s(3), s(4), s(5)),
+            s(6),
+        )
+    }
+}
+
+/// Calibrates the IMU of `samples` (with `noise`) against the camera poses `poses`.
+pub fn calibrate_camera_imu(
+    poses: &[PoseMeasurement],
+    samples: &[ImuSample],
+    noise: &ImuNoise,
+    opts: &ImuOptions,
+) -> Result<ImuEstimate> {
+    if samples.len() < 100 {
+        return Err(Error::Input(format!(
+            "{} IMU samples: too few to calibrate with",
+            samples.len()
+        )));
+    }
+    let traj = Trajectory::fit(poses, &FitOptions::default())?;
+    let bins = bins::make_bins(samples, opts.bin_width_s, noise.update_rate);
+    let st = init::initial_state(
+        &traj,
+        &bins,
+        opts.bias_spacing_s,
+        opts.max_offset_s,
+        opts.gravity_magnitude,
+    )?;
+    let per = opts
+        .knots_per_pose
+        .unwrap_or_else(|| knots_per_pose(poses))
+        .max(1);
+    let (times, knots, pose_at) = densify(&traj, per);
+    let info = measurement_information(poses, traj.report().pose_sigma)?;
+    let mut sparse = vec![None; times.len()];
+    for (i, k) in pose_at.iter().enumerate() {
+        sparse[*k] = Some((poses[i].pose, info[i]));
+    }
+    let density = if traj.density().is_constant() {
+        traj.density().clone()
+    } else {
+        let f = traj.density().factors();
+        JerkDensity::varying(
+            traj.density().base(),
+            f.iter().flat_map(|x| std::iter::repeat_n(*x, per)).collect(),
+        )
+    };
+    let stated: Vec<_> = bins.iter().map(|b| bin_information(b, noise)).collect();
+    let mut joint = solve::ImuJoint {
+        times: times.clone(),
+        poses: SparsePoseFactors { poses: sparse },
+        density,
+        bins: &bins,
+        info: stated.clone(),
+        noise: *noise,
+    };
+    let mut sol = joint.solve(knots, st, opts.max_iterations)?;
+    let mut factor = (1.0, 1.0);
+    if opts.estimate_noise {
+        // Two rounds: the first factor moves the solution a little, the second settles it.
+        for _ in 0..2 {
+            let (chi_g, red_g, chi_a, red_a) = joint.redundancy(&sol.knots, &sol.state)?;
+            let (fg, fa) = (
+                factor.0 * (chi_g / red_g.max(1.0)).sqrt(),
+                factor.1 * (chi_a / red_a.max(1.0)).sqrt(),
+            );
+            factor = (fg, fa);
+            joint.info = stated
+                .iter()
+                .map(|w| {
+                    let mut w = *w;
+                    for r in 0..3 {
+                        w[r] /= fg * fg;
+                        w[r + 3] /= fa * fa;
+                    }
+                    w
+                })
+                .collect();
+            sol = joint.solve(sol.knots, sol.state, opts.max_iterations)?;
+        }
+    }
+    Ok(ImuEstimate {
+        state: sol.state,
+        covariance: sol.covariance,
+        iterations: sol.iterations,
+        converged: sol.converged,
+        bins_used: sol.bins_used,
+        bins_total: bins.len(),
+        times,
+        knots: sol.knots,
+        cost: sol.cost,
+        noise_factor: factor,
+    })
+}
+
+/// Knots per interval between poses that put them about 25 ms apart.
+fn knots_per_pose(poses: &[PoseMeasurement]) -> usize {
+    let mut dt: Vec<f64> = poses.windows(2).map(|w| w[1].t - w[0].t).collect();
+    dt.sort_by(f64::total_cmp);
+    let median = dt.get(dt.len() / 2).copied().unwrap_or(0.1);
+    ((median / 0.025).round() as usize).clamp(1, 8)
+}
+
+/// The trajectory's knots with `per - 1` more in each interval, evenly spaced, their states
+/// interpolated; and the index of each original knot among them.
+fn densify(traj: &Trajectory, per: usize) -> (Vec<f64>, Vec<Knot>, Vec<usize>) {
+    let t = traj.times();
+    let k = traj.knots();
+    let mut times = Vec::with_capacity((t.len() - 1) * per + 1);
+    let mut knots = Vec::with_capacity(times.capacity());
+    let mut at = Vec::with_capacity(t.len());
+    for i in 0..t.len() {
+        at.push(times.len());
+        times.push(t[i]);
+        knots.push(k[i]);
+        if i + 1 == t.len() {
+            break;
+        }
+        for j in 1..per {
+            let tj = t[i] + (t[i + 1] - t[i]) * j as f64 / per as f64;
+            let s = traj.view().state(tj).map(|s| Knot {
+                pose: s.pose,
+                twist: s.twist,
+                rate: s.rate,
+            });
+            if let Ok(s) = s {
+                times.push(tj);
+                knots.push(s);
+            }
+        }
+    }
+    (times, knots, at)
+}

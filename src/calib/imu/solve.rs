@@ -1,0 +1,425 @@
+//! The joint problem of the trajectory and the IMU's calibration: camera poses on some knots,
+//! the motion prior between knots, the IMU's bins between them, and the random walks between
+//! bias nodes; Gauss-Newton on knots and calibration together, the calibration eliminated
+//! through its Schur complement (the knots' system stays block tridiagonal).
+
+use nalgebra::{DMatrix, DVector, SMatrix, Vector6};
+
+use super::bins::ImuBin;
+use super::factors::{BinTerms, SparsePoseFactors, bin_residual, bin_terms};
+use super::state::{ImuState, NFIXED};
+use crate::error::{Error, Result};
+use crate::trajectory::JerkDensity;
+use crate::trajectory::blocktri::{BlockTridiagonal, Factored, V18};
+use crate::trajectory::gp::{Knot, local_gamma, local_state};
+use crate::trajectory::solver::{Problem, step};
+use crate::types::imu::ImuNoise;
+
+/// The problem: knot times, the poses on them, the motion prior, the IMU's bins and noise.
+pub struct ImuJoint<'a> {
+    pub times: Vec<f64>,
+    pub poses: SparsePoseFactors,
+    pub density: JerkDensity,
+    pub bins: &'a [ImuBin],
+    pub info: Vec<Vector6<f64>>,
+    pub noise: ImuNoise,
+}
+
+/// The calibration's part of the normal equations at one linearisation point.
+struct Linear {
+    cost: f64,
+    /// `H_x theta`, 18 rows per knot.
+    cross: DMatrix<f64>,
+    hth: DMatrix<f64>,
+    /// `-J_theta^T W e`.
+    gth: DVector<f64>,
+}
+
+/// The Schur complement of the calibration at one linearisation.
+struct Schur {
+    xr: DVector<f64>,
+    x: DMatrix<f64>,
+    schur: DMatrix<f64>,
+    s: DVector<f64>,
+}
+
+/// One Gauss-Newton step.
+struct Step {
+    dx: Vec<V18>,
+    dth: DVector<f64>,
+    schur: DMatrix<f64>,
+    decrement: f64,
+    spare: BlockTridiagonal,
+}
+
+/// The columns of `theta` a bin touches: the fixed parameters, then its two bias nodes.
+fn theta_columns(node: usize) -> [usize; 21] {
+    std::array::from_fn(|c| {
+        if c < NFIXED {
+            c
+        } else {
+            NFIXED + 6 * node + (c - NFIXED)
+        }
+    })
+}
+
+/// A bin's Jacobian on the columns of [`theta_columns`].
+fn theta_jacobian(t: &BinTerms) -> SMatrix<f64, 6, 21> {
+    let u = t.node.1;
+    let mut jl = SMatrix::<f64, 6, 21>::zeros();
+    jl.fixed_view_mut::<6, 9>(0, 0).copy_from(&t.jth);
+    for r in 0..6 {
+        jl[(r, 9 + r)] = 1.0 - u;
+        jl[(r, 15 + r)] = u;
+    }
+    jl
+}
+
+/// `S^-1 s`, or an error saying the calibration is not determined.
+fn solve_schur(schur: &DMatrix<f64>, s: &DVector<f64>) -> Result<DVector<f64>> {
+    let chol = schur.clone().cholesky().ok_or_else(|| {
+        Error::Numerical(
+            "the IMU's calibration is not determined by this motion (its information matrix \
+             is singular): rotate the rig about more than one axis"
+                .into(),
+        )
+    })?;
+    Ok(chol.solve(s))
+}
+
+/// The solution.
+pub struct Solution {
+    pub knots: Vec<Knot>,
+    pub state: ImuState,
+    /// Covariance of `theta` (the knots marginalised).
+    pub covariance: DMatrix<f64>,
+    pub iterations: usize,
+    pub converged: bool,
+    pub cost: f64,
+    /// Bins inside the trajectory's span at the solution.
+    pub bins_used: usize,
+}
+
+impl ImuJoint<'_> {
+    fn problem(&self) -> Problem<'_> {
+        Problem {
+            times: &self.times,
+            cosensor: &self.poses,
+            density: &self.density,
+        }
+    }
+
+    /// For each bin inside the span at `offset`: the interval and the time into it.
+    fn placed(&self, offset: f64) -> Vec<(usize, usize, f64)> {
+        let n = self.times.len();
+        let (a, b) = (self.times[0], self.times[n - 1]);
+        let mut k = 0;
+        let mut out = Vec::with_capacity(self.bins.len());
+        for (j, bin) in self.bins.iter().enumerate() {
+            let tau = bin.t + offset;
+            if tau < a || tau > b {
+                continue;
+            }
+            while k + 2 < n && self.times[k + 1] <= tau {
+                k += 1;
+            }
+            out.push((j, k, tau - self.times[k]));
+        }
+        out
+    }
+
+    fn walk_information(&self, i: usize, st: &ImuState) -> (f64, f64) {
+        let dt = st.bias.times[i + 1] - st.bias.times[i];
+        let g = self.noise.gyroscope_random_walk.max(1e-12);
+        let a = self.noise.accelerometer_random_walk.max(1e-12);
+        (1.0 / (g * g * dt), 1.0 / (a * a * dt))
+    }
+
+    fn walk_cost(&self, st: &ImuState) -> f64 {
+        (0..st.bias.values.len() - 1)
+            .map(|i| {
+                let (wg, wa) = self.walk_information(i, st);
+                let (b0, b1) = (&st.bias.values[i], &st.bias.values[i + 1]);
+                wg * (b1.gyro - b0.gyro).norm_squared() + wa * (b1.accel - b0.accel).norm_squared()
+            })
+            .sum()
+    }
+
+    /// The whole cost at `knots` and `st`.
+    pub fn cost(&self, knots: &[Knot], st: &ImuState) -> f64 {
+        let mut cost = self.problem().cost(knots) + self.walk_cost(st);
+        let mut last: Option<(usize, V18)> = None;
+        for (j, k, s) in self.placed(st.time_offset_s) {
+            let gamma2 = match &last {
+                Some((kk, g)) if *kk == k => *g,
+                _ => {
+                    let g = local_gamma(&knots[k], &knots[k + 1]);
+                    last = Some((k, g));
+                    g
+                }
+            };
+            let dt = self.times[k + 1] - self.times[k];
+            let e = bin_residual(&knots[k], &gamma2, s, dt, &self.bins[j], st);
+            cost += e.dot(&self.info[j].component_mul(&e));
+        }
+        cost
+    }
+
+    /// The normal equations at `knots` and `st`: the knots' blocks into `sys`, the rest returned.
+    fn linearise(&self, knots: &[Knot], st: &ImuState, sys: &mut BlockTridiagonal) -> Linear {
+        let n = knots.len();
+        let p = st.dim();
+        let mut cost = self.problem().assemble_into(knots, sys);
+        let mut cross = DMatrix::<f64>::zeros(18 * n, p);
+        let mut hth = DMatrix::<f64>::zeros(p, p);
+        let mut gth = DVector::<f64>::zeros(p);
+        let mut ls = None;
+        for (j, k, s) in self.placed(st.time_offset_s) {
+            if ls.as_ref().is_none_or(|(kk, _)| *kk != k) {
+                ls = Some((k, local_state(&knots[k], &knots[k + 1])));
+            }
+            let Some((_, l)) = &ls else { continue };
+            let dt = self.times[k + 1] - self.times[k];
+            let t = bin_terms(&knots[k], l, s, dt, &self.bins[j], st);
+            let w = &self.info[j];
+            let we = w.component_mul(&t.e);
+            cost += t.e.dot(&we);
+            let cols = theta_columns(t.node.0);
+            let jl = theta_jacobian(&t);
+            let wj1 = SMatrix::<f64, 6, 18>::from_fn(|r, c| w[r] * t.j1[(r, c)]);
+            let wj2 = SMatrix::<f64, 6, 18>::from_fn(|r, c| w[r] * t.j2[(r, c)]);
+            let wjl = SMatrix::<f64, 6, 21>::from_fn(|r, c| w[r] * jl[(r, c)]);
+            sys.diag[k] += t.j1.transpose() * wj1;
+            sys.diag[k + 1] += t.j2.transpose() * wj2;
+            sys.upper[k] += t.j1.transpose() * wj2;
+            sys.rhs[k] -= t.j1.transpose() * we;
+            sys.rhs[k + 1] -= t.j2.transpose() * we;
+            let c1 = t.j1.transpose() * wjl;
+            let c2 = t.j2.transpose() * wjl;
+            let hl = jl.transpose() * wjl;
+            let gl = jl.transpose() * we;
+            for (a, &ca) in cols.iter().enumerate() {
+                for r in 0..18 {
+                    cross[(18 * k + r, ca)] += c1[(r, a)];
+                    cross[(18 * (k + 1) + r, ca)] += c2[(r, a)];
+                }
+                gth[ca] -= gl[a];
+                for (b, &cb) in cols.iter().enumerate() {
+                    hth[(ca, cb)] += hl[(a, b)];
+                }
+            }
+        }
+        // The random walks between nodes.
+        for i in 0..st.bias.values.len() - 1 {
+            let (wg, wa) = self.walk_information(i, st);
+            let (b0, b1) = (&st.bias.values[i], &st.bias.values[i + 1]);
+            let r = [b1.gyro - b0.gyro, b1.accel - b0.accel];
+            cost += wg * r[0].norm_squared() + wa * r[1].norm_squared();
+            for (part, w) in [(0usize, wg), (1, wa)] {
+                for x in 0..3 {
+                    let c0 = NFIXED + 6 * i + 3 * part + x;
+                    let c1 = c0 + 6;
+                    hth[(c0, c0)] += w;
+                    hth[(c1, c1)] += w;
+                    hth[(c0, c1)] -= w;
+                    hth[(c1, c0)] -= w;
+                    gth[c0] += w * r[part][x];
+                    gth[c1] -= w * r[part][x];
+                }
+            }
+        }
+        Linear {
+            cost,
+            cross,
+            hth,
+            gth,
+        }
+    }
+
+    /// The calibration's Schur complement at one linearisation, given the knots' factor:
+    /// `A^-1 r` (flat), `X = A^-1 H_x theta`, `S = H_theta - H_x theta^T X` and the reduced
+    /// right-hand side.
+    fn schur(&self, lin: &Linear, factor: &Factored) -> Schur {
+        let n = lin.cross.nrows() / 18;
+        let p = lin.hth.nrows();
+        let xr = factor.solve();
+        let mut x = DMatrix::<f64>::zeros(18 * n, p);
+        for c0 in (0..p).step_by(6) {
+            let cols = (p - c0).min(6);
+            let rhs: Vec<SMatrix<f64, 18, 6>> = (0..n)
+                .map(|k| {
+                    let mut m = SMatrix::<f64, 18, 6>::zeros();
+                    m.view_mut((0, 0), (18, cols))
+                        .copy_from(&lin.cross.view((18 * k, c0), (18, cols)));
+                    m
+                })
+                .collect();
+            let sol = factor.solve_many::<6>(&rhs);
+            for (k, m) in sol.iter().enumerate() {
+                x.view_mut((18 * k, c0), (18, cols))
+                    .copy_from(&m.view((0, 0), (18, cols)));
+            }
+        }
+        let xr = DVector::<f64>::from_iterator(18 * n, xr.iter().flat_map(|v| v.iter().copied()));
+        let schur = &lin.hth - lin.cross.transpose() * &x;
+        let schur = (&schur + schur.transpose()) * 0.5;
+        let s = &lin.gth - lin.cross.transpose() * &xr;
+        Schur { xr, x, schur, s }
+    }
+
+    /// The Gauss-Newton step at one linearisation: the knots' and the calibration's, the
+    /// Schur complement of the calibration, and the predicted decrease of the cost.
+    fn step(&self, lin: &Linear, sys: BlockTridiagonal) -> Result<Step> {
+        let factor = sys.factor()?;
+        let Schur { xr, x, schur, s } = self.schur(lin, &factor);
+        let dth = solve_schur(&schur, &s)?;
+        let dx_flat = &xr - &x * &dth;
+        let dx = (0..xr.len() / 18)
+            .map(|k| V18::from_iterator(dx_flat.rows(18 * k, 18).iter().copied()))
+            .collect();
+        let decrement = factor.decrement() + s.dot(&dth);
+        Ok(Step {
+            dx,
+            dth,
+            schur,
+            decrement,
+            spare: factor.into_system(),
+        })
+    }
+
+    /// Each sensor's share of the measurements' redundancy at the solution, and its chi-square:
+    /// `(chi2_gyro, redundancy_gyro, chi2_accel, redundancy_accel)`. The redundancy of a
+    /// residual block is its dimension less `tr(W J Sigma J^T)`, with `Sigma` the joint
+    /// covariance of the two knots and the calibration it touches; the chi-square over it
+    /// estimates the factor by which the stated variances are off.
+    pub fn redundancy(&self, knots: &[Knot], st: &ImuState) -> Result<(f64, f64, f64, f64)> {
+        let n = knots.len();
+        let mut sys = BlockTridiagonal::zeros(n);
+        let lin = self.linearise(knots, st, &mut sys);
+        let factor = sys.factor()?;
+        let Schur { x, schur, .. } = self.schur(&lin, &factor);
+        let sinv = schur.clone().try_inverse().ok_or_else(|| {
+            Error::Numerical("the IMU calibration's information is singular".into())
+        })?;
+        let band = factor.banded_inverse();
+        let y = &x * &sinv;
+        let xk = |k: usize| x.rows(18 * k, 18);
+        let yk = |k: usize| y.rows(18 * k, 18);
+        let (mut chi_g, mut chi_a, mut red_g, mut red_a) = (0.0, 0.0, 0.0, 0.0);
+        let mut ls = None;
+        for (j, k, s) in self.placed(st.time_offset_s) {
+            if ls.as_ref().is_none_or(|(kk, _)| *kk != k) {
+                ls = Some((k, local_state(&knots[k], &knots[k + 1])));
+            }
+            let Some((_, l)) = &ls else { continue };
+            let dt = self.times[k + 1] - self.times[k];
+            let t = bin_terms(&knots[k], l, s, dt, &self.bins[j], st);
+            let cols = theta_columns(t.node.0);
+            let jl = theta_jacobian(&t);
+            // Sigma of [x_k; x_k+1] and its coupling with theta's touched columns.
+            let sxx = |a: usize, b: usize| -> DMatrix<f64> {
+                let base = if a == b {
+                    band.diag[a].clone_owned()
+                } else {
+                    band.upper[a.min(b)].clone_owned()
+                };
+                let base = DMatrix::from_column_slice(18, 18, base.as_slice());
+                let base = if a > b { base.transpose() } else { base };
+                base + yk(a) * xk(b).transpose()
+            };
+            let mut jx = DMatrix::<f64>::zeros(6, 36);
+            jx.view_mut((0, 0), (6, 18)).copy_from(&t.j1);
+            jx.view_mut((0, 18), (6, 18)).copy_from(&t.j2);
+            let mut sig_xx = DMatrix::<f64>::zeros(36, 36);
+            sig_xx.view_mut((0, 0), (18, 18)).copy_from(&sxx(k, k));
+            sig_xx.view_mut((0, 18), (18, 18)).copy_from(&sxx(k, k + 1));
+            sig_xx.view_mut((18, 0), (18, 18)).copy_from(&sxx(k + 1, k));
+            sig_xx.view_mut((18, 18), (18, 18)).copy_from(&sxx(k + 1, k + 1));
+            let mut sig_xt = DMatrix::<f64>::zeros(36, 21);
+            let mut sig_tt = DMatrix::<f64>::zeros(21, 21);
+            for (a, &ca) in cols.iter().enumerate() {
+                for r in 0..18 {
+                    sig_xt[(r, a)] = -yk(k)[(r, ca)];
+                    sig_xt[(18 + r, a)] = -yk(k + 1)[(r, ca)];
+                }
+                for (b, &cb) in cols.iter().enumerate() {
+                    sig_tt[(a, b)] = sinv[(ca, cb)];
+                }
+            }
+            let jt = DMatrix::from_column_slice(6, 21, jl.as_slice());
+            let cross = &jx * &sig_xt * jt.transpose();
+            let p = &jx * sig_xx * jx.transpose() + &cross + cross.transpose() + &jt * sig_tt * jt.transpose();
+            let w = &self.info[j];
+            for r in 0..6 {
+                let (chi, red) = (w[r] * t.e[r] * t.e[r], 1.0 - w[r] * p[(r, r)]);
+                if r < 3 {
+                    chi_g += chi;
+                    red_g += red;
+                } else {
+                    chi_a += chi;
+                    red_a += red;
+                }
+            }
+        }
+        Ok((chi_g, red_g, chi_a, red_a))
+    }
+
+    /// Gauss-Newton from `knots` and `st`.
+    pub fn solve(&self, mut knots: Vec<Knot>, mut st: ImuState, max_iterations: usize) -> Result<Solution> {
+        let n = knots.len();
+        let mut sys = BlockTridiagonal::zeros(n);
+        let mut lin = self.linearise(&knots, &st, &mut sys);
+        let mut cost = lin.cost;
+        let mut iterations = 0;
+        let mut converged = false;
+        loop {
+            let Step {
+                dx,
+                dth,
+                schur,
+                decrement,
+                spare,
+            } = self.step(&lin, sys)?;
+            sys = spare;
+            if converged || decrement < 1e-3 || iterations >= max_iterations {
+                converged = converged || decrement < 1e-3;
+                let covariance = schur.clone().try_inverse().ok_or_else(|| {
+                    Error::Numerical("the IMU calibration's information is singular".into())
+                })?;
+                let bins_used = self.placed(st.time_offset_s).len();
+                return Ok(Solution {
+                    knots,
+                    state: st,
+                    covariance,
+                    iterations,
+                    converged,
+                    cost,
+                    bins_used,
+                });
+            }
+            let mut scale = 1.0;
+            let mut accepted = None;
+            for _ in 0..10 {
+                let trial = step(&knots, &dx, scale);
+                let tst = st.retract(&(&dth * scale));
+                let tcost = self.cost(&trial, &tst);
+                if tcost.is_finite() && tcost <= cost {
+                    accepted = Some((trial, tst, tcost));
+                    break;
+                }
+                scale *= 0.5;
+            }
+            iterations += 1;
+            match accepted {
+                Some((k, s, c)) => {
+                    converged = (cost - c) / cost.max(1e-300) < 1e-12;
+                    knots = k;
+                    st = s;
+                }
+                None => converged = true,
+            }
+            lin = self.linearise(&knots, &st, &mut sys);
+            cost = lin.cost;
+        }
+    }
+}
