@@ -131,6 +131,12 @@ pub fn input_options(files: &DatasetFiles, given: &[&str]) -> Result<()> {
             ));
         }
     }
+    if has(given, "--imu-topic") && !camera_bag && !dvl_bag {
+        return refuse(format!(
+            "--imu-topic chooses the sensor_msgs/Imu topic of a bag; no input here is a bag \
+             (camera data from {camera}, DVL log {dvl}): drop --imu-topic"
+        ));
+    }
     if has(given, "--bag-time") && !camera_bag && !dvl_bag {
         return refuse(format!(
             "--bag-time chooses the times of a bag's messages; no input here is a bag (camera \

@@ -30,6 +30,9 @@ pub struct BagArgs {
     /// Child frame whose transforms on a tf2_msgs/TFMessage topic are the camera's poses.
     #[arg(long, value_name = "FRAME")]
     pub pose_frame: Option<String>,
+    /// IMU topic of a bag (sensor_msgs/Imu), when the bag holds more than one.
+    #[arg(long, value_name = "TOPIC")]
+    pub imu_topic: Option<String>,
     /// Times of a bag's messages: header (header.stamp; a zero stamp falls back to the record
     /// time, with a warning) or record (when the recorder received them; for the DVL this is
     /// --dvl-time host).
@@ -45,6 +48,7 @@ impl BagArgs {
             dvl_topic,
             pose_topic: self.pose_topic.clone(),
             pose_frame: self.pose_frame.clone(),
+            imu_topic: self.imu_topic.clone(),
             time: self.bag_time,
         }
     }
@@ -66,12 +70,7 @@ pub struct ImageBagArgs {
 impl ImageBagArgs {
     /// The library's options: the image topics and their time, no pose or DVL topic.
     pub fn options(&self) -> BagOptions {
-        let (image_topics, time) = (self.image_topics.clone(), self.bag_time);
-        BagOptions {
-            image_topics,
-            time,
-            ..BagOptions::default()
-        }
+        BagOptions::images_only(self.image_topics.clone(), self.bag_time)
     }
 }
 

@@ -7,13 +7,15 @@
 //! `.db3` file; [`Bag::open`] takes any of these, and a ROS 1 `.bag`.
 //!
 //! A bag as a dataset: [`open`] gives its topics their parts ([`roles`]), [`frames`] plans its
-//! image topics as stereo frames, [`poses`] reads a pose topic, [`camera_info`] a camera model,
-//! [`image`] turns image messages into grey images, and [`info`] lists it for `dvlcal bag-info`.
+//! image topics as stereo frames, [`poses`] reads a pose topic, [`imu`] an IMU topic,
+//! [`camera_info`] a camera model, [`image`] turns image messages into grey images, and
+//! [`info`] lists it for `dvlcal bag-info`.
 
 pub mod camera_info;
 pub mod cdr;
 pub mod frames;
 pub mod image;
+pub mod imu;
 pub mod info;
 pub mod mcap;
 pub mod open;

@@ -13,13 +13,15 @@
 //!   driver), `waterlinked_a50_ros_driver/DVL`, `geometry_msgs/TwistWithCovarianceStamped`, and
 //!   `nav_msgs/Odometry` on a topic whose name says `dvl` (the ROS 2 driver's `~/odom`). Two
 //!   topics of the best kind present are an error naming both.
+//! - IMU: `sensor_msgs/Imu`, when the bag holds exactly one such topic; two or more are an error
+//!   naming them all (raised when the IMU is read; a listing notes it).
 //! - poses: `geometry_msgs/PoseStamped`, `PoseWithCovarianceStamped`, `TransformStamped`,
 //!   `nav_msgs/Odometry` and `tf2_msgs/TFMessage` (the latter with a child frame named), but not
 //!   the topics in the DVL's own namespace (the driver's dead reckoning and odometry). Two
 //!   candidates are an error naming both.
 //!
-//! Whatever the user names (`--image-topics`, `--dvl-topic`, `--pose-topic`) wins, and must
-//! exist with a type that can play the part.
+//! Whatever the user names (`--image-topics`, `--dvl-topic`, `--pose-topic`, `--imu-topic`)
+//! wins, and must exist with a type that can play the part.
 
 use std::fmt;
 use std::str::FromStr;
@@ -36,6 +38,18 @@ pub enum BagTime {
     Header,
     /// The record time: when the recorder received the message (tens of ms late).
     Record,
+}
+
+impl BagOptions {
+    /// The options of a command that reads a bag's images only: the image topics (cam0 first)
+    /// and their time, no other topic named.
+    pub fn images_only(image_topics: Option<Vec<String>>, time: BagTime) -> BagOptions {
+        BagOptions {
+            image_topics,
+            time,
+            ..BagOptions::default()
+        }
+    }
 }
 
 impl FromStr for BagTime {
@@ -72,6 +86,8 @@ pub struct BagOptions {
     /// The child frame whose transforms are the poses, for `tf2_msgs/TFMessage` topics
     /// (`--pose-frame`).
     pub pose_frame: Option<String>,
+    /// The IMU topic (`--imu-topic`), when the bag holds more than one `sensor_msgs/Imu`.
+    pub imu_topic: Option<String>,
     /// Header stamps or record times (`--bag-time`).
     pub time: BagTime,
 }
@@ -103,6 +119,8 @@ pub enum Kind {
     Transform,
     /// `tf2_msgs/TFMessage`.
     Tf,
+    /// `sensor_msgs/Imu`.
+    Imu,
 }
 
 impl Kind {
@@ -120,6 +138,7 @@ impl Kind {
             "geometry_msgs/PoseWithCovarianceStamped" => Kind::PoseCov,
             "geometry_msgs/TransformStamped" => Kind::Transform,
             "tf2_msgs/TFMessage" => Kind::Tf,
+            "sensor_msgs/Imu" => Kind::Imu,
             t if t == "waterlinked_a50_ros_driver/DVL" || t.ends_with("/DVL") => Kind::A50Dvl,
             _ => return None,
         })
@@ -163,6 +182,8 @@ pub struct Roles {
     pub dvl: Option<usize>,
     /// The pose topic, looked for only when there are no images.
     pub pose: Option<usize>,
+    /// The IMU topic (`sensor_msgs/Imu`): the named one, or the only one.
+    pub imu: Option<usize>,
     /// How each choice was made, for the summary.
     pub notes: Vec<String>,
 }
@@ -398,6 +419,39 @@ pub fn choose_pose(
     }
 }
 
+/// The IMU topic: the named one (which must be a `sensor_msgs/Imu`), or the only
+/// `sensor_msgs/Imu` topic; `None` when the bag has none. Two or more, none named, are an error
+/// listing them and asking for `--imu-topic`.
+pub fn choose_imu(topics: &[Topic], named: Option<&str>) -> Result<Option<usize>> {
+    if let Some(n) = named {
+        let Some(i) = find(topics, n) else {
+            return Err(Error::Input(format!(
+                "--imu-topic {n}: no such topic (topics: {})",
+                topic_list(topics)
+            )));
+        };
+        if kind(&topics[i]) != Some(Kind::Imu) {
+            return Err(Error::Input(format!(
+                "--imu-topic {n} has type {}; an IMU topic is sensor_msgs/Imu",
+                topics[i].type_name()
+            )));
+        }
+        return Ok(Some(i));
+    }
+    let cands: Vec<usize> = (0..topics.len())
+        .filter(|&i| kind(&topics[i]) == Some(Kind::Imu))
+        .collect();
+    match cands.as_slice() {
+        [] => Ok(None),
+        [one] => Ok(Some(*one)),
+        _ => Err(Error::Input(format!(
+            "{} sensor_msgs/Imu topics: {}; choose one with --imu-topic",
+            cands.len(),
+            listing(topics, &cands)
+        ))),
+    }
+}
+
 /// Assigns the roles: images (with their `CameraInfo`), DVL, and poses when there are no
 /// images. Nothing found for a role is not an error here (the caller knows what it needs).
 pub fn assign(topics: &[Topic], opts: &BagOptions) -> Result<Roles> {
@@ -418,6 +472,15 @@ pub fn assign(topics: &[Topic], opts: &BagOptions) -> Result<Roles> {
     } else {
         None
     };
+    // As for the DVL: two IMU topics are the IMU reader's error; a named one missing is one now.
+    let imu = match choose_imu(topics, opts.imu_topic.as_deref()) {
+        Ok(i) => i,
+        Err(e) if opts.imu_topic.is_none() => {
+            notes.push(e.to_string());
+            None
+        }
+        Err(e) => return Err(e),
+    };
     let camera_info = images.iter().map(|&i| camera_info_for(topics, i)).collect();
     if let Some(d) = dvl {
         let others: Vec<usize> = (0..topics.len())
@@ -436,6 +499,7 @@ pub fn assign(topics: &[Topic], opts: &BagOptions) -> Result<Roles> {
         camera_info,
         dvl,
         pose,
+        imu,
         notes,
     })
 }
@@ -453,6 +517,9 @@ pub fn role_name(roles: &Roles, i: usize) -> String {
     }
     if roles.pose == Some(i) {
         return "camera poses".into();
+    }
+    if roles.imu == Some(i) {
+        return "IMU".into();
     }
     "-".into()
 }
@@ -542,6 +609,50 @@ mod tests {
         assert!(e.contains("/vio/pose") && e.contains("/vio/odom"), "{e}");
         assert!(choose_pose(&topics, Some("/nope"), None).is_err());
         assert!(choose_dvl(&topics, Some("/vio/pose")).is_err());
+    }
+
+    #[test]
+    fn the_imu_is_found_by_type_and_two_are_an_error_naming_them() {
+        let topics = vec![
+            t("/imu/temperature", "sensor_msgs/msg/Temperature"),
+            t("/vn100/data", "sensor_msgs/msg/Imu"),
+        ];
+        assert_eq!(choose_imu(&topics, None).unwrap(), Some(1));
+        let r = assign(&topics, &BagOptions::default()).unwrap();
+        assert_eq!((r.imu, role_name(&r, 1).as_str()), (Some(1), "IMU"));
+        let topics = vec![
+            t("/imu0/data", "sensor_msgs/Imu"),
+            t("/chatter", "std_msgs/String"),
+            t("/imu1/data", "sensor_msgs/Imu"),
+        ];
+        let e = choose_imu(&topics, None).unwrap_err().to_string();
+        assert!(
+            e.contains("2 sensor_msgs/Imu topics")
+                && e.contains("/imu0/data")
+                && e.contains("/imu1/data")
+                && e.contains("--imu-topic"),
+            "{e}"
+        );
+        // Left for the reader to raise: a listing notes it.
+        let r = assign(&topics, &BagOptions::default()).unwrap();
+        assert_eq!(r.imu, None);
+        assert!(
+            r.notes.iter().any(|n| n.contains("--imu-topic")),
+            "{:?}",
+            r.notes
+        );
+        assert_eq!(choose_imu(&topics, Some("/imu1/data")).unwrap(), Some(2));
+        let e = choose_imu(&topics, Some("/chatter"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("std_msgs/String"), "{e}");
+        let named = BagOptions {
+            imu_topic: Some("/imu2/data".into()),
+            ..BagOptions::default()
+        };
+        let e = assign(&topics, &named).unwrap_err().to_string();
+        assert!(e.contains("--imu-topic /imu2/data: no such topic"), "{e}");
+        assert_eq!(choose_imu(&topics[1..2], None).unwrap(), None);
     }
 
     #[test]

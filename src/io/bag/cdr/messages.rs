@@ -207,6 +207,33 @@ ros_messages! {
         beam_velocity_covar: [f32; 4] = f32_array("Dvl.beam_velocity_covar"),
     }
 
+    /// `sensor_msgs/msg/Imu` (ROS 1 `sensor_msgs/Imu`, the same fields):
+    /// `std_msgs/Header header`, `geometry_msgs/Quaternion orientation`,
+    /// `float64[9] orientation_covariance`, `geometry_msgs/Vector3 angular_velocity`,
+    /// `float64[9] angular_velocity_covariance`, `geometry_msgs/Vector3 linear_acceleration`,
+    /// `float64[9] linear_acceleration_covariance`. The covariances are row-major 3x3 about the
+    /// x, y, z axes; by ROS's convention all zeros means "unknown" and a first element of -1
+    /// means "not provided" (an IMU without an orientation estimate says so in
+    /// `orientation_covariance[0]`).
+    #[derive(Clone, Debug, PartialEq)]
+    pub struct Imu = "sensor_msgs/msg/Imu" {
+        /// Stamp (the time of the measurement) and the IMU's frame.
+        header: Header = message,
+        /// The IMU's orientation estimate, when it gives one.
+        orientation: Quaternion = message,
+        /// Row-major 3x3 covariance of the orientation, rad^2.
+        orientation_covariance: [f64; 9] = f64_array("Imu.orientation_covariance"),
+        /// Angular velocity, rad/s, IMU frame.
+        angular_velocity: Vector3 = message,
+        /// Row-major 3x3 covariance of the angular velocity, (rad/s)^2.
+        angular_velocity_covariance: [f64; 9] = f64_array("Imu.angular_velocity_covariance"),
+        /// Linear acceleration (specific force: gravity included), m/s^2, IMU frame.
+        linear_acceleration: Vector3 = message,
+        /// Row-major 3x3 covariance of the linear acceleration, (m/s^2)^2.
+        linear_acceleration_covariance: [f64; 9] =
+            f64_array("Imu.linear_acceleration_covariance"),
+    }
+
     /// `sensor_msgs/msg/RegionOfInterest`: `uint32 x_offset`, `uint32 y_offset`, `uint32 height`,
     /// `uint32 width`, `bool do_rectify`.
     #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

@@ -36,8 +36,8 @@ mod reader;
 
 pub use header::{Header, Time, decode_header};
 pub use messages::{
-    CameraInfo, CompressedImage, CompressedImageView, Dvl, Image, ImageView, Odometry, Point, Pose,
-    PoseStamped, PoseWithCovariance, PoseWithCovarianceStamped, Quaternion, RegionOfInterest,
+    CameraInfo, CompressedImage, CompressedImageView, Dvl, Image, ImageView, Imu, Odometry, Point,
+    Pose, PoseStamped, PoseWithCovariance, PoseWithCovarianceStamped, Quaternion, RegionOfInterest,
     StringMsg, TfMessage, Transform, TransformStamped, Twist, TwistWithCovariance,
     TwistWithCovarianceStamped, Vector3,
 };
