@@ -37,8 +37,9 @@ pub struct ImuOptions {
     /// Knots per interval between poses (1: knots at the pose times only); `None`: as many as
     /// put knots about 25 ms apart (4 for poses at 10 Hz, 1 for motion capture at 100 Hz).
     pub knots_per_pose: Option<usize>,
-    /// Estimate the factors by which the stated gyro and accelerometer noise are off from the
-    /// residuals (their redundancy-weighted chi-square) and use them (`false`: as stated).
+    /// Estimate the factors by which the stated gyro and accelerometer noise are too small from
+    /// the residuals (their chi-square over their redundancy) and use them (`false`: as
+    /// stated). The factors are at least 1.
     pub estimate_noise: bool,
     /// The longest span of IMU samples averaged into one bin, s.
     pub bin_width_s: f64,
@@ -48,6 +49,8 @@ pub struct ImuOptions {
     pub max_offset_s: f64,
     /// Gauss-Newton iterations at most.
     pub max_iterations: usize,
+    /// The motion prior's jerk density is the pose-only fit's times this.
+    pub density_factor: f64,
 }
 
 impl Default for ImuOptions {
@@ -60,6 +63,7 @@ impl Default for ImuOptions {
             bias_spacing_s: 10.0,
             max_offset_s: 0.5,
             max_iterations: 30,
+            density_factor: 1.0,
         }
     }
 }
@@ -144,6 +148,7 @@ pub fn calibrate_camera_imu(
             f.iter().flat_map(|x| std::iter::repeat_n(*x, per)).collect(),
         )
     };
+    let density = density.scaled(opts.density_factor);
     let stated: Vec<_> = bins.iter().map(|b| bin_information(b, noise)).collect();
     let mut joint = solve::ImuJoint {
         times: times.clone(),
@@ -159,9 +164,12 @@ pub fn calibrate_camera_imu(
         // Two rounds: the first factor moves the solution a little, the second settles it.
         for _ in 0..2 {
             let (chi_g, red_g, chi_a, red_a) = joint.redundancy(&sol.knots, &sol.state)?;
+            // Only ever inflated: a chi-square below its redundancy says more about the motion
+            // prior (a smooth motion lets the knots absorb the residuals) than about the IMU,
+            // whose stated noise is a floor.
             let (fg, fa) = (
-                factor.0 * (chi_g / red_g.max(1.0)).sqrt(),
-                factor.1 * (chi_a / red_a.max(1.0)).sqrt(),
+                (factor.0 * (chi_g / red_g.max(1.0)).sqrt()).max(1.0),
+                (factor.1 * (chi_a / red_a.max(1.0)).sqrt()).max(1.0),
             );
             factor = (fg, fa);
             joint.info = stated
