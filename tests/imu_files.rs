@@ -80,20 +80,21 @@ fn a_real_euroc_stream_reads_with_its_stamps_values_and_units() {
     assert!((log.samples[1].t - first - 4.999936e-3).abs() < 1e-12);
     assert!((last - first - 2.995000064).abs() < 1e-12);
     // The first row's values, bit for bit as the text gives them.
+    let num = |t: &str| t.parse::<f64>().unwrap();
     let s0 = &log.samples[0];
-    assert_eq!(
-        s0.gyro,
-        Vector3::new(
-            0.030019663134302467,
-            -0.11379546723003027,
-            0.072605696882964116
-        )
-    );
-    assert_eq!(
-        s0.accel,
-        Vector3::new(5.475379583333333, 0.40043820833333332, -1.1522813749999998)
-    );
-    assert_eq!(log.samples[599].gyro.x, -0.52010811709431026);
+    let gyro = [
+        "0.030019663134302467",
+        "-0.11379546723003027",
+        "0.072605696882964116",
+    ];
+    let accel = [
+        "5.475379583333333",
+        "0.40043820833333332",
+        "-1.1522813749999998",
+    ];
+    assert_eq!(s0.gyro, Vector3::from(gyro.map(num)));
+    assert_eq!(s0.accel, Vector3::from(accel.map(num)));
+    assert_eq!(log.samples[599].gyro.x, num("-0.52010811709431026"));
     // Not refused on units, and the figures that say so.
     assert!((st.rate_hz - 200.0).abs() < 0.01, "{}", st.rate_hz);
     assert!(
@@ -574,4 +575,63 @@ fn a_bad_imu_rate_is_refused_before_anything_is_written() {
     // --imu-rate alone is a usage error (it needs --imu).
     let r = dvlcal(&["simulate", "--out", s(&d), "--imu-rate", "100"]);
     assert_eq!(r.status.code(), Some(2));
+}
+
+#[test]
+fn loading_a_dataset_reads_and_checks_its_imu_and_notes_a_bad_one() {
+    use dvlcal::io::dvl::DvlReadOptions;
+    use dvlcal::pipeline::{Dataset, VisionOptions, dataset_files};
+    let tmp = TmpDir::new("imu-load");
+    let d = tmp.path("sim");
+    let r = dvlcal(&["simulate", "--out", s(&d), "--duration", "6", "--imu"]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let load = || {
+        let files = dataset_files(Some(&d), &DatasetOverrides::default()).unwrap();
+        Dataset::load(
+            files,
+            &VisionOptions::default(),
+            &DvlReadOptions::default(),
+            &mut |_| {},
+        )
+        .expect("the dataset loads")
+    };
+    let data = load();
+    let imu = data.imu.as_ref().expect("the IMU stream read");
+    // On the poses' epoch: camera time 0 is the epoch, the IMU 5 ms behind.
+    assert_eq!(imu.epoch, dvlcal::time::Epoch { sec: 1_700_000_000 });
+    let truth = read_imu_truth(&d.join("truth/imu.yaml")).unwrap();
+    assert_eq!(imu.samples.len(), truth.samples);
+    assert!(
+        (imu.samples[0].t + 0.005).abs() < 1e-9,
+        "{}",
+        imu.samples[0].t
+    );
+    assert_eq!(
+        data.imu_noise.as_ref().map(|n| n.noise.update_rate),
+        Some(200.0)
+    );
+    let notes = data.notes.join("\n");
+    let want = format!("{} IMU samples at 200.0 Hz", truth.samples);
+    assert!(notes.contains(&want), "{notes}");
+    assert!(
+        notes.contains("the calibration does not use it yet"),
+        "{notes}"
+    );
+    // The same stream in deg/s: left out with the reason, the dataset still loads.
+    let rows: Vec<String> = std::fs::read_to_string(d.join("imu0/data.csv"))
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|r| map_row(r, |k, v| if k <= 3 { v * DEG_PER_RAD } else { v }))
+        .collect();
+    let mut text = format!("{EUROC_IMU_HEADER}\n");
+    text.push_str(&rows.join("\n"));
+    std::fs::write(d.join("imu0/data.csv"), text).unwrap();
+    let data = load();
+    assert!(data.imu.is_none());
+    let notes = data.notes.join("\n");
+    assert!(
+        notes.contains("IMU stream not used: ") && notes.contains("degrees per second"),
+        "{notes}"
+    );
 }

@@ -484,15 +484,16 @@ fn saturation(samples: &[ImuSample], lines: &[usize]) -> (usize, usize, Vec<Satu
     let mut hit = vec![false; samples.len()];
     let mut runs = Vec::new();
     let mut count = 0;
-    for sensor in 0..2 {
+    for (sensor, floor) in SATURATION_FLOOR.iter().enumerate() {
+        let axes = 3 * sensor..3 * sensor + 3;
         let full = samples
             .iter()
-            .flat_map(|s| (0..3).map(move |k| axis_value(s, 3 * sensor + k).abs()))
+            .flat_map(|s| axes.clone().map(move |k| axis_value(s, k).abs()))
             .fold(0.0, f64::max);
-        if full < SATURATION_FLOOR[sensor] {
+        if full < *floor {
             continue;
         }
-        for axis in 3 * sensor..3 * sensor + 3 {
+        for (axis, name) in AXES.iter().enumerate().skip(3 * sensor).take(3) {
             let mut start = 0;
             while start < samples.len() {
                 let v = axis_value(&samples[start], axis);
@@ -505,7 +506,7 @@ fn saturation(samples: &[ImuSample], lines: &[usize]) -> (usize, usize, Vec<Satu
                     hit[start..end].iter_mut().for_each(|h| *h = true);
                     if runs.len() < MAX_LISTED {
                         runs.push(SaturatedRun {
-                            axis: AXES[axis],
+                            axis: name,
                             value: v,
                             lines: (lines[start], lines[end - 1]),
                             samples: end - start,
