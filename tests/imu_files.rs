@@ -518,7 +518,15 @@ fn simulate_and_check(tmp: &TmpDir, name: &str, extra: &[&str], rate: f64) {
         "{start} vs {t0}"
     );
     let end = cam(log.samples.last().unwrap().t);
-    assert!(end <= t1 + 1e-9 && end > t1 - 1.0 / rate, "{end} vs {t1}");
+    assert!(
+        end <= t1 + 1e-9 && end > t1 - 1.0 / rate + 1e-9,
+        "{end} vs {t1}"
+    );
+    // A span whose end falls on an IMU tick ends on it (8 s - 5 ms at 100 Hz does not).
+    let ticks = (t1 - truth.imu_time_offset_s) * rate;
+    if (ticks - ticks.round()).abs() < 1e-6 {
+        assert!((end - t1).abs() < 1e-9, "{end} vs {t1}");
+    }
     // One bias row per sample, at the samples' times, starting at the truth's first biases.
     let bias = read_imu_bias_csv(&d.join("truth/imu_bias.csv"), log.epoch).unwrap();
     assert_eq!(bias.len(), truth.samples);
