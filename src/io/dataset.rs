@@ -16,6 +16,11 @@
 //! like A50 output (or a ROS1 bag) is a DVL log; a text file whose lines hold eight numbers is a
 //! TUM pose file (with the covariances of `POSES.frames.csv` beside it, when there is one). When
 //! two files compete for one role the error names both.
+//!
+//! An IMU is optional: its stream is `imu0/data.csv` (EuRoC's `mav0/imu0/data.csv`), its noise
+//! a YAML holding Kalibr's four noise keys (`imu.yaml`; at the top level or under `imu0`), or
+//! else EuRoC's `imu0/sensor.yaml` beside the stream. A YAML with only some of the noise keys
+//! is listed as ignored with the keys it lacks.
 
 use std::path::{Path, PathBuf};
 
@@ -25,6 +30,7 @@ use crate::io::bag::roles::BagOptions;
 use crate::io::dvl::detect::detect_format;
 use crate::io::dvl::{DvlFormat, json, serial, text_lines};
 use crate::io::frames_csv::frames_csv_path;
+use crate::io::imu::noise::{noise_keys_in, without_opencv_directive};
 
 /// What was found in (or given for) a dataset.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -45,6 +51,10 @@ pub struct DatasetFiles {
     /// The bag giving the camera data (images or poses), when neither image folders nor a
     /// pose file do. (A bag giving only the DVL data is in `dvl`.)
     pub bag: Option<PathBuf>,
+    /// The IMU stream (EuRoC's IMU CSV, `imu0/data.csv` or `mav0/imu0/data.csv`).
+    pub imu: Option<PathBuf>,
+    /// The IMU's noise (Kalibr's `imu.yaml`, or EuRoC's `imu0/sensor.yaml`).
+    pub imu_noise: Option<PathBuf>,
     /// Which topics of a bag play which part, and which time to use.
     pub bag_options: BagOptions,
     /// Files looked at and not used, with the reason (for the summary).
@@ -52,8 +62,8 @@ pub struct DatasetFiles {
 }
 
 impl DatasetFiles {
-    /// The input files (camchain, target, DVL log, pose file and its covariance table): what no
-    /// output may overwrite.
+    /// The input files (camchain, target, DVL log, pose file and its covariance table, bag,
+    /// IMU stream and noise): what no output may overwrite.
     pub fn inputs(&self) -> Vec<PathBuf> {
         [
             &self.camchain,
@@ -62,6 +72,8 @@ impl DatasetFiles {
             &self.poses,
             &self.pose_covariances(),
             &self.bag,
+            &self.imu,
+            &self.imu_noise,
         ]
         .into_iter()
         .flatten()
@@ -95,6 +107,8 @@ impl DatasetFiles {
             dvl: Some(given.dvl.clone().unwrap_or_else(|| bag.to_path_buf())),
             poses: given.poses.clone(),
             bag: (given.images.is_none() && given.poses.is_none()).then(|| bag.to_path_buf()),
+            imu: None,
+            imu_noise: None,
             bag_options: given.bag_options.clone(),
             ignored: Vec::new(),
         }
@@ -128,6 +142,7 @@ enum Role {
     Dvl,
     Poses,
     Bag,
+    ImuNoise,
 }
 
 impl Role {
@@ -138,6 +153,7 @@ impl Role {
             Role::Dvl => "DVL log",
             Role::Poses => "pose file (TUM)",
             Role::Bag => "bag",
+            Role::ImuNoise => "IMU noise (Kalibr imu.yaml)",
         }
     }
 }
@@ -185,6 +201,7 @@ fn yaml_role(path: &Path) -> Result<std::result::Result<Role, String>> {
         .and_then(|c| c.as_mapping());
     let cam0_has =
         |k: &str| cam0.is_some_and(|c| c.contains_key(serde_yaml::Value::String(k.into())));
+    let (noise_found, noise_missing) = noise_keys_in(&value);
     Ok(if cam0_has("T_cam_dvl") {
         Err("a camchain-imucam with the DVL (dvlcal output)".into())
     } else if cam0_has("intrinsics") {
@@ -195,6 +212,14 @@ fn yaml_role(path: &Path) -> Result<std::result::Result<Role, String>> {
         Ok(Role::Target)
     } else if has("T_cam_dvl") {
         Err("a calibration result".into())
+    } else if noise_missing.is_empty() {
+        Ok(Role::ImuNoise)
+    } else if noise_found.len() >= 2 {
+        Err(format!(
+            "IMU noise keys ({}) without {}",
+            noise_found.join(", "),
+            noise_missing.join(", ")
+        ))
     } else {
         Err("YAML of no known kind".into())
     })
@@ -248,7 +273,43 @@ fn data_role(path: &Path) -> Result<std::result::Result<Role, String>> {
     if looks_like_tum(&bytes) {
         return Ok(Ok(Role::Poses));
     }
+    let first = String::from_utf8_lossy(&bytes[..bytes.len().min(512)]).into_owned();
+    if first.trim_start().starts_with('#') && first.contains("w_RS_S_x") {
+        return Ok(Err(
+            "an IMU CSV (EuRoC's header): the IMU stream is read from imu0/data.csv".into(),
+        ));
+    }
     Ok(Err("not a known data file".into()))
+}
+
+/// The IMU stream of `dir`: `imu0/data.csv` or EuRoC's `mav0/imu0/data.csv` (both: an error
+/// naming them).
+fn find_imu(dir: &Path) -> Result<Option<PathBuf>> {
+    let all: Vec<PathBuf> = [dir.join("imu0"), dir.join("mav0").join("imu0")]
+        .into_iter()
+        .map(|d| d.join("data.csv"))
+        .filter(|p| p.is_file())
+        .collect();
+    match all.as_slice() {
+        [] => Ok(None),
+        [one] => Ok(Some(one.clone())),
+        _ => Err(Error::Input(format!(
+            "{}: several files could be the IMU stream: {}; keep one",
+            dir.display(),
+            all.iter()
+                .map(|p| p.display().to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        ))),
+    }
+}
+
+/// EuRoC's `sensor.yaml` beside the IMU stream, when it holds the noise keys.
+fn sensor_yaml_noise(imu: &Path) -> Option<PathBuf> {
+    let p = imu.parent()?.join("sensor.yaml");
+    let text = crate::files::read_text(&p).ok()?;
+    let value: serde_yaml::Value = serde_yaml::from_str(&without_opencv_directive(&text)).ok()?;
+    noise_keys_in(&value).1.is_empty().then_some(p)
 }
 
 /// Whether `dir` holds images in a layout the image reader knows.
@@ -332,6 +393,27 @@ pub fn discover(dir: &Path, given: &DatasetOverrides) -> Result<DatasetFiles> {
     found.camchain = pick(Role::Camchain, &given.camchain)?;
     found.target = pick(Role::Target, &given.target)?;
     found.dvl = pick(Role::Dvl, &given.dvl)?;
+    found.imu = find_imu(dir)?;
+    let noise: Vec<&PathBuf> = candidates
+        .iter()
+        .filter(|(r, _)| *r == Role::ImuNoise)
+        .map(|(_, p)| p)
+        .collect();
+    found.imu_noise = match noise.as_slice() {
+        [] => found.imu.as_deref().and_then(sensor_yaml_noise),
+        [one] => Some((*one).clone()),
+        many => {
+            return Err(Error::Input(format!(
+                "{}: several files could be the {}: {}; keep one",
+                dir.display(),
+                Role::ImuNoise.name(),
+                many.iter()
+                    .map(|p| p.display().to_string())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )));
+        }
+    };
     found.bag_options = given.bag_options.clone();
     let bag = pick(Role::Bag, &given.bag)?;
 

@@ -14,6 +14,7 @@ pub mod frames;
 pub mod frames_csv;
 pub mod image;
 pub mod images;
+pub mod imu;
 pub mod provenance;
 pub mod target;
 pub mod times;

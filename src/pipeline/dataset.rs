@@ -12,6 +12,8 @@ use crate::io::camchain::read_camchain;
 use crate::io::dataset::{DatasetFiles, DatasetOverrides, discover};
 use crate::io::dvl::{DvlLog, DvlReadOptions, read_dvl_log};
 use crate::io::frames_csv::{frames_csv_path, read_tum_with_covariances};
+use crate::io::imu::noise::{ImuNoiseFile, read_imu_noise};
+use crate::io::imu::{ImuLog, read_imu_csv};
 use crate::io::tum::{CameraClockStep, CameraSegment};
 use crate::types::PoseMeasurement;
 use crate::types::camera::Camchain;
@@ -68,6 +70,8 @@ pub fn dataset_files(dir: Option<&Path>, given: &DatasetOverrides) -> Result<Dat
         dvl: Some(dvl.clone()),
         poses: given.poses.clone(),
         bag: None,
+        imu: None,
+        imu_noise: None,
         bag_options: given.bag_options.clone(),
         ignored: Vec::new(),
     })
@@ -92,6 +96,13 @@ pub fn describe_files(f: &DatasetFiles) -> String {
         show(&f.target),
         show(&f.dvl)
     );
+    if f.imu.is_some() || f.imu_noise.is_some() {
+        s.push_str(&format!(
+            "  IMU {}, IMU noise {}\n",
+            show(&f.imu),
+            show(&f.imu_noise)
+        ));
+    }
     for (p, why) in &f.ignored {
         s.push_str(&format!("  ignored {}: {why}\n", p.display()));
     }
@@ -109,6 +120,53 @@ fn chain_from_same_images(run: &mut VisionRun, calibrated: bool) {
         run.board_size = BoardSize::BaselineFromBoard;
     }
     run.focal.iter_mut().for_each(|f| *f = None);
+}
+
+/// The dataset's IMU files read and checked, what was found said in `notes`: a file that cannot
+/// be used is left out with a note saying why (the calibration does not use the IMU yet).
+fn read_imu_files(
+    files: &DatasetFiles,
+    epoch: crate::time::Epoch,
+    notes: &mut Vec<String>,
+) -> (Option<ImuLog>, Option<ImuNoiseFile>) {
+    let unused = "the IMU is read and checked; the calibration does not use it yet";
+    let imu = files
+        .imu
+        .as_deref()
+        .and_then(|p| match read_imu_csv(p, Some(epoch)) {
+            Ok(log) => {
+                notes.extend(log.summary());
+                Some(log)
+            }
+            Err(e) => {
+                notes.push(format!("IMU stream not used: {e}"));
+                None
+            }
+        });
+    let noise = files
+        .imu_noise
+        .as_deref()
+        .and_then(|p| match read_imu_noise(p) {
+            Ok(n) => {
+                notes.push(format!(
+                    "{}: IMU noise: gyro {} rad/s/sqrt(Hz), accelerometer {} m/s^2/sqrt(Hz) at \
+                     {} Hz",
+                    p.display(),
+                    n.noise.gyroscope_noise_density,
+                    n.noise.accelerometer_noise_density,
+                    n.noise.update_rate
+                ));
+                Some(n)
+            }
+            Err(e) => {
+                notes.push(format!("IMU noise not used: {e}"));
+                None
+            }
+        });
+    if files.imu.is_some() || files.imu_noise.is_some() {
+        notes.push(unused.into());
+    }
+    (imu, noise)
 }
 
 /// A dataset read into memory: the camera poses and the DVL log on one epoch.
@@ -138,6 +196,11 @@ pub struct Dataset {
     /// The camera clock's steps back in a pose file (found in file order; images and bags are
     /// read in time order, where a step cannot be seen).
     pub camera_clock_steps: Vec<CameraClockStep>,
+    /// The IMU stream, read on the poses' epoch and checked, when the folder has one (the
+    /// calibration does not use it yet; a stream that cannot be used is a note, not an error).
+    pub imu: Option<ImuLog>,
+    /// The IMU's noise file, when the folder has one.
+    pub imu_noise: Option<ImuNoiseFile>,
     /// The camera clock's segments of a pose file (one when it did not step; none for images
     /// and bags): the poses of each later segment follow the one before by a frame's interval.
     pub camera_segments: Vec<CameraSegment>,
@@ -306,7 +369,10 @@ impl Dataset {
                 p.explain()
             )));
         }
+        let (imu, imu_noise) = read_imu_files(&files, epoch, &mut notes);
         Ok(Dataset {
+            imu,
+            imu_noise,
             files,
             poses,
             vision: run,

@@ -51,7 +51,10 @@ pub use evaluate::{
     Baseline, CrossValidation, baselines, cross_validate, odometry_check, odometry_table,
 };
 pub use outputs::{CameraOutputs, RESULT_EXPORTS, check_result_outputs};
-pub use simulate::{ImageRequest, SimulateRequest, SimulatedRecording, write_simulated_dataset};
+pub use simulate::{
+    ImageRequest, SimulateRequest, SimulatedRecording, simulated_imu_config,
+    write_simulated_dataset, write_simulated_imu,
+};
 pub use vision::{
     MAX_REPROJECTION_RMS_PX, VisionOptions, VisionRun, detector_settings, frames_csv_path,
     posed_frames, poses_from_bag, poses_from_images, poses_from_images_with_chain,

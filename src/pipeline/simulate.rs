@@ -11,6 +11,11 @@
 //! the DVL samples' camera times); with images `poses_board.txt` (`T_board_cam0`),
 //! `board_in_world.txt` (`T_world_board`) and `poses_noisy.txt` (the poses a pose-only run would
 //! have had).
+//!
+//! With an IMU ([`write_simulated_imu`]): `imu0/data.csv` (EuRoC's IMU CSV, on the IMU clock)
+//! and `imu.yaml` (Kalibr's noise file) beside the data; `truth/imu.yaml` (`T_cam_imu`, the IMU
+//! clock offset, gravity, the first biases, the sample count and noise) and
+//! `truth/imu_bias.csv` (the biases at every sample).
 
 use std::path::{Path, PathBuf};
 
@@ -20,16 +25,20 @@ use crate::error::{Error, Result};
 use crate::io::calib_yaml::{CalibrationFile, CalibrationInfo, write_calib_yaml};
 use crate::io::camchain::camchain_yaml;
 use crate::io::dvl::a50::write_a50_jsonl;
+use crate::io::imu::noise::write_kalibr_imu_yaml;
+use crate::io::imu::truth::{ImuTruth, write_imu_bias_csv, write_imu_truth};
+use crate::io::imu::write_imu_csv;
 use crate::io::target::board_yaml;
 use crate::io::tum::write_tum;
 use crate::io::twist_csv::{TwistRow, write_twist_csv};
 use crate::io::write_atomic;
 use crate::lie::Se3;
 use crate::sim::a50::a50_reports;
-use crate::sim::dataset::{SimConfig, SimDataset, simulate};
+use crate::sim::dataset::{SimConfig, SimDataset, build_motion, simulate};
 use crate::sim::image_dataset::{
     FrameSpec, ImageSimSettings, ImageSimStats, board_facing, write_image_dataset,
 };
+use crate::sim::imu::{ImuSimConfig, SimImu, simulate_imu};
 use crate::sim::motion::MotionState;
 use crate::types::board::Board;
 use crate::types::camera::Camchain;
@@ -81,6 +90,42 @@ pub struct SimulatedRecording {
     pub dataset: SimDataset,
     /// The image part, when images were rendered.
     pub images: Option<ImageSimStats>,
+}
+
+impl SimulatedRecording {
+    /// What was written to `out`, a line each: the poses and DVL reports, then the images.
+    pub fn describe(&self, out: &Path, req: &SimulateRequest) -> Vec<String> {
+        let ds = &self.dataset;
+        let mut lines = vec![format!(
+            "wrote {}: {} poses, {} DVL reports over {:.1} s (seed {})",
+            out.display(),
+            ds.poses.len(),
+            ds.dvl.len(),
+            req.config.duration_s,
+            req.config.seed
+        )];
+        if let (Some(stats), Some(im)) = (&self.images, &req.images) {
+            let visible = stats
+                .board_fully_visible
+                .iter()
+                .enumerate()
+                .map(|(i, n)| format!("cam{i} {n}"))
+                .collect::<Vec<_>>()
+                .join(", ");
+            lines.push(format!(
+                "wrote {} images of {} ({} frames x {} cameras) in {:.1} s ({:.0} ms per frame); \
+                 whole board in view: {}",
+                stats.images,
+                im.board.description,
+                stats.frames,
+                im.chain.cams.len(),
+                stats.seconds,
+                1e3 * stats.seconds / stats.frames.max(1) as f64,
+                visible
+            ));
+        }
+        lines
+    }
 }
 
 fn truth_rows(states: &[MotionState], times: impl Iterator<Item = f64>) -> Vec<TwistRow> {
@@ -209,4 +254,72 @@ fn board_in_world_text(t: &Se3) -> String {
          {:.9} {:.9} {:.9} {:.9} {:.9} {:.9} {:.9}\n",
         t.trans.x, t.trans.y, t.trans.z, q[0], q[1], q[2], q[3]
     )
+}
+
+/// The IMU of a dataset [`write_simulated_dataset`] wrote to `out` from `config`: the IMU `imu`
+/// on the same motion (rebuilt from `config`), sampled on its own clock over the camera poses'
+/// span, written as `imu0/data.csv` and `imu.yaml`, with `truth/imu.yaml` and
+/// `truth/imu_bias.csv`. The IMU's noise and bias walk draw from streams of `config.seed` of
+/// their own, so the rest of the dataset is the same with or without it.
+pub fn write_simulated_imu(
+    out: &Path,
+    config: &SimConfig,
+    rec: &SimulatedRecording,
+    imu: &ImuSimConfig,
+) -> Result<SimImu> {
+    let ds = &rec.dataset;
+    let (Some(first), Some(last)) = (ds.poses.first(), ds.poses.last()) else {
+        return Err(Error::Input(
+            "the simulation produced no camera pose".into(),
+        ));
+    };
+    let motion = build_motion(config)?;
+    let sim = simulate_imu(motion.as_ref(), imu, first.t, last.t, config.seed)?;
+    create_dir(&out.join("imu0"))?;
+    write_imu_csv(&out.join("imu0").join("data.csv"), ds.epoch, &sim.samples)?;
+    write_kalibr_imu_yaml(&out.join("imu.yaml"), &imu.noise, "/imu0")?;
+    let truth_dir = out.join("truth");
+    create_dir(&truth_dir)?;
+    let truth = ImuTruth {
+        t_cam_imu: imu.t_cam_imu,
+        imu_time_offset_s: imu.time_offset_s,
+        gravity_world: imu.gravity_world,
+        bias_start: sim.bias.first().copied().unwrap_or(imu.initial_bias),
+        samples: sim.samples.len(),
+        noise: imu.noise,
+    };
+    write_imu_truth(&truth_dir.join("imu.yaml"), &truth)?;
+    let rows: Vec<_> = sim
+        .samples
+        .iter()
+        .zip(&sim.bias)
+        .map(|(s, b)| (s.t, *b))
+        .collect();
+    write_imu_bias_csv(&truth_dir.join("imu_bias.csv"), ds.epoch, &rows)?;
+    Ok(sim)
+}
+
+/// The simulated IMU of `dvlcal simulate --imu`: [`ImuSimConfig::default_truth`] sampled at
+/// `rate_hz` (`--imu-rate`), checked before anything is written: a rate that is not positive,
+/// above 10 kHz, or that would make more than [`crate::sim::dataset::MAX_SAMPLES`] samples over
+/// `duration_s` is refused, naming the option.
+pub fn simulated_imu_config(rate_hz: f64, duration_s: f64) -> Result<ImuSimConfig> {
+    if !(rate_hz.is_finite() && rate_hz > 0.0 && rate_hz <= 1e4) {
+        return Err(Error::option(
+            "--imu-rate",
+            format!("must be a rate in Hz above 0 and at most 10000, got {rate_hz}"),
+        ));
+    }
+    if rate_hz * duration_s > crate::sim::dataset::MAX_SAMPLES {
+        return Err(Error::option(
+            "--imu-rate",
+            format!(
+                "{rate_hz} Hz over {duration_s} s would make more than {} samples",
+                crate::sim::dataset::MAX_SAMPLES
+            ),
+        ));
+    }
+    let mut cfg = ImuSimConfig::default_truth();
+    cfg.noise.update_rate = rate_hz;
+    Ok(cfg)
 }

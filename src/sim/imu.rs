@@ -111,8 +111,10 @@ pub fn simulate_imu(
         cfg.noise.gyroscope_random_walk * dt.sqrt(),
         cfg.noise.accelerometer_random_walk * dt.sqrt(),
     );
-    let first = ((t0 - cfg.time_offset_s) * rate).ceil() as i64;
-    let last = ((t1 - cfg.time_offset_s) * rate).floor() as i64;
+    // A tick on an end of the span counts though rounding puts it a hair outside
+    // (`(10 - 0.005) * 200` is 1998.9999999999998).
+    let first = ((t0 - cfg.time_offset_s) * rate - 1e-6).ceil() as i64;
+    let last = ((t1 - cfg.time_offset_s) * rate + 1e-6).floor() as i64;
     if last < first {
         return Err(Error::Input(format!(
             "simulated IMU: no sample between {t0} s and {t1} s"

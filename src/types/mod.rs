@@ -4,6 +4,7 @@
 pub mod board;
 pub mod camera;
 pub mod imu;
+pub mod imu_units;
 
 use nalgebra::{Matrix3, Matrix6, Vector3};
 

@@ -10,7 +10,10 @@ use std::path::PathBuf;
 use dvlcal::io::calib_yaml::read_calib_yaml;
 use dvlcal::io::camchain::read_camchain;
 use dvlcal::io::target::read_board;
-use dvlcal::pipeline::{ImageRequest, SimulateRequest, write_simulated_dataset};
+use dvlcal::pipeline::{
+    ImageRequest, SimulateRequest, simulated_imu_config, write_simulated_dataset,
+    write_simulated_imu,
+};
 use dvlcal::sim::dataset::{MotionKind, SimConfig};
 use dvlcal::sim::image_dataset::{
     DEFAULT_BOARD_DISTANCE_M, ImageSimSettings, default_board, default_stereo_camchain,
@@ -98,6 +101,12 @@ pub struct SimulateArgs {
     /// Worker threads for the images (0: one per core; at most 4 per core, 256 in all).
     #[arg(long, requires = "images", default_value_t = 0)]
     pub threads: usize,
+    /// Also simulate an IMU: imu0/data.csv and imu.yaml, its truth in truth/imu.yaml.
+    #[arg(long)]
+    pub imu: bool,
+    /// IMU samples per second, Hz.
+    #[arg(long, requires = "imu", default_value_t = 200.0, value_name = "HZ")]
+    pub imu_rate: f64,
 }
 
 pub fn run(a: SimulateArgs) -> Result<()> {
@@ -143,7 +152,11 @@ pub fn run(a: SimulateArgs) -> Result<()> {
     if let Some(k) = a.velocity_scale {
         cfg.truth.velocity_scale = k;
     }
-    // Read the image inputs before writing anything.
+    // Read the image inputs and check the IMU's before writing anything.
+    let imu = a
+        .imu
+        .then(|| simulated_imu_config(a.imu_rate, a.duration))
+        .transpose()?;
     let images = if a.images {
         let mut settings = ImageSimSettings {
             seed: a.seed,
@@ -186,32 +199,16 @@ pub fn run(a: SimulateArgs) -> Result<()> {
         }
     };
     let rec = write_simulated_dataset(&a.out, &req, &progress)?;
-    let ds = &rec.dataset;
-    println!(
-        "wrote {}: {} poses, {} DVL reports over {:.1} s (seed {})",
-        a.out.display(),
-        ds.poses.len(),
-        ds.dvl.len(),
-        a.duration,
-        a.seed
-    );
-    if let (Some(stats), Some(im)) = (&rec.images, &req.images) {
-        let visible = stats
-            .board_fully_visible
-            .iter()
-            .enumerate()
-            .map(|(i, n)| format!("cam{i} {n}"))
-            .collect::<Vec<_>>()
-            .join(", ");
+    rec.describe(&a.out, &req)
+        .iter()
+        .for_each(|l| println!("{l}"));
+    if let Some(cfg) = &imu {
+        let sim = write_simulated_imu(&a.out, &req.config, &rec, cfg)?;
         println!(
-            "wrote {} images of {} ({} frames x {} cameras) in {:.1} s ({:.0} ms per frame); whole board in view: {}",
-            stats.images,
-            im.board.description,
-            stats.frames,
-            im.chain.cams.len(),
-            stats.seconds,
-            1e3 * stats.seconds / stats.frames.max(1) as f64,
-            visible
+            "wrote {} IMU samples at {} Hz to imu0/data.csv, noise in imu.yaml, truth in \
+             truth/imu.yaml",
+            sim.samples.len(),
+            cfg.noise.update_rate
         );
     }
     Ok(())
