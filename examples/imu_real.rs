@@ -17,7 +17,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
         let f: Vec<&str> = line.split(',').map(str::trim).collect();
         let ns: i128 = f[0].parse()?;
-        let v: Vec<f64> = f[1..7].iter().map(|x| x.parse()).collect::<Result<_, _>>()?;
+        let v: Vec<f64> = f[1..7]
+            .iter()
+            .map(|x| x.parse())
+            .collect::<Result<_, _>>()?;
         samples.push(ImuSample {
             t: (ns - epoch_ns) as f64 * 1e-9,
             gyro: Vector3::new(v[0], v[1], v[2]),
@@ -43,14 +46,29 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         },
     )?;
     let (sr, sl, so) = est.std();
-    println!("time {:.1}s iterations {} converged {}", t0.elapsed().as_secs_f64(), est.iterations, est.converged);
+    println!(
+        "time {:.1}s iterations {} converged {}",
+        t0.elapsed().as_secs_f64(),
+        est.iterations,
+        est.converged
+    );
     println!("T_cam_imu rot:\n{}", est.state.t_cam_imu.rot);
-    println!("lever {:?} std mm {:?}", est.state.t_cam_imu.trans.as_slice(), (sl * 1e3).as_slice());
+    println!(
+        "lever {:?} std mm {:?}",
+        est.state.t_cam_imu.trans.as_slice(),
+        (sl * 1e3).as_slice()
+    );
     println!("offset {:.5} s std {:.5}", est.state.time_offset_s, so);
     println!("rot std deg {:?}", sr.map(f64::to_degrees).as_slice());
     println!("gravity {:?}", est.state.gravity_world().as_slice());
     println!("bias0 {:?}", est.state.bias.values[0]);
     let m = 6.0 * est.bins_used as f64;
-    println!("cost {:.0} over {} residuals (ratio {:.2}); noise factors {:?}", est.cost, m, est.cost / m, est.noise_factor);
+    println!(
+        "cost {:.0} over {} residuals (ratio {:.2}); noise factors {:?}",
+        est.cost,
+        m,
+        est.cost / m,
+        est.noise_factor
+    );
     Ok(())
 }

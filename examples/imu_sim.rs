@@ -37,7 +37,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let opts = ImuOptions {
             knots_per_pose: per,
             bin_width_s: width,
-            density_factor: std::env::var("QCF").ok().and_then(|s| s.parse().ok()).unwrap_or(1.0),
+            density_factor: std::env::var("QCF")
+                .ok()
+                .and_then(|s| s.parse().ok())
+                .unwrap_or(1.0),
             ..ImuOptions::default()
         };
         let est = calibrate_camera_imu(&data.poses, &imu.samples, &imu_cfg.noise, &opts)?;
@@ -56,15 +59,34 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
         println!(
             "{seed:4}  {:6.2} {:6.2} {:6.2}   {:6.2} {:6.2} {:6.2}   {:6.2}   {:3} {:5.2}s  std rot {:.4} deg lever {:.2} mm off {:.3} ms; bins {}/{} noise x{:.2} x{:.2}",
-            r[0], r[1], r[2], r[3], r[4], r[5], r[6], est.iterations, dt,
-            srot.norm().to_degrees(), slev.norm() * 1e3, soff * 1e3, est.bins_used, est.bins_total, est.noise_factor.0, est.noise_factor.1
+            r[0],
+            r[1],
+            r[2],
+            r[3],
+            r[4],
+            r[5],
+            r[6],
+            est.iterations,
+            dt,
+            srot.norm().to_degrees(),
+            slev.norm() * 1e3,
+            soff * 1e3,
+            est.bins_used,
+            est.bins_total,
+            est.noise_factor.0,
+            est.noise_factor.1
         );
     }
     let n = (last - first + 1) as f64;
     println!(
         "RMS err/std: rot {:.2} {:.2} {:.2}  lever {:.2} {:.2} {:.2}  offset {:.2}",
-        (sums[0] / n).sqrt(), (sums[1] / n).sqrt(), (sums[2] / n).sqrt(),
-        (sums[3] / n).sqrt(), (sums[4] / n).sqrt(), (sums[5] / n).sqrt(), (sums[6] / n).sqrt()
+        (sums[0] / n).sqrt(),
+        (sums[1] / n).sqrt(),
+        (sums[2] / n).sqrt(),
+        (sums[3] / n).sqrt(),
+        (sums[4] / n).sqrt(),
+        (sums[5] / n).sqrt(),
+        (sums[6] / n).sqrt()
     );
     Ok(())
 }

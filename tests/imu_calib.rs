@@ -2,16 +2,21 @@
 //! and on a real recording no one here made (EuRoC's VI-Sensor, whose camera-IMU extrinsics its
 //! authors published and whose camera and IMU are stamped by one clock).
 
+mod tmp_common;
+
 use std::path::Path;
 
 use dvlcal::calib::imu::{ImuOptions, calibrate_camera_imu};
+use dvlcal::io::calib_yaml::read_calib_yaml;
 use dvlcal::io::frames_csv::read_tum_with_covariances;
 use dvlcal::io::imu::noise::read_imu_noise;
 use dvlcal::io::imu::read_imu_csv;
+use dvlcal::io::imu::truth::read_imu_truth;
 use dvlcal::lie::so3;
 use dvlcal::sim::imu::{ImuSimConfig, simulate_imu};
 use dvlcal::sim::{MotionKind, SimConfig, build_motion, simulate_with};
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::{Matrix3, Matrix4, Vector3};
+use tmp_common::{TmpDir, dvlcal, s};
 
 /// Over 20 seeds of 60 s (poses at 10 Hz, a 200 Hz IMU with walking biases), each error over
 /// its own std, pooled per quantity: the RMS of a standard normal over `n` draws lies within
@@ -76,9 +81,21 @@ fn errors_match_their_std_over_twenty_seeds() {
         1e3 * std_sum[1] / n,
         1e3 * std_sum[2] / n
     );
-    assert!((0.81..=1.3).contains(&rms[0]), "rotation err/std RMS {}", rms[0]);
-    assert!((0.81..=1.3).contains(&rms[1]), "lever arm err/std RMS {}", rms[1]);
-    assert!((0.69..=1.3).contains(&rms[2]), "offset err/std RMS {}", rms[2]);
+    assert!(
+        (0.81..=1.3).contains(&rms[0]),
+        "rotation err/std RMS {}",
+        rms[0]
+    );
+    assert!(
+        (0.81..=1.3).contains(&rms[1]),
+        "lever arm err/std RMS {}",
+        rms[1]
+    );
+    assert!(
+        (0.69..=1.3).contains(&rms[2]),
+        "offset err/std RMS {}",
+        rms[2]
+    );
     // And the bound itself is tight: a tenth of a degree, a few millimetres, a fraction of a ms.
     assert!(std_sum[0] / n < 0.05 && std_sum[1] / n < 0.005 && std_sum[2] / n < 0.001);
 }
@@ -86,13 +103,18 @@ fn errors_match_their_std_over_twenty_seeds() {
 /// Rows of a 4x4 matrix under `key:` in a small YAML file, read as text (the test's own
 /// reading of a fixture: no dvlcal code involved).
 fn matrix_rows(text: &str, key: &str) -> [[f64; 4]; 4] {
-    let mut lines = text.lines().skip_while(|l| !l.starts_with(&format!("{key}:")));
+    let mut lines = text
+        .lines()
+        .skip_while(|l| !l.starts_with(&format!("{key}:")));
     lines.next();
     let mut out = [[0.0; 4]; 4];
     for row in &mut out {
         let l = lines.next().expect("row");
         let inner = l.trim().trim_start_matches("- [").trim_end_matches(']');
-        let v: Vec<f64> = inner.split(',').map(|x| x.trim().parse().expect("number")).collect();
+        let v: Vec<f64> = inner
+            .split(',')
+            .map(|x| x.trim().parse().expect("number"))
+            .collect();
         row.copy_from_slice(&v);
     }
     out
@@ -117,7 +139,9 @@ fn euroc_t_cam_imu_agrees_with_the_published_one_and_its_clock_offset_is_zero() 
     let r_pub = Matrix3::from_fn(|i, j| m[i][j]);
     let p_pub = Vector3::new(m[0][3], m[1][3], m[2][3]);
     let (s_rot, s_lever, s_off) = est.std();
-    let angle = so3::log(&(r_pub.transpose() * est.state.t_cam_imu.rot)).norm().to_degrees();
+    let angle = so3::log(&(r_pub.transpose() * est.state.t_cam_imu.rot))
+        .norm()
+        .to_degrees();
     let lever = (est.state.t_cam_imu.trans - p_pub).norm();
     eprintln!(
         "rotation {angle:.3} deg from the published (std {:.3}), lever arm {:.1} mm (std {:.2}), \
@@ -129,12 +153,108 @@ fn euroc_t_cam_imu_agrees_with_the_published_one_and_its_clock_offset_is_zero() 
         s_off * 1e3,
         est.noise_factor
     );
-    assert!(angle <= 3.0 * s_rot.norm().to_degrees() + 0.343, "rotation {angle} deg");
-    assert!(lever <= 3.0 * s_lever.norm() + 0.00775, "lever arm {lever} m");
-    assert!(est.state.time_offset_s.abs() <= 3.0 * s_off, "offset {}", est.state.time_offset_s);
+    assert!(
+        angle <= 3.0 * s_rot.norm().to_degrees() + 0.343,
+        "rotation {angle} deg"
+    );
+    assert!(
+        lever <= 3.0 * s_lever.norm() + 0.00775,
+        "lever arm {lever} m"
+    );
+    assert!(
+        est.state.time_offset_s.abs() <= 3.0 * s_off,
+        "offset {}",
+        est.state.time_offset_s
+    );
     // The real IMU scatters more than its data sheet's white noise (vibration, the motion's
     // finer detail): the std are scaled by what the residuals show, not taken as stated.
-    assert!(est.noise_factor.0 > 2.0 && est.noise_factor.1 > 2.0, "{:?}", est.noise_factor);
+    assert!(
+        est.noise_factor.0 > 2.0 && est.noise_factor.1 > 2.0,
+        "{:?}",
+        est.noise_factor
+    );
     // Gravity comes out at its magnitude, and the rig's accelerometer bias is small.
     assert!(est.state.bias.values[0].accel.norm() < 0.3);
+}
+
+/// Through the command line: `simulate --imu` writes a recording with an IMU, `calibrate`
+/// finds the IMU's files in the folder and writes `T_cam_imu`, its clock offset, gravity, the
+/// biases, and the IMU's std and verdicts beside the DVL's; each within 4 std of the truth.
+#[test]
+fn calibrate_writes_the_imus_calibration_beside_the_dvls() {
+    let tmp = TmpDir::new("imu-cli");
+    let data = tmp.path("rec");
+    let out = dvlcal(&[
+        "simulate",
+        "--imu",
+        "--duration",
+        "60",
+        "--seed",
+        "4",
+        "--out",
+        s(&data),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let result = tmp.path("r.yaml");
+    let out = dvlcal(&["calibrate", s(&data), "--out", s(&result)]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(stdout.contains("imu lever p_cam_imu"), "{stdout}");
+    let file = read_calib_yaml(&result).expect("result");
+    let truth = read_imu_truth(&data.join("truth/imu.yaml")).expect("truth");
+    let m = file.t_cam_imu.expect("T_cam_imu");
+    let t = dvlcal::lie::Se3::from_matrix(&Matrix4::from_fn(|i, j| m[i][j]));
+    let std = file
+        .std
+        .as_ref()
+        .and_then(|s| s.imu.clone())
+        .expect("std.imu");
+    let obs = file
+        .observability
+        .as_ref()
+        .and_then(|o| o.imu.clone())
+        .expect("observability.imu");
+    assert_eq!(obs.rotation, dvlcal::io::calib_yaml::Observability::Ok);
+    let rot = so3::log(&(truth.t_cam_imu.rot.transpose() * t.rot));
+    for i in 0..3 {
+        assert!(
+            rot[i].to_degrees().abs() < 4.0 * std.rotation_deg[i],
+            "rotation {i}: {rot}"
+        );
+        let e = t.trans[i] - truth.t_cam_imu.trans[i];
+        assert!(e.abs() < 4.0 * std.lever_arm_m[i], "lever arm {i}: {e}");
+    }
+    let off = file.imu_time_offset_s.expect("offset") - truth.imu_time_offset_s;
+    assert!(off.abs() < 4.0 * std.time_offset_s, "offset {off}");
+    let g = file.imu_gravity_world_mps2.expect("gravity");
+    assert!(
+        (Vector3::from(g) - truth.gravity_world).norm() < 0.05,
+        "{g:?}"
+    );
+    let b = file.imu_bias_start.expect("biases");
+    assert!((Vector3::from(b.gyro_radps) - truth.bias_start.gyro).norm() < 1e-3);
+    let info = file.info.expect("info");
+    assert_eq!(info.figures.imu_samples, Some(truth.samples));
+
+    // The stream without its noise file: the DVL is calibrated, the IMU is not, and the
+    // result's warnings say why.
+    std::fs::remove_file(data.join("imu.yaml")).expect("remove imu.yaml");
+    let out = dvlcal(&["calibrate", s(&data), "--out", s(&result), "--force"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let file = read_calib_yaml(&result).expect("result");
+    assert!(file.t_cam_imu.is_none());
+    let warnings = file.info.map(|i| i.warnings.join("\n")).unwrap_or_default();
+    assert!(warnings.contains("without a noise file"), "{warnings}");
 }

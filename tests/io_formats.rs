@@ -496,12 +496,14 @@ fn calib_yaml_round_trip() {
         time_offset_s: Some(0.0004),
         velocity_scale: None,
         clock_drift_ppm: None,
+        imu: None,
     });
     file.observability = Some(ObservabilityFlags {
         rotation: Observability::Ok,
         lever_arm: Observability::Weak,
         time_offset: Observability::Prior,
         velocity_scale: Observability::Fixed,
+        imu: None,
     });
     let mut info = CalibrationInfo {
         method: Some("continuous-time batch".to_string()),

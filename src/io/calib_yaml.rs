@@ -5,7 +5,10 @@
 //! `quaternion_cam_dvl_xyzw`, `lever_arm_cam_m` (the translation of `T_cam_dvl`),
 //! `time_offset_s` (`t_cam = t_dvl + time_offset_s`), `velocity_scale`, with `--clock-drift`
 //! `clock_drift_ppm` and `clock_reference_t_dvl_s` (`t_cam = t_dvl + time_offset_s + 1e-6
-//! clock_drift_ppm (t_dvl - clock_reference_t_dvl_s)`), then the optional `std`,
+//! clock_drift_ppm (t_dvl - clock_reference_t_dvl_s)`), with an IMU calibrated `T_cam_imu`,
+//! `imu_time_offset_s` (`t_cam = t_imu + imu_time_offset_s`), `imu_gravity_world_mps2` and
+//! `imu_bias_start` (the IMU's std and verdicts under `imu` in `std` and `observability`),
+//! then the optional `std`,
 //! `observability`, `info` and `provenance` sections.
 
 use std::collections::BTreeMap;
@@ -45,6 +48,41 @@ pub struct CalibrationStd {
     /// Standard deviation of `clock_drift_ppm`, ppm, when the drift was estimated.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub clock_drift_ppm: Option<f64>,
+    /// The IMU's, when one was calibrated.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub imu: Option<ImuStd>,
+}
+
+/// Standard deviations of the IMU's calibration.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ImuStd {
+    /// Rotation of `T_cam_imu`, degrees, about the IMU frame's x, y, z axes (a right
+    /// perturbation of `R_cam_imu`).
+    pub rotation_deg: [f64; 3],
+    /// Lever arm `p_cam_imu`, metres, camera frame.
+    pub lever_arm_m: [f64; 3],
+    /// `imu_time_offset_s`, s.
+    pub time_offset_s: f64,
+}
+
+/// What determined each of the IMU's quantities, and how well.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ImuObservability {
+    /// The rotation of `T_cam_imu`.
+    pub rotation: Observability,
+    /// Its translation.
+    pub lever_arm: Observability,
+    /// `imu_time_offset_s`.
+    pub time_offset: Observability,
+}
+
+/// The IMU's biases at the start of the recording.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ImuBiasFile {
+    /// Gyro bias, rad/s, IMU frame.
+    pub gyro_radps: [f64; 3],
+    /// Accelerometer bias, m/s^2, IMU frame.
+    pub accel_mps2: [f64; 3],
 }
 
 /// What determined a quantity, and how well.
@@ -88,6 +126,9 @@ pub struct ObservabilityFlags {
     pub time_offset: Observability,
     /// Observability of the DVL velocity scale factor.
     pub velocity_scale: Observability,
+    /// The IMU's, when one was calibrated.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub imu: Option<ImuObservability>,
 }
 
 /// Free-form information about how the result was obtained.
@@ -204,6 +245,20 @@ fn take<T: DeserializeOwned>(
 }
 
 run_figures! {
+    /// The IMU's sample file, when an IMU was calibrated.
+    imu_file: String,
+    /// IMU samples read.
+    imu_samples: usize,
+    /// Bins of IMU samples inside the camera's span, used.
+    imu_bins_used: usize,
+    /// Bins in all.
+    imu_bins: usize,
+    /// The factor the stated gyro noise density was multiplied by (at least 1).
+    imu_noise_factor_gyro: f64,
+    /// The factor the stated accelerometer noise density was multiplied by (at least 1).
+    imu_noise_factor_accel: f64,
+    /// Gauss-Newton iterations of the IMU's last solution.
+    imu_iterations: usize,
     /// How the camchain was obtained, when the cameras were calibrated from the same images.
     camchain_source: String,
     /// Camera poses given.
@@ -391,6 +446,19 @@ pub struct CalibrationFile {
     /// seconds): `time_offset_s` is the offset there.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub clock_reference_t_dvl_s: Option<f64>,
+    /// `T_cam_imu`, when an IMU was calibrated: maps IMU-frame points into the camera frame;
+    /// rows of the 4x4 matrix.
+    #[serde(rename = "T_cam_imu", default, skip_serializing_if = "Option::is_none")]
+    pub t_cam_imu: Option<[[f64; 4]; 4]>,
+    /// `t_cam = t_imu + imu_time_offset_s`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub imu_time_offset_s: Option<f64>,
+    /// Gravity in the world (board) frame as the IMU measured it, m/s^2.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub imu_gravity_world_mps2: Option<[f64; 3]>,
+    /// The IMU's biases at the start of the recording.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub imu_bias_start: Option<ImuBiasFile>,
     /// Standard deviations of the estimated quantities (optional `std` section).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub std: Option<CalibrationStd>,
@@ -406,7 +474,8 @@ pub struct CalibrationFile {
     pub provenance: Option<Provenance>,
 }
 
-fn rows(m: &Matrix4<f64>) -> [[f64; 4]; 4] {
+/// The rows of a 4x4 matrix, as the result file lists them.
+pub fn rows(m: &Matrix4<f64>) -> [[f64; 4]; 4] {
     let mut r = [[0.0; 4]; 4];
     for (i, row) in r.iter_mut().enumerate() {
         for (j, x) in row.iter_mut().enumerate() {
@@ -467,6 +536,10 @@ impl CalibrationFile {
             velocity_scale: p.velocity_scale,
             clock_drift_ppm: None,
             clock_reference_t_dvl_s: None,
+            t_cam_imu: None,
+            imu_time_offset_s: None,
+            imu_gravity_world_mps2: None,
+            imu_bias_start: None,
             std: None,
             observability: None,
             info: None,
@@ -584,6 +657,23 @@ fn to_yaml(path: &Path, c: &CalibrationFile) -> Result<String> {
     if let Some(t) = c.clock_reference_t_dvl_s {
         let _ = writeln!(s, "clock_reference_t_dvl_s: {t:?}");
     }
+    if let Some(m) = &c.t_cam_imu {
+        let _ = writeln!(s, "T_cam_imu:");
+        for row in m {
+            let _ = writeln!(s, "  - {}", flow(row));
+        }
+    }
+    if let Some(t) = c.imu_time_offset_s {
+        let _ = writeln!(s, "imu_time_offset_s: {t:?}");
+    }
+    if let Some(g) = &c.imu_gravity_world_mps2 {
+        let _ = writeln!(s, "imu_gravity_world_mps2: {}", flow(g));
+    }
+    if let Some(b) = &c.imu_bias_start {
+        let _ = writeln!(s, "imu_bias_start:");
+        let _ = writeln!(s, "  gyro_radps: {}", flow(&b.gyro_radps));
+        let _ = writeln!(s, "  accel_mps2: {}", flow(&b.accel_mps2));
+    }
 
     #[derive(Serialize)]
     struct Optional<'a> {
@@ -623,6 +713,18 @@ pub fn write_calib_yaml(path: &Path, c: &CalibrationFile) -> Result<()> {
         .chain(scalars.iter());
     if main.any(|x| !x.is_finite()) {
         return Err(super::non_finite(path, "a calibration value".to_string()));
+    }
+    let mut imu = c
+        .t_cam_imu
+        .iter()
+        .flatten()
+        .flatten()
+        .chain(c.imu_time_offset_s.iter());
+    if imu.any(|x| !x.is_finite()) {
+        return Err(super::non_finite(
+            path,
+            "an IMU calibration value".to_string(),
+        ));
     }
     let text = to_yaml(path, c)?;
     super::write_atomic(path, text.as_bytes())

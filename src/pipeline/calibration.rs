@@ -62,8 +62,19 @@ pub fn calibrate_dataset(
     };
     let (outcome, segments) =
         workers.install(|| calibrate_segments(&data.poses, &plan.parts, &plan.names, opts))?;
+    let mut imu_warnings = Vec::new();
+    let imu = workers.install(|| super::imu::calibrate_imu(data, &mut imu_warnings));
     let elapsed_s = start.elapsed().as_secs_f64();
     let mut file = result_file(&outcome, log);
+    if let Some(est) = &imu {
+        super::imu::note_imu(&mut file, est, data, &opts.weak);
+    }
+    if !imu_warnings.is_empty() {
+        file.info
+            .get_or_insert_with(Default::default)
+            .warnings
+            .extend(imu_warnings);
+    }
     plan.note(&mut file, &outcome, &segments, data);
     if let Some(cams) = &data.cameras {
         note_cameras(&mut file, cams);
@@ -401,6 +412,7 @@ pub fn result_file(o: &CalibrationOutcome, log: &DvlLog) -> CalibrationFile {
         time_offset_s: unless_fixed(&vd.time_offset, o.std.time_offset_s),
         velocity_scale: unless_fixed(&vd.velocity_scale, o.std.velocity_scale),
         clock_drift_ppm: o.clock_drift.as_ref().map(|d| d.std_ppm),
+        imu: None,
     });
     if let Some(d) = &o.clock_drift {
         f.clock_drift_ppm = Some(d.ppm);
@@ -411,6 +423,7 @@ pub fn result_file(o: &CalibrationOutcome, log: &DvlLog) -> CalibrationFile {
         lever_arm: flag(&o.verdicts.lever_arm),
         time_offset: flag(&o.verdicts.time_offset),
         velocity_scale: flag(&o.verdicts.velocity_scale),
+        imu: None,
     });
     let st = &log.stats;
     let worst = |w: &[crate::calib::robust::Outlier]| -> Option<Vec<WorstResidual>> {
@@ -919,6 +932,7 @@ impl CalibrationRun {
             o.iterations.len()
         );
         let _ = writeln!(out, "data      {}", o.usable_words());
+        out.push_str(&super::imu::summary_lines(&self.file));
         for w in self.file.info.iter().flat_map(|i| i.warnings.iter()) {
             let _ = writeln!(out, "warning: {w}");
         }

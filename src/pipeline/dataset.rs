@@ -123,13 +123,12 @@ fn chain_from_same_images(run: &mut VisionRun, calibrated: bool) {
 }
 
 /// The dataset's IMU files read and checked, what was found said in `notes`: a file that cannot
-/// be used is left out with a note saying why (the calibration does not use the IMU yet).
+/// be used is left out with a note saying why (the camera-IMU calibration then does not run).
 fn read_imu_files(
     files: &DatasetFiles,
     epoch: crate::time::Epoch,
     notes: &mut Vec<String>,
 ) -> (Option<ImuLog>, Option<ImuNoiseFile>) {
-    let unused = "the IMU is read and checked; the calibration does not use it yet";
     let imu = files
         .imu
         .as_deref()
@@ -163,9 +162,6 @@ fn read_imu_files(
                 None
             }
         });
-    if files.imu.is_some() || files.imu_noise.is_some() {
-        notes.push(unused.into());
-    }
     (imu, noise)
 }
 
@@ -196,8 +192,8 @@ pub struct Dataset {
     /// The camera clock's steps back in a pose file (found in file order; images and bags are
     /// read in time order, where a step cannot be seen).
     pub camera_clock_steps: Vec<CameraClockStep>,
-    /// The IMU stream, read on the poses' epoch and checked, when the folder has one (the
-    /// calibration does not use it yet; a stream that cannot be used is a note, not an error).
+    /// The IMU stream, read on the poses' epoch and checked, when the folder has one (a stream
+    /// that cannot be used is a note, not an error: the DVL's calibration runs without it).
     pub imu: Option<ImuLog>,
     /// The IMU's noise file, when the folder has one.
     pub imu_noise: Option<ImuNoiseFile>,

@@ -31,6 +31,7 @@ pub mod chain_order;
 mod dataset;
 mod evaluate;
 mod exports;
+mod imu;
 mod outputs;
 mod simulate;
 pub mod unused;

@@ -19,7 +19,8 @@ use crate::lie::{Se3, hat, se3_right_jacobian, se3_right_jacobian_inv, so3};
 use crate::trajectory::blocktri::{M18, V18};
 use crate::trajectory::factors::CoSensorFactors;
 use crate::trajectory::gp::{
-    Knot, LocalState, apply_scalar, first_local_state, interpolation_weights, motion_from_local_with,
+    Knot, LocalState, apply_scalar, first_local_state, interpolation_weights,
+    motion_from_local_with,
 };
 use crate::types::imu::{ImuNoise, imu_measurement};
 
@@ -266,7 +267,14 @@ mod tests {
     }
 
     /// The residual as a function of both knots and the calibration, evaluated from scratch.
-    fn residual(k1: &Knot, k2: &Knot, s: f64, dt: f64, bin: &ImuBin, st: &ImuState) -> Vector6<f64> {
+    fn residual(
+        k1: &Knot,
+        k2: &Knot,
+        s: f64,
+        dt: f64,
+        bin: &ImuBin,
+        st: &ImuState,
+    ) -> Vector6<f64> {
         bin_residual(k1, &local_gamma(k1, k2), s, dt, bin, st)
     }
 
@@ -301,8 +309,14 @@ mod tests {
                 - residual(&k1, &perturb(&k2, &(-d)), s, dt, &bin, &st))
                 / (2.0 * h);
             let (a1, a2) = (t.j1.column(i), t.j2.column(i));
-            assert!((a1 - num1).amax() < 1e-5 * (1.0 + num1.amax()), "knot 1 col {i}: {a1} vs {num1}");
-            assert!((a2 - num2).amax() < 1e-5 * (1.0 + num2.amax()), "knot 2 col {i}: {a2} vs {num2}");
+            assert!(
+                (a1 - num1).amax() < 1e-5 * (1.0 + num1.amax()),
+                "knot 1 col {i}: {a1} vs {num1}"
+            );
+            assert!(
+                (a2 - num2).amax() < 1e-5 * (1.0 + num2.amax()),
+                "knot 2 col {i}: {a2} vs {num2}"
+            );
         }
         for i in 0..9 {
             let mut d = nalgebra::DVector::zeros(st.dim());
@@ -311,14 +325,19 @@ mod tests {
             let sm = st.retract(&(-d.clone()));
             // The offset moves the bin's camera time.
             let (s_p, s_m) = if i == 6 { (s + h, s - h) } else { (s, s) };
-            let num = (residual(&k1, &k2, s_p, dt, &bin, &sp) - residual(&k1, &k2, s_m, dt, &bin, &sm))
+            let num = (residual(&k1, &k2, s_p, dt, &bin, &sp)
+                - residual(&k1, &k2, s_m, dt, &bin, &sm))
                 / (2.0 * h);
             let a = t.jth.column(i);
-            assert!((a - num).amax() < 1e-5 * (1.0 + num.amax()), "theta {i}: {a} vs {num}");
+            assert!(
+                (a - num).amax() < 1e-5 * (1.0 + num.amax()),
+                "theta {i}: {a} vs {num}"
+            );
         }
         // The interpolated pose agrees with the trajectory's own interpolation.
         let (lambda, omega, _) = interpolation_weights(s, dt);
-        let gamma = apply_scalar(&lambda, &first_local_state(&k1)) + apply_scalar(&omega, &ls.gamma);
+        let gamma =
+            apply_scalar(&lambda, &first_local_state(&k1)) + apply_scalar(&omega, &ls.gamma);
         let kk = knot_from_local(&k1.pose, &gamma);
         assert!(kk.pose.rot.iter().all(|x| x.is_finite()));
     }

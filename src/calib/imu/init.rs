@@ -100,9 +100,8 @@ pub fn initial_state(
         )));
     }
     let g = g_dir.normalize() * gravity;
-    let fixed = solve(Some(g)).ok_or_else(|| {
-        Error::Numerical("IMU initial lever arm: singular system".into())
-    })?;
+    let fixed = solve(Some(g))
+        .ok_or_else(|| Error::Numerical("IMU initial lever arm: singular system".into()))?;
     let lever = Vector3::new(fixed[0], fixed[1], fixed[2]);
     let accel_bias = q * Vector3::new(fixed[3], fixed[4], fixed[5]);
     let (t0, t1) = (

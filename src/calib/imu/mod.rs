@@ -145,7 +145,9 @@ pub fn calibrate_camera_imu(
         let f = traj.density().factors();
         JerkDensity::varying(
             traj.density().base(),
-            f.iter().flat_map(|x| std::iter::repeat_n(*x, per)).collect(),
+            f.iter()
+                .flat_map(|x| std::iter::repeat_n(*x, per))
+                .collect(),
         )
     };
     let density = density.scaled(opts.density_factor);

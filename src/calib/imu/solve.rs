@@ -215,16 +215,16 @@ impl ImuJoint<'_> {
             let (b0, b1) = (&st.bias.values[i], &st.bias.values[i + 1]);
             let r = [b1.gyro - b0.gyro, b1.accel - b0.accel];
             cost += wg * r[0].norm_squared() + wa * r[1].norm_squared();
-            for (part, w) in [(0usize, wg), (1, wa)] {
-                for x in 0..3 {
+            for (part, (w, d)) in [(wg, &r[0]), (wa, &r[1])].into_iter().enumerate() {
+                for (x, dx) in d.iter().enumerate() {
                     let c0 = NFIXED + 6 * i + 3 * part + x;
                     let c1 = c0 + 6;
                     hth[(c0, c0)] += w;
                     hth[(c1, c1)] += w;
                     hth[(c0, c1)] -= w;
                     hth[(c1, c0)] -= w;
-                    gth[c0] += w * r[part][x];
-                    gth[c1] -= w * r[part][x];
+                    gth[c0] += w * dx;
+                    gth[c1] -= w * dx;
                 }
             }
         }
@@ -334,7 +334,9 @@ impl ImuJoint<'_> {
             sig_xx.view_mut((0, 0), (18, 18)).copy_from(&sxx(k, k));
             sig_xx.view_mut((0, 18), (18, 18)).copy_from(&sxx(k, k + 1));
             sig_xx.view_mut((18, 0), (18, 18)).copy_from(&sxx(k + 1, k));
-            sig_xx.view_mut((18, 18), (18, 18)).copy_from(&sxx(k + 1, k + 1));
+            sig_xx
+                .view_mut((18, 18), (18, 18))
+                .copy_from(&sxx(k + 1, k + 1));
             let mut sig_xt = DMatrix::<f64>::zeros(36, 21);
             let mut sig_tt = DMatrix::<f64>::zeros(21, 21);
             for (a, &ca) in cols.iter().enumerate() {
@@ -348,7 +350,10 @@ impl ImuJoint<'_> {
             }
             let jt = DMatrix::from_column_slice(6, 21, jl.as_slice());
             let cross = &jx * &sig_xt * jt.transpose();
-            let p = &jx * sig_xx * jx.transpose() + &cross + cross.transpose() + &jt * sig_tt * jt.transpose();
+            let p = &jx * sig_xx * jx.transpose()
+                + &cross
+                + cross.transpose()
+                + &jt * sig_tt * jt.transpose();
             let w = &self.info[j];
             for r in 0..6 {
                 let (chi, red) = (w[r] * t.e[r] * t.e[r], 1.0 - w[r] * p[(r, r)]);
@@ -365,7 +370,12 @@ impl ImuJoint<'_> {
     }
 
     /// Gauss-Newton from `knots` and `st`.
-    pub fn solve(&self, mut knots: Vec<Knot>, mut st: ImuState, max_iterations: usize) -> Result<Solution> {
+    pub fn solve(
+        &self,
+        mut knots: Vec<Knot>,
+        mut st: ImuState,
+        max_iterations: usize,
+    ) -> Result<Solution> {
         let n = knots.len();
         let mut sys = BlockTridiagonal::zeros(n);
         let mut lin = self.linearise(&knots, &st, &mut sys);
