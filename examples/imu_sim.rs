@@ -22,6 +22,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let per: Option<usize> = args.get(3).and_then(|s| s.parse().ok());
     println!("seed  rot_err/std(x,y,z)       lever_err/std(x,y,z)     offset err/std  iters  time");
     let mut sums = [0.0f64; 7];
+    let mut err2 = [0.0f64; 3];
+    let mut stds = [0.0f64; 3];
     for seed in first..=last {
         let cfg = SimConfig {
             seed,
@@ -54,6 +56,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .chain((0..3).map(|i| lev_err[i] / slev[i]))
             .chain([off_err / soff])
             .collect();
+        err2[0] += rot_err.norm_squared().to_degrees().to_degrees() / 3.0;
+        err2[1] += lev_err.norm_squared() / 3.0;
+        err2[2] += off_err * off_err;
+        stds[0] += (srot.norm_squared() / 3.0).sqrt().to_degrees();
+        stds[1] += (slev.norm_squared() / 3.0).sqrt();
+        stds[2] += soff;
         for (s, x) in sums.iter_mut().zip(&r) {
             *s += x * x;
         }
@@ -87,6 +95,23 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         (sums[4] / n).sqrt(),
         (sums[5] / n).sqrt(),
         (sums[6] / n).sqrt()
+    );
+    println!(
+        "RMS error per axis: rotation {:.4} deg, lever arm {:.2} mm, offset {:.3} ms; mean std per axis: {:.4} deg, {:.2} mm, {:.3} ms",
+        (err2[0] / n).sqrt(),
+        1e3 * (err2[1] / n).sqrt(),
+        1e3 * (err2[2] / n).sqrt(),
+        stds[0] / n,
+        1e3 * stds[1] / n,
+        1e3 * stds[2] / n
+    );
+    let pooled =
+        |a: usize, b: usize| ((sums[a..b].iter().sum::<f64>()) / (n * (b - a) as f64)).sqrt();
+    println!(
+        "pooled err/std RMS: rotation {:.2}, lever arm {:.2}, offset {:.2}",
+        pooled(0, 3),
+        pooled(3, 6),
+        pooled(6, 7)
     );
     Ok(())
 }

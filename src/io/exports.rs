@@ -22,6 +22,7 @@ use nalgebra::{Matrix3, Matrix4};
 
 use crate::error::{Error, Result};
 use crate::io::calib_yaml::Observability;
+use crate::lie::Se3;
 use crate::types::CalibrationParams;
 
 /// What the exports say beside numbers the data did not measure: for each quantity that a prior
@@ -329,6 +330,115 @@ pub fn kalibr_camchain_imucam(
         let _ = writeln!(s, "  dvl_frame_id: {}", names.dvl);
     }
     s
+}
+
+/// An IMU calibrated beside the DVL, for the exports: its transform, clock offset and frame.
+#[derive(Clone, Debug)]
+pub struct ImuExport {
+    /// `T_cam_imu` (camera 0): maps IMU-frame points into the camera frame.
+    pub t_cam_imu: Se3,
+    /// `t_cam = t_imu + time_offset_s`.
+    pub time_offset_s: f64,
+    /// The IMU frame's name (`imu`).
+    pub frame: String,
+}
+
+/// The ROS static transform commands of `imu` (camera frame `camera` as parent), to append to
+/// [`ros_static_transform`]'s.
+pub fn ros_static_transform_imu(imu: &ImuExport, camera: &str) -> String {
+    let t = imu.t_cam_imu.trans;
+    let q = imu.t_cam_imu.quaternion_xyzw();
+    let [x, y, z, qx, qy, qz, qw] = [t.x, t.y, t.z, q[0], q[1], q[2], q[3]].map(fmt_f);
+    let child = &imu.frame;
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "# The IMU frame in the camera frame (T_cam_imu). ROS 1 (tf2_ros)"
+    );
+    let _ = writeln!(
+        s,
+        "rosrun tf2_ros static_transform_publisher {x} {y} {z} {qx} {qy} {qz} {qw} {camera} {child}"
+    );
+    let _ = writeln!(s, "# ROS 2 (tf2_ros)");
+    let _ = writeln!(
+        s,
+        "ros2 run tf2_ros static_transform_publisher --x {x} --y {y} --z {z} --qx {qx} --qy {qy} \
+         --qz {qz} --qw {qw} --frame-id {camera} --child-frame-id {child}"
+    );
+    let _ = writeln!(s, "# clock: t_cam = t_imu + {} s", fmt_f(imu.time_offset_s));
+    s
+}
+
+/// [`urdf_robot`]'s robot with the IMU's link and fixed joint (parent: the camera link) added.
+pub fn urdf_with_imu(urdf: &str, imu: &ImuExport, camera: &str) -> String {
+    let t = imu.t_cam_imu.trans;
+    let [roll, pitch, yaw] = rpy_from_rotation(&imu.t_cam_imu.rot).map(fmt_f);
+    let child = &imu.frame;
+    let mut add = String::new();
+    let _ = writeln!(add, "  <link name=\"{child}\"/>");
+    let _ = writeln!(add, "  <joint name=\"{camera}_to_{child}\" type=\"fixed\">");
+    let _ = writeln!(add, "    <parent link=\"{camera}\"/>");
+    let _ = writeln!(add, "    <child link=\"{child}\"/>");
+    let _ = writeln!(
+        add,
+        "    <!-- T_cam_imu; clock: t_cam = t_imu + {} s -->",
+        fmt_f(imu.time_offset_s)
+    );
+    let _ = writeln!(
+        add,
+        "    <origin xyz=\"{} {} {}\" rpy=\"{roll} {pitch} {yaw}\"/>",
+        fmt_f(t.x),
+        fmt_f(t.y),
+        fmt_f(t.z)
+    );
+    let _ = writeln!(add, "  </joint>");
+    match urdf.rfind("</robot>") {
+        Some(i) => format!("{}{add}{}", &urdf[..i], &urdf[i..]),
+        None => format!("{urdf}{add}"),
+    }
+}
+
+/// [`kalibr_camchain_imucam`]'s text with a real IMU in the IMU's place: each camera's
+/// `T_cam_imu` and `timeshift_cam_imu` become the IMU's (`T_camN_imu`, `t_imu = t_cam +
+/// timeshift`, so `-imu_time_offset_s`), while the DVL keeps dvlcal's own keys (`T_cam_dvl`,
+/// `timeshift_cam_dvl`), which Kalibr's readers ignore. `t_cn_c0` per camera, as given to
+/// [`kalibr_camchain_imucam`].
+pub fn camchain_imucam_with_imu(text: &str, imu: &ImuExport, t_cn_c0: &[Matrix4<f64>]) -> String {
+    let mut out = String::new();
+    // The plain file's first three lines say the DVL is in the IMU's place: not so here.
+    let _ = writeln!(
+        out,
+        "# dvlcal {}: camera chain, IMU and DVL in the form of Kalibr's camchain-imucam.yaml.\n\
+         # T_cam_imu maps IMU-frame points into camera n, timeshift_cam_imu: t_imu = t_cam +\n\
+         # timeshift (= -imu_time_offset_s). The DVL is under T_cam_dvl and timeshift_cam_dvl\n\
+         # (t_dvl = t_cam + timeshift = t_cam - time_offset_s), which Kalibr's readers ignore.\n\
+         # IMU frame: {}.",
+        env!("CARGO_PKG_VERSION"),
+        imu.frame
+    );
+    let mut lines = text.lines().skip(3).peekable();
+    let mut cam = 0usize;
+    while let Some(line) = lines.next() {
+        if let Some(n) = line.strip_prefix("cam").and_then(|r| r.strip_suffix(':')) {
+            cam = n.parse().unwrap_or(cam);
+        }
+        if line.trim_start() == "T_cam_imu:" {
+            let m = t_cn_c0.get(cam).copied().unwrap_or_else(Matrix4::identity)
+                * imu.t_cam_imu.to_matrix();
+            let _ = writeln!(out, "{line}");
+            for _ in 0..4 {
+                lines.next();
+            }
+            matrix_rows(&mut out, "  ", &m);
+            continue;
+        }
+        if line.trim_start().starts_with("timeshift_cam_imu:") {
+            let _ = writeln!(out, "  timeshift_cam_imu: {}", fmt_f(-imu.time_offset_s));
+            continue;
+        }
+        let _ = writeln!(out, "{line}");
+    }
+    out
 }
 
 /// Roll, pitch and yaw (radians) of `r` in URDF's and ROS's convention: rotations about the

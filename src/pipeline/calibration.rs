@@ -701,10 +701,25 @@ pub fn write_results(
         });
     }
     let notes = super::exports::export_notes(&run.outcome);
-    write_atomic(&tf, ros_static_transform(calib, &names, &notes).as_bytes())?;
-    write_atomic(&urdf, urdf_robot(calib, &names, &notes).as_bytes())?;
-    let text = kalibr_camchain_imucam(calib, &kalibr_cameras(data), &names, &notes);
-    write_atomic(&imucam, text.as_bytes())?;
+    let imu = super::imu::imu_export(&run.file);
+    let cams = kalibr_cameras(data);
+    let (mut tf_text, mut urdf_text, mut imucam_text) = (
+        ros_static_transform(calib, &names, &notes),
+        urdf_robot(calib, &names, &notes),
+        kalibr_camchain_imucam(calib, &cams, &names, &notes),
+    );
+    if let Some(imu) = &imu {
+        tf_text.push_str(&crate::io::exports::ros_static_transform_imu(
+            imu,
+            &names.camera,
+        ));
+        urdf_text = crate::io::exports::urdf_with_imu(&urdf_text, imu, &names.camera);
+        let t_cn_c0: Vec<_> = cams.iter().map(|c| c.t_cn_c0).collect();
+        imucam_text = crate::io::exports::camchain_imucam_with_imu(&imucam_text, imu, &t_cn_c0);
+    }
+    write_atomic(&tf, tf_text.as_bytes())?;
+    write_atomic(&urdf, urdf_text.as_bytes())?;
+    write_atomic(&imucam, imucam_text.as_bytes())?;
     Ok(ResultPaths {
         result: out.to_path_buf(),
         tf: Some(tf),

@@ -13,6 +13,7 @@ use crate::calib::options::WeakThresholds;
 use crate::io::calib_yaml::{
     CalibrationFile, ImuBiasFile, ImuObservability, ImuStd, Observability, rows,
 };
+use crate::io::exports::ImuExport;
 
 /// The camera-IMU calibration of `data`, when it has an IMU stream and a noise file; a
 /// warning (and `None`) when it has one without the other, or when the calibration fails (the
@@ -179,4 +180,14 @@ pub fn summary_lines(f: &CalibrationFile) -> String {
         words(obs.map(|o| o.time_offset))
     );
     out
+}
+
+/// The IMU of a result file, for the exports (frame `imu`); `None` without one.
+pub fn imu_export(f: &CalibrationFile) -> Option<ImuExport> {
+    let (m, off) = (f.t_cam_imu.as_ref()?, f.imu_time_offset_s?);
+    Some(ImuExport {
+        t_cam_imu: crate::lie::Se3::from_matrix(&nalgebra::Matrix4::from_fn(|i, j| m[i][j])),
+        time_offset_s: off,
+        frame: "imu".into(),
+    })
 }

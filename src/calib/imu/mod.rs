@@ -43,8 +43,12 @@ pub struct ImuOptions {
     pub estimate_noise: bool,
     /// The longest span of IMU samples averaged into one bin, s.
     pub bin_width_s: f64,
-    /// The longest spacing of the bias nodes, s.
+    /// The spacing of the bias nodes, s (at least: see `max_bias_nodes`).
     pub bias_spacing_s: f64,
+    /// The most bias nodes: a longer recording spaces them further apart. The calibration's
+    /// Schur complement is dense in them, and its cost grows with the knots times their number
+    /// squared.
+    pub max_bias_nodes: usize,
     /// The largest clock offset searched, s.
     pub max_offset_s: f64,
     /// Gauss-Newton iterations at most.
@@ -61,6 +65,7 @@ impl Default for ImuOptions {
             estimate_noise: true,
             bin_width_s: 0.02,
             bias_spacing_s: 10.0,
+            max_bias_nodes: 8,
             max_offset_s: 0.5,
             max_iterations: 30,
             density_factor: 1.0,
@@ -125,7 +130,7 @@ pub fn calibrate_camera_imu(
     let st = init::initial_state(
         &traj,
         &bins,
-        opts.bias_spacing_s,
+        bias_spacing(samples, opts),
         opts.max_offset_s,
         opts.gravity_magnitude,
     )?;
@@ -200,6 +205,17 @@ pub fn calibrate_camera_imu(
         cost: sol.cost,
         noise_factor: factor,
     })
+}
+
+/// The bias nodes' spacing: `bias_spacing_s`, or wider so that at most `max_bias_nodes` span the
+/// samples.
+fn bias_spacing(samples: &[ImuSample], opts: &ImuOptions) -> f64 {
+    let span = match (samples.first(), samples.last()) {
+        (Some(a), Some(b)) => b.t - a.t,
+        _ => 0.0,
+    };
+    let most = opts.max_bias_nodes.max(2) - 1;
+    opts.bias_spacing_s.max(span / most as f64 * (1.0 + 1e-9))
 }
 
 /// Knots per interval between poses that put them about 25 ms apart.
