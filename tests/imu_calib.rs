@@ -252,7 +252,10 @@ fn calibrate_writes_the_imus_calibration_beside_the_dvls() {
         .output()
         .expect("check_urdf (liburdfdom-tools) runs");
     let parsed = String::from_utf8_lossy(&check.stdout);
-    assert!(check.status.success() && parsed.contains("child(2):  imu"), "{parsed}");
+    assert!(
+        check.status.success() && parsed.contains("child(2):  imu"),
+        "{parsed}"
+    );
     let tf = std::fs::read_to_string(tmp.path("r-tf.txt")).expect("tf");
     assert!(tf.contains("--frame-id cam0 --child-frame-id imu"), "{tf}");
     let imucam = std::fs::read_to_string(tmp.path("r-camchain-imucam.yaml")).expect("imucam");
@@ -261,7 +264,10 @@ fn calibrate_writes_the_imus_calibration_beside_the_dvls() {
         .find_map(|l| l.trim().strip_prefix("timeshift_cam_imu: "))
         .and_then(|v| v.parse().ok())
         .expect("timeshift_cam_imu");
-    assert!((shift + file.imu_time_offset_s.unwrap_or(f64::NAN)).abs() < 1e-9, "{shift}");
+    assert!(
+        (shift + file.imu_time_offset_s.unwrap_or(f64::NAN)).abs() < 1e-9,
+        "{shift}"
+    );
     assert!(imucam.contains("T_cam_dvl:") && imucam.contains("timeshift_cam_dvl:"));
 
     // The stream without its noise file: the DVL is calibrated, the IMU is not, and the
