@@ -149,6 +149,7 @@ fn search_offset(traj: &Trajectory, bins: &[ImuBin], max_offset: f64) -> Result<
         Some(grid[i] * (1.0 - u) + grid[(i + 1).min(n - 1)] * u)
     };
     let mags: Vec<f64> = bins.iter().map(|b| b.gyro.norm()).collect();
+    let centre = coarse_offset(&grid, a, step, bins, &mags).unwrap_or(0.0);
     let score = |d: f64| -> Option<f64> {
         let mut sum = 0.0;
         let mut count = 0usize;
@@ -161,6 +162,8 @@ fn search_offset(traj: &Trajectory, bins: &[ImuBin], max_offset: f64) -> Result<
         (count * 2 > bins.len()).then(|| sum / count as f64)
     };
     let dstep = 0.002;
+    // Around the coarse lag, within max_offset of it.
+    let score = |d: f64| score(centre + d);
     let k = (max_offset / dstep).ceil() as i64;
     let mut best: Option<(i64, f64)> = None;
     let mut scores = std::collections::HashMap::new();
@@ -184,5 +187,60 @@ fn search_offset(traj: &Trajectory, bins: &[ImuBin], max_offset: f64) -> Result<
             d += 0.5 * dstep * (sm - sp) / curv;
         }
     }
-    Ok(d)
+    Ok(centre + d)
+}
+
+/// The lag, on a 10 ms grid over every lag at which the IMU's span and the trajectory's
+/// overlap by at least half the shorter, that best aligns the gyro's rate magnitudes (`mags`,
+/// one per bin) with the trajectory's (`grid`, from `a` every `step`): clocks may be any
+/// distance apart (a device's uptime against a motion-capture clock). `None` without bins.
+fn coarse_offset(grid: &[f64], a: f64, step: f64, bins: &[ImuBin], mags: &[f64]) -> Option<f64> {
+    let res = 0.01;
+    let (c, d) = (bins.first()?.t, bins.last()?.t);
+    // The IMU's magnitudes on a 10 ms grid from c (the bins' nearest, by time).
+    let m = ((d - c) / res).floor() as usize + 1;
+    let mut imu = vec![f64::NAN; m];
+    for (b, v) in bins.iter().zip(mags) {
+        let i = ((b.t - c) / res).round() as usize;
+        if i < m {
+            imu[i] = *v;
+        }
+    }
+    let cam: Vec<f64> = (0..)
+        .map(|i| i as f64 * res)
+        .take_while(|t| *t <= (grid.len() - 1) as f64 * step)
+        .map(|t| {
+            let x = t / step;
+            let i = (x.floor() as usize).min(grid.len() - 2);
+            let u = x - i as f64;
+            grid[i] * (1.0 - u) + grid[i + 1] * u
+        })
+        .collect();
+    // At least half of the IMU's filled slots (bins wider than 10 ms leave some empty).
+    let need = imu.iter().filter(|v| v.is_finite()).count().min(cam.len()) / 2;
+    let mut best: Option<(f64, f64)> = None;
+    // Lag l: IMU index j sits at camera index j + l.
+    let (lo, hi) = (-(m as i64) + 1, cam.len() as i64 - 1);
+    for l in lo..=hi {
+        let mut sum = 0.0;
+        let mut count = 0usize;
+        let j0 = (-l).max(0) as usize;
+        let j1 = ((cam.len() as i64 - l).min(m as i64)).max(0) as usize;
+        for j in j0..j1 {
+            let v = imu[j];
+            if v.is_finite() {
+                let e = cam[(j as i64 + l) as usize] - v;
+                sum += e * e;
+                count += 1;
+            }
+        }
+        if count >= need.max(1) {
+            let s = sum / count as f64;
+            if best.is_none_or(|(_, b)| s < b) {
+                best = Some((l as f64, s));
+            }
+        }
+    }
+    // t_cam = t_imu + offset: camera index j + l at a + (j + l) res, IMU index j at c + j res.
+    best.map(|(l, _)| a + l * res - c)
 }
