@@ -263,6 +263,7 @@ mod tests {
             gravity_rotation: so3::exp(&Vector3::new(0.2, -0.1, 0.4)),
             gravity_magnitude: STANDARD_GRAVITY,
             bias,
+            dvl: None,
         }
     }
 

@@ -122,6 +122,7 @@ pub fn initial_state(
                 accel: accel_bias,
             },
         ),
+        dvl: None,
     })
 }
 

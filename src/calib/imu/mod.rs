@@ -8,24 +8,29 @@
 //! - [`factors`]: each bin's prediction and Jacobians; camera poses on some of the knots.
 //! - [`solve`]: Gauss-Newton on knots and calibration together, and the calibration's
 //!   covariance with the trajectory marginalised.
+//! - [`dvl`] (with `dvl_init`): a DVL calibrated against the IMU alone, no camera.
 //!
 //! The trajectory is the camera's white-noise-on-jerk GP with knots between the pose times as
 //! well (the IMU measures the motion between poses, which the knots at pose times alone would
 //! smooth over).
 
 pub(crate) mod bins;
+pub mod dvl;
+pub(crate) mod dvl_init;
 pub(crate) mod factors;
 pub(crate) mod init;
 pub(crate) mod solve;
 pub mod state;
 
-use nalgebra::{DMatrix, Vector3};
+use nalgebra::{DMatrix, Matrix3, Vector3};
 
+use crate::calib::model::{DvlObs, NPARAM};
+use crate::calib::options::CalibOptions;
 use crate::error::{Error, Result};
 use crate::trajectory::solver::measurement_information;
 use crate::trajectory::{FitOptions, JerkDensity, Knot, Trajectory};
-use crate::types::PoseMeasurement;
 use crate::types::imu::{ImuNoise, ImuSample, STANDARD_GRAVITY};
+use crate::types::{CalibrationParams, DvlSample, PoseMeasurement};
 use factors::{SparsePoseFactors, bin_information};
 pub use state::{BiasNodes, ImuState};
 
@@ -97,6 +102,8 @@ pub struct ImuEstimate {
     /// The factors the stated gyro and accelerometer noise densities were multiplied by (the
     /// square roots of their chi-square over redundancy; 1 when not estimated).
     pub noise_factor: (f64, f64),
+    /// With a DVL in the problem: the factor its stated noise was multiplied by (else 1).
+    pub dvl_noise_factor: f64,
 }
 
 impl ImuEstimate {
@@ -110,6 +117,15 @@ impl ImuEstimate {
             s(6),
         )
     }
+
+    /// With a DVL in the problem: the standard deviations of its parameters in
+    /// `calib::model`'s coordinates (rotation rad, lever arm m, scale, offset s).
+    pub fn dvl_std(&self) -> Option<[f64; NPARAM]> {
+        let c0 = self.state.dvl.map(|_| self.state.dvl_start())?;
+        Some(std::array::from_fn(|i| {
+            self.covariance[(c0 + i, c0 + i)].max(0.0).sqrt()
+        }))
+    }
 }
 
 /// Calibrates the IMU of `samples` (with `noise`) against the camera poses `poses`.
@@ -119,6 +135,34 @@ pub fn calibrate_camera_imu(
     noise: &ImuNoise,
     opts: &ImuOptions,
 ) -> Result<ImuEstimate> {
+    camera_imu(poses, samples, noise, opts, None)
+}
+
+/// Calibrates the IMU and the DVL against the camera in one problem: the camera's poses, the
+/// IMU's bins and the DVL's velocities on one trajectory, the IMU's and the DVL's parameters
+/// estimated together (the DVL's from `dvl_start`, e.g. its camera-only calibration). The
+/// DVL's result is the state's `dvl`, its covariance the last 8 rows and columns of the
+/// estimate's. The DVL's noise is taken as `dvl_opts` says.
+pub fn calibrate_camera_imu_dvl(
+    poses: &[PoseMeasurement],
+    samples: &[ImuSample],
+    noise: &ImuNoise,
+    dvl: &[DvlSample],
+    dvl_start: &CalibrationParams,
+    dvl_opts: &CalibOptions,
+    opts: &ImuOptions,
+) -> Result<ImuEstimate> {
+    let obs = crate::calib::samples::observe(dvl, dvl_opts)?.obs;
+    camera_imu(poses, samples, noise, opts, Some((&obs, dvl_start)))
+}
+
+fn camera_imu(
+    poses: &[PoseMeasurement],
+    samples: &[ImuSample],
+    noise: &ImuNoise,
+    opts: &ImuOptions,
+    dvl: Option<(&[DvlObs], &CalibrationParams)>,
+) -> Result<ImuEstimate> {
     if samples.len() < 100 {
         return Err(Error::Input(format!(
             "{} IMU samples: too few to calibrate with",
@@ -127,7 +171,7 @@ pub fn calibrate_camera_imu(
     }
     let traj = Trajectory::fit(poses, &FitOptions::default())?;
     let bins = bins::make_bins(samples, opts.bin_width_s, noise.update_rate);
-    let st = init::initial_state(
+    let mut st = init::initial_state(
         &traj,
         &bins,
         bias_spacing(samples, opts),
@@ -157,6 +201,15 @@ pub fn calibrate_camera_imu(
     };
     let density = density.scaled(opts.density_factor);
     let stated: Vec<_> = bins.iter().map(|b| bin_information(b, noise)).collect();
+    let (dvl_obs, dvl_stated) = match dvl {
+        Some((obs, start)) => {
+            st.dvl = Some(*start);
+            let info: Vec<Matrix3<f64>> =
+                obs.iter().map(DvlObs::information).collect::<Result<_>>()?;
+            (obs, info)
+        }
+        None => (&[][..], Vec::new()),
+    };
     let mut joint = solve::ImuJoint {
         times: times.clone(),
         poses: SparsePoseFactors { poses: sparse },
@@ -164,13 +217,25 @@ pub fn calibrate_camera_imu(
         bins: &bins,
         info: stated.clone(),
         noise: *noise,
+        held: Vec::new(),
+        dvl: dvl_obs,
+        dvl_info: dvl_stated.clone(),
     };
     let mut sol = joint.solve(knots, st, opts.max_iterations)?;
     let mut factor = (1.0, 1.0);
+    let mut dvl_factor = 1.0;
     if opts.estimate_noise {
         // Two rounds: the first factor moves the solution a little, the second settles it.
         for _ in 0..2 {
-            let (chi_g, red_g, chi_a, red_a) = joint.redundancy(&sol.knots, &sol.state)?;
+            let r = joint.redundancy(&sol.knots, &sol.state)?;
+            let (chi_g, red_g, chi_a, red_a) = (r.gyro.0, r.gyro.1, r.accel.0, r.accel.1);
+            if !dvl_obs.is_empty() {
+                dvl_factor = (dvl_factor * solve::Redundancy::factor(r.dvl)).max(1.0);
+                joint.dvl_info = dvl_stated
+                    .iter()
+                    .map(|w| w / (dvl_factor * dvl_factor))
+                    .collect();
+            }
             // Only ever inflated: a chi-square below its redundancy says more about the motion
             // prior (a smooth motion lets the knots absorb the residuals) than about the IMU,
             // whose stated noise is a floor.
@@ -204,12 +269,13 @@ pub fn calibrate_camera_imu(
         knots: sol.knots,
         cost: sol.cost,
         noise_factor: factor,
+        dvl_noise_factor: dvl_factor,
     })
 }
 
 /// The bias nodes' spacing: `bias_spacing_s`, or wider so that at most `max_bias_nodes` span the
 /// samples.
-fn bias_spacing(samples: &[ImuSample], opts: &ImuOptions) -> f64 {
+pub(crate) fn bias_spacing(samples: &[ImuSample], opts: &ImuOptions) -> f64 {
     let span = match (samples.first(), samples.last()) {
         (Some(a), Some(b)) => b.t - a.t,
         _ => 0.0,

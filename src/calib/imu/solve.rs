@@ -2,17 +2,25 @@
 //! the motion prior between knots, the IMU's bins between them, and the random walks between
 //! bias nodes; Gauss-Newton on knots and calibration together, the calibration eliminated
 //! through its Schur complement (the knots' system stays block tridiagonal).
+//!
+//! The same problem serves the DVL + IMU mode: no camera (a prior on the first knot fixes the
+//! gauge), the IMU's own frame and clock as the trajectory's (those columns held), and the
+//! DVL's velocities as a third kind of factor with the DVL's parameters at the end of `theta`.
 
-use nalgebra::{DMatrix, DVector, SMatrix, Vector6};
+use std::ops::{AddAssign, SubAssign};
+
+use nalgebra::{DMatrix, DVector, Matrix3, SMatrix, Vector6};
 
 use super::bins::ImuBin;
 use super::factors::{BinTerms, SparsePoseFactors, bin_residual, bin_terms};
 use super::state::{ImuState, NFIXED};
+use crate::calib::model::{DvlObs, NPARAM, d_predict_d_params, d_predict_d_twist, predict};
 use crate::error::{Error, Result};
-use crate::trajectory::JerkDensity;
 use crate::trajectory::blocktri::{BlockTridiagonal, Factored, V18};
-use crate::trajectory::gp::{Knot, local_gamma, local_state};
+use crate::trajectory::gp::{Knot, LocalState, local_gamma, local_state};
 use crate::trajectory::solver::{Problem, step};
+use crate::trajectory::{JerkDensity, KnotView};
+use crate::types::CalibrationParams;
 use crate::types::imu::ImuNoise;
 
 /// The problem: knot times, the poses on them, the motion prior, the IMU's bins and noise.
@@ -23,6 +31,38 @@ pub struct ImuJoint<'a> {
     pub bins: &'a [ImuBin],
     pub info: Vec<Vector6<f64>>,
     pub noise: ImuNoise,
+    /// Columns of `theta` held at their value (zero step, no information of their own).
+    pub held: Vec<usize>,
+    /// DVL velocities (with a DVL in the state), and their information.
+    pub dvl: &'a [DvlObs],
+    pub dvl_info: Vec<Matrix3<f64>>,
+}
+
+/// Each sensor's chi-square and its share of the redundancy at a solution (see
+/// [`ImuJoint::redundancy`]).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Redundancy {
+    /// The gyro's chi-square and redundancy.
+    pub gyro: (f64, f64),
+    /// The accelerometer's.
+    pub accel: (f64, f64),
+    /// The DVL's (zero without one).
+    pub dvl: (f64, f64),
+}
+
+impl Redundancy {
+    /// The factor a sensor's std are off by: `sqrt(chi2 / redundancy)`.
+    pub fn factor(part: (f64, f64)) -> f64 {
+        (part.0 / part.1.max(1.0)).sqrt()
+    }
+}
+
+/// One DVL velocity's residual and Jacobians.
+struct DvlTerms {
+    e: nalgebra::Vector3<f64>,
+    j1: SMatrix<f64, 3, 18>,
+    j2: SMatrix<f64, 3, 18>,
+    jth: SMatrix<f64, 3, NPARAM>,
 }
 
 /// The calibration's part of the normal equations at one linearisation point.
@@ -132,6 +172,76 @@ impl ImuJoint<'_> {
         out
     }
 
+    /// For each DVL velocity inside the span at the DVL's clock offset: its index, the
+    /// interval and its time on the trajectory's clock.
+    fn placed_dvl(&self, st: &ImuState) -> Vec<(usize, usize, f64)> {
+        let Some(p) = &st.dvl else {
+            return Vec::new();
+        };
+        let view = KnotView {
+            times: &self.times,
+            knots: &[],
+        };
+        let mut out: Vec<_> = self
+            .dvl
+            .iter()
+            .enumerate()
+            .filter_map(|(i, o)| {
+                let tau = o.t + p.time_offset_s;
+                view.interval(tau).map(|k| (i, k, tau))
+            })
+            .collect();
+        out.sort_by(|a, b| a.2.total_cmp(&b.2));
+        out
+    }
+
+    /// The residual and Jacobians of DVL velocity `i` at `tau`, in interval `k`.
+    fn dvl_terms(
+        &self,
+        knots: &[Knot],
+        k: usize,
+        tau: f64,
+        ls: &LocalState,
+        i: usize,
+        p: &CalibrationParams,
+    ) -> DvlTerms {
+        let view = KnotView {
+            times: &self.times,
+            knots,
+        };
+        let m = d_predict_d_twist(p);
+        let (motion, j1, j2) = view.projected_twist_jacobian_in(k, tau, ls, &m);
+        DvlTerms {
+            e: predict(p, &motion.twist) - self.dvl[i].v,
+            j1,
+            j2,
+            jth: d_predict_d_params(p, &motion.twist, &motion.rate),
+        }
+    }
+
+    /// The DVL's part of the cost.
+    fn dvl_cost(&self, knots: &[Knot], st: &ImuState) -> f64 {
+        let Some(p) = &st.dvl else { return 0.0 };
+        let view = KnotView {
+            times: &self.times,
+            knots,
+        };
+        let mut cost = 0.0;
+        for (i, k, tau) in self.placed_dvl(st) {
+            let g2 = local_gamma(&knots[k], &knots[k + 1]);
+            let e = predict(p, &view.motion_in(k, tau, &g2).twist) - self.dvl[i].v;
+            cost += (e.transpose() * self.dvl_info[i] * e)[0];
+        }
+        cost
+    }
+
+    /// Zeroes the columns of a bin's calibration Jacobian that are held.
+    fn hold_bin(&self, jl: &mut SMatrix<f64, 6, 21>) {
+        for &c in self.held.iter().filter(|&&c| c < NFIXED) {
+            jl.column_mut(c).fill(0.0);
+        }
+    }
+
     fn walk_information(&self, i: usize, st: &ImuState) -> (f64, f64) {
         let dt = st.bias.times[i + 1] - st.bias.times[i];
         let g = self.noise.gyroscope_random_walk.max(1e-12);
@@ -151,7 +261,7 @@ impl ImuJoint<'_> {
 
     /// The whole cost at `knots` and `st`.
     pub fn cost(&self, knots: &[Knot], st: &ImuState) -> f64 {
-        let mut cost = self.problem().cost(knots) + self.walk_cost(st);
+        let mut cost = self.problem().cost(knots) + self.walk_cost(st) + self.dvl_cost(knots, st);
         let mut last: Option<(usize, V18)> = None;
         for (j, k, s) in self.placed(st.time_offset_s) {
             let gamma2 = match &last {
@@ -189,7 +299,8 @@ impl ImuJoint<'_> {
             let we = w.component_mul(&t.e);
             cost += t.e.dot(&we);
             let cols = theta_columns(t.node.0);
-            let jl = theta_jacobian(&t);
+            let mut jl = theta_jacobian(&t);
+            self.hold_bin(&mut jl);
             let wj1 = SMatrix::<f64, 6, 18>::from_fn(|r, c| w[r] * t.j1[(r, c)]);
             let wj2 = SMatrix::<f64, 6, 18>::from_fn(|r, c| w[r] * t.j2[(r, c)]);
             let wjl = SMatrix::<f64, 6, 21>::from_fn(|r, c| w[r] * jl[(r, c)]);
@@ -231,6 +342,44 @@ impl ImuJoint<'_> {
                     gth[c1] -= w * dx;
                 }
             }
+        }
+        // The DVL's velocities.
+        if let Some(p) = &st.dvl {
+            let c0 = st.dvl_start();
+            let mut ls: Option<(usize, LocalState)> = None;
+            for (i, k, tau) in self.placed_dvl(st) {
+                if ls.as_ref().is_none_or(|(kk, _)| *kk != k) {
+                    ls = Some((k, local_state(&knots[k], &knots[k + 1])));
+                }
+                let Some((_, l)) = &ls else { continue };
+                let t = self.dvl_terms(knots, k, tau, l, i, p);
+                let w = &self.dvl_info[i];
+                let we = w * t.e;
+                cost += t.e.dot(&we);
+                let (wj1, wj2, wjt) = (w * t.j1, w * t.j2, w * t.jth);
+                sys.diag[k] += t.j1.transpose() * wj1;
+                sys.diag[k + 1] += t.j2.transpose() * wj2;
+                sys.upper[k] += t.j1.transpose() * wj2;
+                sys.rhs[k] -= t.j1.transpose() * we;
+                sys.rhs[k + 1] -= t.j2.transpose() * we;
+                let c1 = t.j1.transpose() * wjt;
+                let c2 = t.j2.transpose() * wjt;
+                cross.view_mut((18 * k, c0), (18, NPARAM)).add_assign(&c1);
+                cross
+                    .view_mut((18 * (k + 1), c0), (18, NPARAM))
+                    .add_assign(&c2);
+                hth.view_mut((c0, c0), (NPARAM, NPARAM))
+                    .add_assign(&(t.jth.transpose() * wjt));
+                gth.rows_mut(c0, NPARAM)
+                    .sub_assign(&(t.jth.transpose() * we));
+            }
+        }
+        for &c in &self.held {
+            cross.column_mut(c).fill(0.0);
+            hth.row_mut(c).fill(0.0);
+            hth.column_mut(c).fill(0.0);
+            hth[(c, c)] = 1.0;
+            gth[c] = 0.0;
         }
         Linear {
             cost,
@@ -291,12 +440,11 @@ impl ImuJoint<'_> {
         })
     }
 
-    /// Each sensor's share of the measurements' redundancy at the solution, and its chi-square:
-    /// `(chi2_gyro, redundancy_gyro, chi2_accel, redundancy_accel)`. The redundancy of a
-    /// residual block is its dimension less `tr(W J Sigma J^T)`, with `Sigma` the joint
-    /// covariance of the two knots and the calibration it touches; the chi-square over it
-    /// estimates the factor by which the stated variances are off.
-    pub fn redundancy(&self, knots: &[Knot], st: &ImuState) -> Result<(f64, f64, f64, f64)> {
+    /// Each sensor's share of the measurements' redundancy at the solution, and its chi-square.
+    /// The redundancy of a residual block is its dimension less `tr(W J Sigma J^T)`, with
+    /// `Sigma` the joint covariance of the two knots and the calibration it touches; the
+    /// chi-square over it estimates the factor by which the stated variances are off.
+    pub fn redundancy(&self, knots: &[Knot], st: &ImuState) -> Result<Redundancy> {
         let n = knots.len();
         let mut sys = BlockTridiagonal::zeros(n);
         let lin = self.linearise(knots, st, &mut sys);
@@ -307,9 +455,50 @@ impl ImuJoint<'_> {
         })?;
         let band = factor.banded_inverse();
         let y = &x * &sinv;
-        let xk = |k: usize| x.rows(18 * k, 18);
-        let yk = |k: usize| y.rows(18 * k, 18);
-        let (mut chi_g, mut chi_a, mut red_g, mut red_a) = (0.0, 0.0, 0.0, 0.0);
+        // `J Sigma J^T` of a residual block on knots k, k + 1 (Jacobians j1, j2) and on the
+        // columns `cols` of theta (Jacobian jt).
+        let project =
+            |k: usize, j1: &DMatrix<f64>, j2: &DMatrix<f64>, cols: &[usize], jt: &DMatrix<f64>| {
+                let sxx = |a: usize, b: usize| -> DMatrix<f64> {
+                    let base = if a == b {
+                        band.diag[a].clone_owned()
+                    } else {
+                        band.upper[a.min(b)].clone_owned()
+                    };
+                    let base = DMatrix::from_column_slice(18, 18, base.as_slice());
+                    let base = if a > b { base.transpose() } else { base };
+                    base + y.rows(18 * a, 18) * x.rows(18 * b, 18).transpose()
+                };
+                let m = j1.nrows();
+                let mut jx = DMatrix::<f64>::zeros(m, 36);
+                jx.view_mut((0, 0), (m, 18)).copy_from(j1);
+                jx.view_mut((0, 18), (m, 18)).copy_from(j2);
+                let mut sig_xx = DMatrix::<f64>::zeros(36, 36);
+                sig_xx.view_mut((0, 0), (18, 18)).copy_from(&sxx(k, k));
+                sig_xx.view_mut((0, 18), (18, 18)).copy_from(&sxx(k, k + 1));
+                sig_xx.view_mut((18, 0), (18, 18)).copy_from(&sxx(k + 1, k));
+                sig_xx
+                    .view_mut((18, 18), (18, 18))
+                    .copy_from(&sxx(k + 1, k + 1));
+                let c = cols.len();
+                let mut sig_xt = DMatrix::<f64>::zeros(36, c);
+                let mut sig_tt = DMatrix::<f64>::zeros(c, c);
+                for (a, &ca) in cols.iter().enumerate() {
+                    for r in 0..18 {
+                        sig_xt[(r, a)] = -y[(18 * k + r, ca)];
+                        sig_xt[(18 + r, a)] = -y[(18 * (k + 1) + r, ca)];
+                    }
+                    for (b, &cb) in cols.iter().enumerate() {
+                        sig_tt[(a, b)] = sinv[(ca, cb)];
+                    }
+                }
+                let cross = &jx * &sig_xt * jt.transpose();
+                &jx * sig_xx * jx.transpose()
+                    + &cross
+                    + cross.transpose()
+                    + jt * sig_tt * jt.transpose()
+            };
+        let mut out = Redundancy::default();
         let mut ls = None;
         for (j, k, s) in self.placed(st.time_offset_s) {
             if ls.as_ref().is_none_or(|(kk, _)| *kk != k) {
@@ -318,59 +507,43 @@ impl ImuJoint<'_> {
             let Some((_, l)) = &ls else { continue };
             let dt = self.times[k + 1] - self.times[k];
             let t = bin_terms(&knots[k], l, s, dt, &self.bins[j], st);
-            let cols = theta_columns(t.node.0);
-            let jl = theta_jacobian(&t);
-            // Sigma of [x_k; x_k+1] and its coupling with theta's touched columns.
-            let sxx = |a: usize, b: usize| -> DMatrix<f64> {
-                let base = if a == b {
-                    band.diag[a].clone_owned()
-                } else {
-                    band.upper[a.min(b)].clone_owned()
-                };
-                let base = DMatrix::from_column_slice(18, 18, base.as_slice());
-                let base = if a > b { base.transpose() } else { base };
-                base + yk(a) * xk(b).transpose()
-            };
-            let mut jx = DMatrix::<f64>::zeros(6, 36);
-            jx.view_mut((0, 0), (6, 18)).copy_from(&t.j1);
-            jx.view_mut((0, 18), (6, 18)).copy_from(&t.j2);
-            let mut sig_xx = DMatrix::<f64>::zeros(36, 36);
-            sig_xx.view_mut((0, 0), (18, 18)).copy_from(&sxx(k, k));
-            sig_xx.view_mut((0, 18), (18, 18)).copy_from(&sxx(k, k + 1));
-            sig_xx.view_mut((18, 0), (18, 18)).copy_from(&sxx(k + 1, k));
-            sig_xx
-                .view_mut((18, 18), (18, 18))
-                .copy_from(&sxx(k + 1, k + 1));
-            let mut sig_xt = DMatrix::<f64>::zeros(36, 21);
-            let mut sig_tt = DMatrix::<f64>::zeros(21, 21);
-            for (a, &ca) in cols.iter().enumerate() {
-                for r in 0..18 {
-                    sig_xt[(r, a)] = -yk(k)[(r, ca)];
-                    sig_xt[(18 + r, a)] = -yk(k + 1)[(r, ca)];
-                }
-                for (b, &cb) in cols.iter().enumerate() {
-                    sig_tt[(a, b)] = sinv[(ca, cb)];
-                }
-            }
-            let jt = DMatrix::from_column_slice(6, 21, jl.as_slice());
-            let cross = &jx * &sig_xt * jt.transpose();
-            let p = &jx * sig_xx * jx.transpose()
-                + &cross
-                + cross.transpose()
-                + &jt * sig_tt * jt.transpose();
+            let mut jl = theta_jacobian(&t);
+            self.hold_bin(&mut jl);
+            let p = project(
+                k,
+                &DMatrix::from_column_slice(6, 18, t.j1.as_slice()),
+                &DMatrix::from_column_slice(6, 18, t.j2.as_slice()),
+                &theta_columns(t.node.0),
+                &DMatrix::from_column_slice(6, 21, jl.as_slice()),
+            );
             let w = &self.info[j];
             for r in 0..6 {
-                let (chi, red) = (w[r] * t.e[r] * t.e[r], 1.0 - w[r] * p[(r, r)]);
-                if r < 3 {
-                    chi_g += chi;
-                    red_g += red;
-                } else {
-                    chi_a += chi;
-                    red_a += red;
-                }
+                let part = if r < 3 { &mut out.gyro } else { &mut out.accel };
+                part.0 += w[r] * t.e[r] * t.e[r];
+                part.1 += 1.0 - w[r] * p[(r, r)];
             }
         }
-        Ok((chi_g, red_g, chi_a, red_a))
+        if let Some(pd) = &st.dvl {
+            let c0 = st.dvl_start();
+            let cols: Vec<usize> = (c0..c0 + NPARAM).collect();
+            for (i, k, tau) in self.placed_dvl(st) {
+                let l = local_state(&knots[k], &knots[k + 1]);
+                let t = self.dvl_terms(knots, k, tau, &l, i, pd);
+                let p = project(
+                    k,
+                    &DMatrix::from_column_slice(3, 18, t.j1.as_slice()),
+                    &DMatrix::from_column_slice(3, 18, t.j2.as_slice()),
+                    &cols,
+                    &DMatrix::from_column_slice(3, NPARAM, t.jth.as_slice()),
+                );
+                let w = &self.dvl_info[i];
+                out.dvl.0 += (t.e.transpose() * w * t.e)[0];
+                out.dvl.1 += 3.0
+                    - (w * DMatrix::from_column_slice(3, 3, p.as_slice()).fixed_view::<3, 3>(0, 0))
+                        .trace();
+            }
+        }
+        Ok(out)
     }
 
     /// Gauss-Newton from `knots` and `st`.

@@ -9,13 +9,16 @@
 //! | 6 | clock offset, s (`t_cam = t_imu + offset`) | added |
 //! | 7..9 | gravity direction | `R_g <- R_g Exp([d0, d1, 0])`, `g_world = R_g [0, 0, -|g|]` |
 //! | 9 + 6 i .. | bias node `i`: gyro (rad/s), then accelerometer (m/s^2) | added |
+//! | last 8, with a DVL | the DVL's `[dphi; dp; dkappa; ddelta]` | as `CalibrationParams::updated` |
 //!
 //! The biases are linear between nodes on the IMU clock; consecutive nodes are tied by the
 //! random walks of the noise file.
 
 use nalgebra::{DVector, Matrix3, Vector3};
 
+use crate::calib::model::NPARAM;
 use crate::lie::{Se3, so3};
+use crate::types::CalibrationParams;
 use crate::types::imu::ImuBias;
 
 /// Parameters before the bias nodes.
@@ -80,6 +83,10 @@ pub struct ImuState {
     pub gravity_magnitude: f64,
     /// The biases.
     pub bias: BiasNodes,
+    /// A DVL calibrated against the trajectory in the same problem (the DVL + IMU mode): its
+    /// `T_cam_dvl` then maps DVL points into the trajectory's body frame, and its clock offset
+    /// is `t_body = t_dvl + time_offset_s`.
+    pub dvl: Option<CalibrationParams>,
 }
 
 impl ImuState {
@@ -90,6 +97,11 @@ impl ImuState {
 
     /// The length of `theta`.
     pub fn dim(&self) -> usize {
+        self.dvl_start() + if self.dvl.is_some() { NPARAM } else { 0 }
+    }
+
+    /// The first column of the DVL's parameters (the length of `theta` without them).
+    pub fn dvl_start(&self) -> usize {
         NFIXED + 6 * self.bias.values.len()
     }
 
@@ -107,6 +119,11 @@ impl ImuState {
         for (i, b) in out.bias.values.iter_mut().enumerate() {
             b.gyro += v3(NFIXED + 6 * i);
             b.accel += v3(NFIXED + 6 * i + 3);
+        }
+        if let Some(p) = &self.dvl {
+            let c = self.dvl_start();
+            let dp = nalgebra::SMatrix::<f64, NPARAM, 1>::from_fn(|r, _| d[c + r]);
+            out.dvl = Some(p.updated(&dp));
         }
         out
     }
