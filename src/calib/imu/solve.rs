@@ -613,3 +613,7 @@ impl ImuJoint<'_> {
         }
     }
 }
+
+#[cfg(test)]
+#[path = "solve_tests.rs"]
+mod tests;
