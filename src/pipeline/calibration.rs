@@ -42,6 +42,8 @@ pub struct CalibrationRun {
     pub file: CalibrationFile,
     /// Seconds spent in [`calibrate`] (the dataset was read before).
     pub elapsed_s: f64,
+    /// The IMU calibrated against the camera, when the dataset has one.
+    pub imu: Option<super::imu::ImuCalibration>,
 }
 
 /// Calibrates `data` with `opts` on a pool of `threads` workers (`None`: all cores; the result
@@ -66,9 +68,7 @@ pub fn calibrate_dataset(
     let imu = workers.install(|| super::imu::calibrate_imu(data, &mut imu_warnings));
     let elapsed_s = start.elapsed().as_secs_f64();
     let mut file = result_file(&outcome, log);
-    if let Some(est) = &imu {
-        super::imu::note_imu(&mut file, est, data, &opts.weak);
-    }
+    let imu = imu.map(|est| super::imu::note_imu(&mut file, est, data, &opts.weak));
     if !imu_warnings.is_empty() {
         file.info
             .get_or_insert_with(Default::default)
@@ -87,6 +87,7 @@ pub fn calibrate_dataset(
         outcome,
         file,
         elapsed_s,
+        imu,
     })
 }
 
