@@ -1056,12 +1056,30 @@ mod imu_verdict_tests {
         assert!((m.principal_rates[0] - 0.5).abs() < 1e-12, "{m:?}");
         assert!(m.principal_rates[1] < 1e-12 && m.principal_rates[2] < 1e-12);
         // The camera's x axis is the IMU's -y axis.
-        assert!((m.axis_rates - Vector3::new(0.0, 0.5, 0.0)).norm() < 1e-12, "{m:?}");
-        assert!(m.rms_angular_accel < 1e-9 && m.rate_variation < 1e-9, "{m:?}");
+        assert!(
+            (m.axis_rates - Vector3::new(0.0, 0.5, 0.0)).norm() < 1e-12,
+            "{m:?}"
+        );
+        assert!(
+            m.rms_angular_accel < 1e-9 && m.rate_variation < 1e-9,
+            "{m:?}"
+        );
         for (verdict, cause, words) in [
-            (&v.rotation, WeakCause::FewRotationAxes, "about at most one axis"),
-            (&v.lever_arm, WeakCause::LittleRotation, "rotated too little"),
-            (&v.time_offset, WeakCause::SteadyRotationRate, "varied too little"),
+            (
+                &v.rotation,
+                WeakCause::FewRotationAxes,
+                "about at most one axis",
+            ),
+            (
+                &v.lever_arm,
+                WeakCause::LittleRotation,
+                "rotated too little",
+            ),
+            (
+                &v.time_offset,
+                WeakCause::SteadyRotationRate,
+                "varied too little",
+            ),
         ] {
             assert!(!verdict.ok);
             assert_eq!(verdict.cause, Some(cause));
@@ -1069,12 +1087,19 @@ mod imu_verdict_tests {
             assert!(verdict.reason.contains(words), "{}", verdict.reason);
             assert!(verdict.reason.contains("exceeds"), "{}", verdict.reason);
         }
-        assert!(v.rotation.reason.starts_with("IMU rotation standard deviation"));
+        assert!(
+            v.rotation
+                .reason
+                .starts_with("IMU rotation standard deviation")
+        );
     }
 
     #[test]
     fn small_std_are_well_determined_with_no_reason() {
-        let est = estimate(|t| Vector3::new(t.sin(), (2.0 * t).cos(), 0.3 * (3.0 * t).sin()), 1e-5);
+        let est = estimate(
+            |t| Vector3::new(t.sin(), (2.0 * t).cos(), 0.3 * (3.0 * t).sin()),
+            1e-5,
+        );
         let v = imu_verdicts(&est, &WeakThresholds::default());
         for verdict in [&v.rotation, &v.lever_arm, &v.time_offset] {
             assert!(verdict.ok && verdict.reason.is_empty() && verdict.cause.is_none());

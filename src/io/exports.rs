@@ -406,9 +406,10 @@ pub fn kalibr_camchain_imucam(e: &Export, cams: &[KalibrCamera]) -> String {
         let _ = writeln!(s, "# {l}");
     }
     // Kalibr's IMU slot: the IMU's transform and time shift, or the DVL's in its place.
-    let slot = e.imu.map(|i| (&i.t_cam_imu, i.time_offset_s)).or(e
-        .dvl
-        .map(|c| (&c.t_cam_dvl, c.time_offset_s)));
+    let slot = e
+        .imu
+        .map(|i| (&i.t_cam_imu, i.time_offset_s))
+        .or(e.dvl.map(|c| (&c.t_cam_dvl, c.time_offset_s)));
     for (n, cam) in cams.iter().enumerate() {
         let _ = writeln!(s, "cam{n}:");
         s.push_str(&cam.entry);
@@ -640,6 +641,121 @@ mod tests {
             text.contains("intrinsics and distortion are unknown"),
             "{text}"
         );
+    }
+
+    fn imu() -> ImuExport {
+        ImuExport {
+            t_cam_imu: Se3::exp(&Vector6::new(0.02, 0.05, -0.01, -1.2, 0.3, 1.6)),
+            time_offset_s: -0.0375,
+            frame: "imu".into(),
+        }
+    }
+
+    /// A stereo chain with both cameras' keys: cam1 12 cm beside cam0.
+    fn stereo() -> Vec<KalibrCamera> {
+        let t_c1_c0 = Se3::new(Matrix3::identity(), Vector3::new(-0.12, 0.0, 0.0));
+        vec![
+            KalibrCamera {
+                entry: "  camera_model: pinhole\n  intrinsics: [460.0, 459.5, 367.0, 248.0]\n"
+                    .into(),
+                t_cn_c0: Matrix4::identity(),
+                overlaps: vec![1],
+            },
+            KalibrCamera {
+                entry: "  camera_model: pinhole\n  intrinsics: [457.0, 456.0, 379.0, 255.0]\n"
+                    .into(),
+                t_cn_c0: t_c1_c0.to_matrix(),
+                overlaps: vec![0],
+            },
+        ]
+    }
+
+    /// The DVL and an IMU: ROS commands, URDF and Kalibr file byte for byte as the writers that
+    /// added the IMU to the DVL's finished text wrote them (tests/fixtures/exports_imu, with
+    /// `VERSION` for the version).
+    #[test]
+    fn with_the_dvl_the_imus_exports_are_what_they_were() {
+        let golden = |text: &str| {
+            text.replace(
+                "dvlcal VERSION:",
+                &format!("dvlcal {}:", env!("CARGO_PKG_VERSION")),
+            )
+        };
+        let (c, imu) = (params(), imu());
+        let names = FrameNames::parse("camera_link,dvl_link").unwrap();
+        let notes = ExportNotes::default();
+        let e = Export::dvl(&c, &names, &notes).with_imu(Some(&imu));
+        assert_eq!(
+            ros_static_transform(&e),
+            golden(include_str!("../../tests/fixtures/exports_imu/tf.txt"))
+        );
+        assert_eq!(
+            urdf_robot(&e),
+            golden(include_str!("../../tests/fixtures/exports_imu/urdf.xml"))
+        );
+        assert_eq!(
+            kalibr_camchain_imucam(&e, &stereo()),
+            golden(include_str!(
+                "../../tests/fixtures/exports_imu/camchain-imucam.yaml"
+            ))
+        );
+    }
+
+    /// The camera and an IMU without a DVL: the Kalibr file parses, holds the two cameras as
+    /// its only top-level keys, each with the IMU in Kalibr's IMU keys (composed with the
+    /// camera's `T_cn_c0`, the time shift `-imu_time_offset_s`) and no DVL key; the URDF is a
+    /// robot `check_urdf` (Debian's liburdfdom-tools) reads with the IMU as the camera's one
+    /// child; the ROS commands publish the IMU alone.
+    #[test]
+    fn without_a_dvl_the_exports_hold_the_imu_alone_and_parse() {
+        let imu = imu();
+        let (names, notes) = (FrameNames::default(), ExportNotes::default());
+        let e = Export {
+            dvl: None,
+            imu: Some(&imu),
+            names: &names,
+            notes: &notes,
+        };
+        let cams = stereo();
+        let text = kalibr_camchain_imucam(&e, &cams);
+        let v: serde_yaml::Value = serde_yaml::from_str(&text).expect("valid YAML");
+        let keys = |v: &serde_yaml::Value| -> Vec<String> {
+            v.as_mapping()
+                .into_iter()
+                .flatten()
+                .filter_map(|(k, _)| k.as_str().map(String::from))
+                .collect()
+        };
+        assert_eq!(keys(&v), ["cam0", "cam1"]);
+        for (n, cam) in ["cam0", "cam1"].into_iter().enumerate() {
+            let want = cams[n].t_cn_c0 * imu.t_cam_imu.to_matrix();
+            let d = (matrix_of(&v[cam]["T_cam_imu"]) - want).abs().max();
+            assert!(d < 1e-11, "{cam} T_cam_imu off by {d}");
+            assert_eq!(v[cam]["timeshift_cam_imu"].as_f64(), Some(0.0375));
+            assert!(!keys(&v[cam]).iter().any(|k| k.contains("dvl")), "{text}");
+        }
+        assert!(!text.contains("DVL"), "{text}");
+
+        let urdf =
+            std::env::temp_dir().join(format!("dvlcal-imu-only-urdf-{}.xml", std::process::id()));
+        std::fs::write(&urdf, urdf_robot(&e)).unwrap();
+        let r = std::process::Command::new("check_urdf")
+            .arg(&urdf)
+            .output()
+            .expect("check_urdf (Debian's liburdfdom-tools) runs");
+        let _ = std::fs::remove_file(&urdf);
+        let parsed = String::from_utf8_lossy(&r.stdout);
+        assert!(r.status.success(), "{parsed}");
+        assert!(
+            parsed.contains("root Link: cam0 has 1 child(ren)")
+                && parsed.contains("child(1):  imu"),
+            "{parsed}"
+        );
+
+        let tf = ros_static_transform(&e);
+        assert_eq!(tf.matches("rosrun").count(), 1, "{tf}");
+        assert!(tf.contains("--frame-id cam0 --child-frame-id imu"), "{tf}");
+        assert!(tf.contains("# clock: t_cam = t_imu + -0.0375 s"), "{tf}");
     }
 
     /// R = Rz(yaw) Ry(pitch) Rx(roll) written out entry by entry (URDF's definition), not
