@@ -767,6 +767,7 @@ pub fn write_report(
         result_name: Some(&name),
         result_yaml: yaml.as_deref(),
         elapsed_s: Some(run.elapsed_s),
+        imu: run.imu.as_ref().map(|i| i.report_input()),
         ..ReportInput::new(&run.outcome, &data.poses)
     };
     let html = render_html(&input)?;

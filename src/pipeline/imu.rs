@@ -8,7 +8,6 @@ use std::fmt::Write as _;
 use nalgebra::Vector3;
 
 use super::dataset::Dataset;
-use crate::calib::Verdict;
 use crate::calib::diagnostics::{ImuVerdicts, imu_verdicts};
 use crate::calib::imu::{ImuEstimate, ImuOptions, calibrate_camera_imu};
 use crate::calib::options::WeakThresholds;
@@ -16,6 +15,7 @@ use crate::io::calib_yaml::{
     CalibrationFile, ImuBiasFile, ImuObservability, ImuStd, Observability, rows,
 };
 use crate::io::exports::ImuExport;
+use crate::report::ImuReportInput;
 
 /// The camera-IMU calibration of `data`, when it has an IMU stream and a noise file; a
 /// warning (and `None`) when it has one without the other, or when the calibration fails (the
@@ -61,12 +61,13 @@ pub struct ImuCalibration {
     pub verdicts: ImuVerdicts,
 }
 
-/// The state the result file gives a verdict on the IMU (measured by the data: ok or weak).
-fn state(v: &Verdict) -> Observability {
-    if v.ok {
-        Observability::Ok
-    } else {
-        Observability::Weak
+impl ImuCalibration {
+    /// What the report shows of it.
+    pub fn report_input(&self) -> ImuReportInput<'_> {
+        ImuReportInput {
+            estimate: &self.estimate,
+            verdicts: &self.verdicts,
+        }
     }
 }
 
@@ -92,9 +93,9 @@ pub fn note_imu(
     let s_rot_deg = s_rot.map(f64::to_degrees);
     let judged = imu_verdicts(&est, weak);
     let verdicts = ImuObservability {
-        rotation: state(&judged.rotation),
-        lever_arm: state(&judged.lever_arm),
-        time_offset: state(&judged.time_offset),
+        rotation: super::exports::state(&judged.rotation),
+        lever_arm: super::exports::state(&judged.lever_arm),
+        time_offset: super::exports::state(&judged.time_offset),
     };
     let warnings: Vec<String> = [&judged.rotation, &judged.lever_arm, &judged.time_offset]
         .into_iter()
