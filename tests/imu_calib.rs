@@ -16,7 +16,7 @@ use dvlcal::lie::so3;
 use dvlcal::sim::imu::{ImuSimConfig, simulate_imu};
 use dvlcal::sim::{MotionKind, SimConfig, build_motion, simulate_with};
 use nalgebra::{Matrix3, Matrix4, Vector3};
-use tmp_common::{TmpDir, dvlcal, s};
+use tmp_common::{TmpDir, dvlcal, dvlcal_ok, s, simulate_imu_recording};
 
 /// Over 20 seeds of 60 s (poses at 10 Hz, a 200 Hz IMU with walking biases), each error over
 /// its own std, pooled per quantity: the RMS of a standard normal over `n` draws lies within
@@ -184,29 +184,9 @@ fn euroc_t_cam_imu_agrees_with_the_published_one_and_its_clock_offset_is_zero() 
 fn calibrate_writes_the_imus_calibration_beside_the_dvls() {
     let tmp = TmpDir::new("imu-cli");
     let data = tmp.path("rec");
-    let out = dvlcal(&[
-        "simulate",
-        "--imu",
-        "--duration",
-        "60",
-        "--seed",
-        "4",
-        "--out",
-        s(&data),
-    ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    simulate_imu_recording(&data);
     let result = tmp.path("r.yaml");
-    let out = dvlcal(&["calibrate", s(&data), "--out", s(&result)]);
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{stdout}{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let stdout = dvlcal_ok(&["calibrate", s(&data), "--out", s(&result)]);
     assert!(stdout.contains("imu lever p_cam_imu"), "{stdout}");
     let file = read_calib_yaml(&result).expect("result");
     let truth = read_imu_truth(&data.join("truth/imu.yaml")).expect("truth");

@@ -2,16 +2,18 @@
 //! whiteness ([`noise`]), the covariance ([`uncertainty`]), what the priors rather than the data
 //! determined ([`prior_roles`]), the motion's excitation, a verdict per parameter ([`judge`]),
 //! the sanity checks ([`status`]) and the clock's drift ([`drift`]). Each check's warning is
-//! written where the check is made.
+//! written where the check is made. The IMU's verdicts ([`imu_verdicts`]) are made by the same
+//! rule and words as the DVL's ([`verdict_by_std`]), from the motion its trajectory saw.
 
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, SymmetricEigen, Vector3};
 
 use super::given::Contradiction;
+use super::imu::ImuEstimate;
 use super::joint::covariance::{AssembledJoint, joint_covariance, joint_covariance_of};
 use super::joint::problem::JointProblem;
 use super::model::{DvlObs, NPARAM, predict};
 use super::offset::OffsetMethod;
-use super::options::CalibOptions;
+use super::options::{CalibOptions, WeakThresholds};
 use super::outcome::{
     DeterminedBy, DriftCheck, Excitation, InitReport, ParamStd, Status, Verdict, Verdicts,
     WeakCause,
@@ -482,7 +484,9 @@ fn verdicts(
                  what: &str,
                  unit: &str,
                  (why, cause): (&str, WeakCause)| {
-        if !free {
+        if free {
+            verdict_by_std(worst, limit, what, unit, why, cause)
+        } else {
             Verdict {
                 ok: true,
                 reason: format!(
@@ -491,22 +495,6 @@ fn verdicts(
                 ),
                 by: DeterminedBy::Fixed,
                 cause: None,
-            }
-        } else if worst.is_finite() && worst <= limit {
-            Verdict {
-                ok: true,
-                reason: String::new(),
-                by: DeterminedBy::Data,
-                cause: None,
-            }
-        } else {
-            Verdict {
-                ok: false,
-                reason: format!(
-                    "{what} standard deviation {worst:.3e} {unit} exceeds {limit} {unit}: {why}"
-                ),
-                by: DeterminedBy::Data,
-                cause: Some(cause),
             }
         }
     };
@@ -572,6 +560,158 @@ fn verdicts(
             "",
             ("the camera moved too little", WeakCause::LittleMotion),
         ),
+    }
+}
+
+/// The verdict on a parameter the data determined, by its worst standard deviation `worst`
+/// against `limit`: well determined, or weak with the reason `{what} standard deviation ...
+/// exceeds ...: {why}` and the `cause` that names what the motion lacked. The DVL's verdicts and
+/// the IMU's ([`imu_verdicts`]) are made by it.
+pub(crate) fn verdict_by_std(
+    worst: f64,
+    limit: f64,
+    what: &str,
+    unit: &str,
+    why: &str,
+    cause: WeakCause,
+) -> Verdict {
+    if worst.is_finite() && worst <= limit {
+        Verdict {
+            ok: true,
+            reason: String::new(),
+            by: DeterminedBy::Data,
+            cause: None,
+        }
+    } else {
+        Verdict {
+            ok: false,
+            reason: format!(
+                "{what} standard deviation {worst:.3e} {unit} exceeds {limit} {unit}: {why}"
+            ),
+            by: DeterminedBy::Data,
+            cause: Some(cause),
+        }
+    }
+}
+
+/// The motion the camera-IMU calibration saw: the rig's rotation over the recording, from the
+/// knots of the trajectory it was estimated with, each weighted by the time it stands for.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ImuMotion {
+    /// RMS rotation rate about the motion's principal axes, largest first, rad/s: the rotation
+    /// observes `R_cam_imu` about as many axes as these are well above zero.
+    pub principal_rates: [f64; 3],
+    /// RMS rotation rate about each IMU axis, rad/s.
+    pub axis_rates: Vector3<f64>,
+    /// RMS rotation rate, rad/s.
+    pub rms_rate: f64,
+    /// RMS angular acceleration, rad/s^2.
+    pub rms_angular_accel: f64,
+    /// RMS deviation of the rotation rate from its mean over the recording, rad/s.
+    pub rate_variation: f64,
+}
+
+/// The verdicts on the IMU's rotation, lever arm and clock offset, with the motion they were
+/// made from.
+#[derive(Clone, Debug)]
+pub struct ImuVerdicts {
+    /// On `R_cam_imu`.
+    pub rotation: Verdict,
+    /// On the lever arm `p_cam_imu`.
+    pub lever_arm: Verdict,
+    /// On the IMU's clock offset.
+    pub time_offset: Verdict,
+    /// What the motion gave.
+    pub motion: ImuMotion,
+}
+
+/// The rig's rotation over the knots of `est`.
+pub fn imu_motion(est: &ImuEstimate) -> ImuMotion {
+    let t = &est.times;
+    let n = t.len().min(est.knots.len());
+    let weight = |i: usize| {
+        let a = if i > 0 { t[i - 1] } else { t[i] };
+        let b = if i + 1 < n { t[i + 1] } else { t[i] };
+        0.5 * (b - a)
+    };
+    let r_imu_cam = est.state.t_cam_imu.rot.transpose();
+    let (mut total, mut mean, mut second, mut accel) =
+        (0.0, Vector3::zeros(), Matrix3::zeros(), 0.0);
+    for (i, k) in est.knots.iter().enumerate().take(n) {
+        let w = weight(i);
+        let rate = k.twist.fixed_rows::<3>(3).into_owned();
+        let alpha = k.rate.fixed_rows::<3>(3).into_owned();
+        total += w;
+        mean += w * rate;
+        second += w * rate * rate.transpose();
+        accel += w * alpha.norm_squared();
+    }
+    let total = if total > 0.0 { total } else { f64::NAN };
+    let (mean, second) = (mean / total, second / total);
+    let mut principal: Vec<f64> = SymmetricEigen::new(second)
+        .eigenvalues
+        .iter()
+        .map(|e| e.max(0.0).sqrt())
+        .collect();
+    principal.sort_by(|a, b| b.total_cmp(a));
+    let in_imu = r_imu_cam * second * r_imu_cam.transpose();
+    ImuMotion {
+        principal_rates: [principal[0], principal[1], principal[2]],
+        axis_rates: in_imu.diagonal().map(|v| v.max(0.0).sqrt()),
+        rms_rate: second.trace().max(0.0).sqrt(),
+        rms_angular_accel: (accel / total).sqrt(),
+        rate_variation: (second.trace() - mean.norm_squared()).max(0.0).sqrt(),
+    }
+}
+
+/// The IMU's verdicts by the thresholds `weak` (the DVL's: the worst axis's rotation and
+/// lever-arm standard deviation, and the offset's), each weak one with the motion it lacked: for
+/// the rotation, rotation about more than one axis; for the lever arm, rotation rate and
+/// angular acceleration; for the clock offset, a rotation rate that varies.
+pub fn imu_verdicts(est: &ImuEstimate, weak: &WeakThresholds) -> ImuVerdicts {
+    let m = imu_motion(est);
+    let (s_rot, s_lever, s_off) = est.std();
+    let [a, b, c] = m.principal_rates;
+    ImuVerdicts {
+        rotation: verdict_by_std(
+            s_rot.max().to_degrees(),
+            weak.rotation_deg,
+            "IMU rotation",
+            "deg",
+            &format!(
+                "the rig rotated about at most one axis (RMS rate about the motion's principal \
+                 axes {a:.3}, {b:.3} and {c:.3} rad/s); rotate about several axes while the \
+                 board stays in view"
+            ),
+            WeakCause::FewRotationAxes,
+        ),
+        lever_arm: verdict_by_std(
+            s_lever.max(),
+            weak.lever_arm_m,
+            "IMU lever arm",
+            "m",
+            &format!(
+                "the rig rotated too little (RMS rate {:.3} rad/s, RMS angular acceleration \
+                 {:.3} rad/s^2); rotate briskly about several axes, speeding the rotation up and \
+                 slowing it down",
+                m.rms_rate, m.rms_angular_accel
+            ),
+            WeakCause::LittleRotation,
+        ),
+        time_offset: verdict_by_std(
+            s_off,
+            weak.time_offset_s,
+            "IMU clock offset",
+            "s",
+            &format!(
+                "the rotation rate varied too little (by {:.3} rad/s RMS about its mean, RMS \
+                 angular acceleration {:.3} rad/s^2); turn, stop and turn back during the \
+                 recording",
+                m.rate_variation, m.rms_angular_accel
+            ),
+            WeakCause::SteadyRotationRate,
+        ),
+        motion: m,
     }
 }
 
@@ -856,5 +996,115 @@ mod prior_note_tests {
         // (printed with one decimal).
         let n = notes(1e-3, 1e-2, 0.1 * 100.0 / 101.0);
         assert!(n.iter().any(|m| m.contains("disagree by 10.0")), "{n:?}");
+    }
+}
+
+#[cfg(test)]
+mod imu_verdict_tests {
+    use super::*;
+    use crate::calib::imu::{BiasNodes, ImuState};
+    use crate::lie::Se3;
+    use crate::trajectory::Knot;
+    use crate::types::imu::ImuBias;
+    use nalgebra::{DMatrix, Vector6};
+
+    /// An estimate over 10 s of knots 0.1 s apart whose angular velocity is `w(t)` (camera
+    /// frame), with the IMU turned 90 degrees about the camera's z, and `std` as every
+    /// calibration parameter's standard deviation (rotation in rad).
+    fn estimate(w: impl Fn(f64) -> Vector3<f64>, std: f64) -> ImuEstimate {
+        let times: Vec<f64> = (0..=100).map(|i| 0.1 * i as f64).collect();
+        let knots = times
+            .iter()
+            .map(|&t| {
+                let (a, b) = (w(t), (w(t + 1e-4) - w(t - 1e-4)) / 2e-4);
+                Knot {
+                    pose: Se3::identity(),
+                    twist: Vector6::new(0.0, 0.0, 0.0, a.x, a.y, a.z),
+                    rate: Vector6::new(0.0, 0.0, 0.0, b.x, b.y, b.z),
+                }
+            })
+            .collect();
+        let r = crate::lie::so3::exp(&Vector3::new(0.0, 0.0, std::f64::consts::FRAC_PI_2));
+        let state = ImuState {
+            t_cam_imu: Se3::new(r, Vector3::zeros()),
+            time_offset_s: 0.0,
+            gravity_rotation: Matrix3::identity(),
+            gravity_magnitude: 9.81,
+            bias: BiasNodes::spanning(0.0, 10.0, 10.0, ImuBias::default()),
+        };
+        let n = state.dim();
+        ImuEstimate {
+            state,
+            covariance: DMatrix::identity(n, n) * std * std,
+            iterations: 1,
+            converged: true,
+            bins_used: 1,
+            bins_total: 1,
+            times,
+            knots,
+            cost: 0.0,
+            noise_factor: (1.0, 1.0),
+        }
+    }
+
+    #[test]
+    fn rotation_about_one_axis_is_the_named_cause_of_a_weak_imu_rotation() {
+        // A steady 0.5 rad/s about the camera's x axis: one principal axis, no variation.
+        let est = estimate(|_| Vector3::new(0.5, 0.0, 0.0), 1.0);
+        let v = imu_verdicts(&est, &WeakThresholds::default());
+        let m = &v.motion;
+        assert!((m.principal_rates[0] - 0.5).abs() < 1e-12, "{m:?}");
+        assert!(m.principal_rates[1] < 1e-12 && m.principal_rates[2] < 1e-12);
+        // The camera's x axis is the IMU's -y axis.
+        assert!(
+            (m.axis_rates - Vector3::new(0.0, 0.5, 0.0)).norm() < 1e-12,
+            "{m:?}"
+        );
+        assert!(
+            m.rms_angular_accel < 1e-9 && m.rate_variation < 1e-9,
+            "{m:?}"
+        );
+        for (verdict, cause, words) in [
+            (
+                &v.rotation,
+                WeakCause::FewRotationAxes,
+                "about at most one axis",
+            ),
+            (
+                &v.lever_arm,
+                WeakCause::LittleRotation,
+                "rotated too little",
+            ),
+            (
+                &v.time_offset,
+                WeakCause::SteadyRotationRate,
+                "varied too little",
+            ),
+        ] {
+            assert!(!verdict.ok);
+            assert_eq!(verdict.cause, Some(cause));
+            assert_eq!(verdict.by, DeterminedBy::Data);
+            assert!(verdict.reason.contains(words), "{}", verdict.reason);
+            assert!(verdict.reason.contains("exceeds"), "{}", verdict.reason);
+        }
+        assert!(
+            v.rotation
+                .reason
+                .starts_with("IMU rotation standard deviation")
+        );
+    }
+
+    #[test]
+    fn small_std_are_well_determined_with_no_reason() {
+        let est = estimate(
+            |t| Vector3::new(t.sin(), (2.0 * t).cos(), 0.3 * (3.0 * t).sin()),
+            1e-5,
+        );
+        let v = imu_verdicts(&est, &WeakThresholds::default());
+        for verdict in [&v.rotation, &v.lever_arm, &v.time_offset] {
+            assert!(verdict.ok && verdict.reason.is_empty() && verdict.cause.is_none());
+        }
+        assert!(v.motion.principal_rates[2] > 0.05, "{:?}", v.motion);
+        assert!(v.motion.rms_angular_accel > 0.5, "{:?}", v.motion);
     }
 }

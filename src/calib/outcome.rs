@@ -110,6 +110,10 @@ pub enum WeakCause {
     LittleMotion,
     /// The value comes mainly from the user's prior.
     UserPrior,
+    /// The rig rotated about at most one axis (the IMU's rotation).
+    FewRotationAxes,
+    /// The rotation rate varied too little (the IMU's clock offset).
+    SteadyRotationRate,
 }
 
 /// Verdict on one parameter.

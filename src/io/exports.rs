@@ -1,6 +1,7 @@
 //! The calibration in the forms other tools read: ROS static transform commands, a URDF robot
-//! (the camera link, the DVL link and the fixed joint between them), and a Kalibr
-//! camchain-imucam file.
+//! (the camera link, the DVL's and the IMU's links and the fixed joints to them), and a Kalibr
+//! camchain-imucam file. One writer per format takes what a run calibrated ([`Export`]): the
+//! DVL, an IMU, or both.
 //!
 //! A number in an export looks measured. A quantity the data did not determine (a lever arm held
 //! at the default prior because the motion did not observe it, a parameter held at the value
@@ -13,8 +14,10 @@
 //! parent frame, which for parent `cam0` and child `dvl` is `T_cam_dvl` (translation
 //! `p_cam_dvl`, rotation `R_cam_dvl`). Kalibr's camchain-imucam file gives, per camera, the
 //! camera's own calibration and `T_cam_imu` (IMU points into the camera frame) with
-//! `timeshift_cam_imu` (`t_imu = t_cam + timeshift`); with the DVL in the IMU's place,
-//! `T_cam_imu = T_camN_dvl` and `timeshift_cam_imu = -time_offset_s`.
+//! `timeshift_cam_imu` (`t_imu = t_cam + timeshift`). With a real IMU that slot holds the IMU
+//! (`timeshift_cam_imu = -imu_time_offset_s`) and the DVL is under dvlcal's own keys
+//! (`T_cam_dvl`, `timeshift_cam_dvl`), which Kalibr ignores; without one, the DVL is in the IMU's
+//! place too, `T_cam_imu = T_camN_dvl` and `timeshift_cam_imu = -time_offset_s`.
 
 use std::fmt::Write as _;
 
@@ -193,30 +196,55 @@ fn fmt_f(x: f64) -> String {
     if s == "-0.0" { "0.0".into() } else { s }
 }
 
-/// The ROS 1 and ROS 2 command lines publishing `T_cam_dvl` as a static transform, one per
-/// line, each preceded by a comment line; `notes` first, as `#` lines.
-pub fn ros_static_transform(
-    c: &CalibrationParams,
-    names: &FrameNames,
-    notes: &ExportNotes,
-) -> String {
-    let t = c.t_cam_dvl.trans;
-    let q = c.t_cam_dvl.quaternion_xyzw();
-    let mut s = String::new();
-    for l in notes.lines([
-        "rotation (qx qy qz qw)",
-        "lever arm (x y z)",
-        "clock offset",
-        "DVL velocity scale",
-    ]) {
-        let _ = writeln!(s, "# {l}");
+/// What the exports write: the DVL's calibration, the IMU's, or both, with the frames' names and
+/// what the exports say beside the DVL's numbers. A run of the DVL alone has `imu: None`; a run
+/// of the camera and an IMU alone has `dvl: None`.
+#[derive(Clone, Copy, Debug)]
+pub struct Export<'a> {
+    /// The DVL's calibration (`T_cam_dvl`, its clock offset and velocity scale).
+    pub dvl: Option<&'a CalibrationParams>,
+    /// The IMU calibrated against the camera (its frame named in it).
+    pub imu: Option<&'a ImuExport>,
+    /// The camera's frame (the parent of every transform) and the DVL's.
+    pub names: &'a FrameNames,
+    /// What the DVL's numbers do not measure, and a failure's reasons.
+    pub notes: &'a ExportNotes,
+}
+
+impl<'a> Export<'a> {
+    /// The DVL's calibration alone.
+    pub fn dvl(c: &'a CalibrationParams, names: &'a FrameNames, notes: &'a ExportNotes) -> Self {
+        Export {
+            dvl: Some(c),
+            imu: None,
+            names,
+            notes,
+        }
     }
-    let _ = writeln!(
-        s,
-        "# ROS 1 (tf2_ros): x y z qx qy qz qw parent child; the DVL frame in the camera frame"
-    );
-    let [x, y, z, qx, qy, qz, qw] = [t.x, t.y, t.z, q[0], q[1], q[2], q[3]].map(fmt_f);
-    let (parent, child) = (&names.camera, &names.dvl);
+
+    /// The same with `imu` beside it.
+    pub fn with_imu(self, imu: Option<&'a ImuExport>) -> Self {
+        Export { imu, ..self }
+    }
+}
+
+/// An IMU calibrated against the camera, for the exports: its transform, clock offset and
+/// frame.
+#[derive(Clone, Debug)]
+pub struct ImuExport {
+    /// `T_cam_imu` (camera 0): maps IMU-frame points into the camera frame.
+    pub t_cam_imu: Se3,
+    /// `t_cam = t_imu + time_offset_s`.
+    pub time_offset_s: f64,
+    /// The IMU frame's name (`imu`).
+    pub frame: String,
+}
+
+/// The ROS 1 and ROS 2 commands publishing `t` (the pose of `child` in `parent`) as a static
+/// transform, the ROS 2 one after a comment line.
+fn tf_commands(s: &mut String, t: &Se3, parent: &str, child: &str) {
+    let (p, q) = (t.trans, t.quaternion_xyzw());
+    let [x, y, z, qx, qy, qz, qw] = [p.x, p.y, p.z, q[0], q[1], q[2], q[3]].map(fmt_f);
     let _ = writeln!(
         s,
         "rosrun tf2_ros static_transform_publisher {x} {y} {z} {qx} {qy} {qz} {qw} {parent} {child}"
@@ -227,12 +255,43 @@ pub fn ros_static_transform(
         "ros2 run tf2_ros static_transform_publisher --x {x} --y {y} --z {z} --qx {qx} --qy {qy} \
          --qz {qz} --qw {qw} --frame-id {parent} --child-frame-id {child}"
     );
-    let _ = writeln!(
-        s,
-        "# clock: t_cam = t_dvl + {} s; DVL velocity scale {}",
-        fmt_f(c.time_offset_s),
-        fmt_f(c.velocity_scale)
-    );
+}
+
+/// The ROS 1 and ROS 2 command lines publishing `T_cam_dvl` and `T_cam_imu` (each present) as
+/// static transforms, one per line, each preceded by a comment line and followed by the
+/// sensor's clock; `notes` first, as `#` lines.
+pub fn ros_static_transform(e: &Export) -> String {
+    let mut s = String::new();
+    for l in e.notes.lines([
+        "rotation (qx qy qz qw)",
+        "lever arm (x y z)",
+        "clock offset",
+        "DVL velocity scale",
+    ]) {
+        let _ = writeln!(s, "# {l}");
+    }
+    let camera = &e.names.camera;
+    if let Some(c) = e.dvl {
+        let _ = writeln!(
+            s,
+            "# ROS 1 (tf2_ros): x y z qx qy qz qw parent child; the DVL frame in the camera frame"
+        );
+        tf_commands(&mut s, &c.t_cam_dvl, camera, &e.names.dvl);
+        let _ = writeln!(
+            s,
+            "# clock: t_cam = t_dvl + {} s; DVL velocity scale {}",
+            fmt_f(c.time_offset_s),
+            fmt_f(c.velocity_scale)
+        );
+    }
+    if let Some(imu) = e.imu {
+        let _ = writeln!(
+            s,
+            "# The IMU frame in the camera frame (T_cam_imu). ROS 1 (tf2_ros)"
+        );
+        tf_commands(&mut s, &imu.t_cam_imu, camera, &imu.frame);
+        let _ = writeln!(s, "# clock: t_cam = t_imu + {} s", fmt_f(imu.time_offset_s));
+    }
     s
 }
 
@@ -262,183 +321,121 @@ pub struct KalibrCamera {
     pub overlaps: Vec<usize>,
 }
 
-/// A Kalibr camchain-imucam file with the DVL in the IMU's place: for each camera `n` its
-/// camchain keys, `cam_overlaps`, `T_cam_imu` (= `T_camn_dvl`, DVL points into camera n) and
-/// `timeshift_cam_imu` (`t_dvl = t_cam + timeshift`, so `-time_offset_s`), then the same under
-/// dvlcal's explicit names (`T_cam_dvl`, `timeshift_cam_dvl`), the DVL velocity scale and the
-/// frame names. Kalibr's readers count the cameras as the file's top-level keys, so everything
-/// lives under `camN`. A camera with an empty `entry` is written with the transforms alone and a
-/// comment saying its calibration is unknown. `notes` come after the header as `#` lines, and
-/// each camera's transforms are preceded by a comment pointing at them.
-pub fn kalibr_camchain_imucam(
-    c: &CalibrationParams,
-    cams: &[KalibrCamera],
-    names: &FrameNames,
-    notes: &ExportNotes,
-) -> String {
-    let t_c0_dvl = c.t_cam_dvl.to_matrix();
-    let mut s = String::new();
-    let _ = writeln!(
-        s,
-        "# dvlcal {}: camera chain and DVL in the form of Kalibr's camchain-imucam.yaml, the DVL\n\
-         # in the IMU's place. T_cam_imu = T_cam_dvl maps DVL-frame points into camera n;\n\
-         # timeshift_cam_imu = timeshift_cam_dvl: t_dvl = t_cam + timeshift (= -time_offset_s).\n\
-         # dvl_velocity_scale: v_dvl = scale * R_dvl_cam * v_cam(DVL origin). Frames: {} (camera),\n\
+/// The comment at the top of the camchain-imucam file: what `T_cam_imu` holds and where the DVL
+/// is.
+fn kalibr_header(e: &Export) -> String {
+    let version = env!("CARGO_PKG_VERSION");
+    let names = e.names;
+    let dvl_keys = format!(
+        "# dvl_velocity_scale: v_dvl = scale * R_dvl_cam * v_cam(DVL origin). Frames: {} (camera),\n\
          # {} (DVL).",
-        env!("CARGO_PKG_VERSION"),
-        names.camera,
-        names.dvl
+        names.camera, names.dvl
     );
+    match (e.dvl, e.imu) {
+        (_, None) => format!(
+            "# dvlcal {version}: camera chain and DVL in the form of Kalibr's camchain-imucam.yaml, \
+             the DVL\n\
+             # in the IMU's place. T_cam_imu = T_cam_dvl maps DVL-frame points into camera n;\n\
+             # timeshift_cam_imu = timeshift_cam_dvl: t_dvl = t_cam + timeshift (= \
+             -time_offset_s).\n{dvl_keys}"
+        ),
+        (Some(_), Some(imu)) => format!(
+            "# dvlcal {version}: camera chain, IMU and DVL in the form of Kalibr's \
+             camchain-imucam.yaml.\n\
+             # T_cam_imu maps IMU-frame points into camera n, timeshift_cam_imu: t_imu = t_cam +\n\
+             # timeshift (= -imu_time_offset_s). The DVL is under T_cam_dvl and timeshift_cam_dvl\n\
+             # (t_dvl = t_cam + timeshift = t_cam - time_offset_s), which Kalibr's readers \
+             ignore.\n\
+             # IMU frame: {}.\n{dvl_keys}",
+            imu.frame
+        ),
+        (None, Some(imu)) => format!(
+            "# dvlcal {version}: camera chain and IMU in the form of Kalibr's \
+             camchain-imucam.yaml.\n\
+             # T_cam_imu maps IMU-frame points into camera n, timeshift_cam_imu: t_imu = t_cam +\n\
+             # timeshift (= -imu_time_offset_s). Frames: {} (camera), {} (IMU).",
+            names.camera, imu.frame
+        ),
+    }
+}
+
+/// A Kalibr camchain-imucam file: for each camera `n` its camchain keys, `cam_overlaps`,
+/// `T_cam_imu` (IMU points into camera n) and `timeshift_cam_imu` (`t_imu = t_cam +
+/// timeshift`), then the DVL under dvlcal's explicit names (`T_cam_dvl`, `timeshift_cam_dvl`:
+/// `t_dvl = t_cam + timeshift`, so `-time_offset_s`), the DVL velocity scale and the DVL's frame
+/// name. With an IMU, Kalibr's IMU keys hold the IMU (`T_camn_imu`, `-imu_time_offset_s`) and
+/// the DVL is under its own keys alone, which Kalibr's readers ignore; without one, the DVL is
+/// in the IMU's place as well (`T_cam_imu = T_camn_dvl`). Without a DVL, the IMU's keys alone.
+/// Kalibr's readers count the cameras as the file's top-level keys, so everything lives under
+/// `camN`. A camera with an empty `entry` is written with the transforms alone and a comment
+/// saying its calibration is unknown. `notes` come after the header as `#` lines, and each
+/// camera's transforms are preceded by a comment pointing at them.
+pub fn kalibr_camchain_imucam(e: &Export, cams: &[KalibrCamera]) -> String {
+    let mut s = kalibr_header(e);
+    s.push('\n');
     if cams.iter().any(|k| k.entry.is_empty()) {
+        let whose = match (e.dvl, e.imu) {
+            (_, None) => "DVL's",
+            (None, Some(_)) => "IMU's",
+            (Some(_), Some(_)) => "IMU's and DVL's",
+        };
         let _ = writeln!(
             s,
             "# The camera poses came from elsewhere: the camera's intrinsics and distortion are \
-             unknown\n# here, so this file gives only the DVL's transform and time shift; add \
+             unknown\n# here, so this file gives only the {whose} transform and time shift; add \
              the camera's\n# Kalibr keys (camera_model, intrinsics, ...) before a Kalibr-based \
              tool reads it."
         );
     }
-    let note_lines = notes.lines([
-        "rotation (upper-left 3x3 of T_cam_imu and T_cam_dvl)",
-        "lever arm (last column of T_cam_imu and T_cam_dvl)",
-        "clock offset (timeshift_cam_imu, timeshift_cam_dvl)",
-        "DVL velocity scale (dvl_velocity_scale)",
-    ]);
+    let note_lines = e.notes.lines(if e.imu.is_some() {
+        [
+            "DVL rotation (upper-left 3x3 of T_cam_dvl)",
+            "DVL lever arm (last column of T_cam_dvl)",
+            "DVL clock offset (timeshift_cam_dvl)",
+            "DVL velocity scale (dvl_velocity_scale)",
+        ]
+    } else {
+        [
+            "rotation (upper-left 3x3 of T_cam_imu and T_cam_dvl)",
+            "lever arm (last column of T_cam_imu and T_cam_dvl)",
+            "clock offset (timeshift_cam_imu, timeshift_cam_dvl)",
+            "DVL velocity scale (dvl_velocity_scale)",
+        ]
+    });
     for l in &note_lines {
         let _ = writeln!(s, "# {l}");
     }
+    // Kalibr's IMU slot: the IMU's transform and time shift, or the DVL's in its place.
+    let slot = e
+        .imu
+        .map(|i| (&i.t_cam_imu, i.time_offset_s))
+        .or(e.dvl.map(|c| (&c.t_cam_dvl, c.time_offset_s)));
     for (n, cam) in cams.iter().enumerate() {
         let _ = writeln!(s, "cam{n}:");
         s.push_str(&cam.entry);
         let overlaps: Vec<String> = cam.overlaps.iter().map(|o| o.to_string()).collect();
         let _ = writeln!(s, "  cam_overlaps: [{}]", overlaps.join(", "));
-        let t = cam.t_cn_c0 * t_c0_dvl;
-        let shift = fmt_f(-c.time_offset_s);
         if !note_lines.is_empty() {
             let _ = writeln!(
                 s,
                 "  # not all of the values below were measured: see the notes at the top"
             );
         }
-        let _ = writeln!(s, "  T_cam_imu:");
-        matrix_rows(&mut s, "  ", &t);
-        let _ = writeln!(s, "  timeshift_cam_imu: {shift}");
-        let _ = writeln!(s, "  T_cam_dvl:");
-        matrix_rows(&mut s, "  ", &t);
-        let _ = writeln!(s, "  timeshift_cam_dvl: {shift}");
-        let _ = writeln!(s, "  dvl_velocity_scale: {}", fmt_f(c.velocity_scale));
-        let _ = writeln!(s, "  dvl_frame_id: {}", names.dvl);
+        let mut transform = |key: &str, t: &Se3, offset_s: f64| {
+            let _ = writeln!(s, "  T_cam_{key}:");
+            matrix_rows(&mut s, "  ", &(cam.t_cn_c0 * t.to_matrix()));
+            let _ = writeln!(s, "  timeshift_cam_{key}: {}", fmt_f(-offset_s));
+        };
+        if let Some((t, offset_s)) = slot {
+            transform("imu", t, offset_s);
+        }
+        if let Some(c) = e.dvl {
+            transform("dvl", &c.t_cam_dvl, c.time_offset_s);
+            let _ = writeln!(s, "  dvl_velocity_scale: {}", fmt_f(c.velocity_scale));
+            let _ = writeln!(s, "  dvl_frame_id: {}", e.names.dvl);
+        }
     }
     s
-}
-
-/// An IMU calibrated beside the DVL, for the exports: its transform, clock offset and frame.
-#[derive(Clone, Debug)]
-pub struct ImuExport {
-    /// `T_cam_imu` (camera 0): maps IMU-frame points into the camera frame.
-    pub t_cam_imu: Se3,
-    /// `t_cam = t_imu + time_offset_s`.
-    pub time_offset_s: f64,
-    /// The IMU frame's name (`imu`).
-    pub frame: String,
-}
-
-/// The ROS static transform commands of `imu` (camera frame `camera` as parent), to append to
-/// [`ros_static_transform`]'s.
-pub fn ros_static_transform_imu(imu: &ImuExport, camera: &str) -> String {
-    let t = imu.t_cam_imu.trans;
-    let q = imu.t_cam_imu.quaternion_xyzw();
-    let [x, y, z, qx, qy, qz, qw] = [t.x, t.y, t.z, q[0], q[1], q[2], q[3]].map(fmt_f);
-    let child = &imu.frame;
-    let mut s = String::new();
-    let _ = writeln!(
-        s,
-        "# The IMU frame in the camera frame (T_cam_imu). ROS 1 (tf2_ros)"
-    );
-    let _ = writeln!(
-        s,
-        "rosrun tf2_ros static_transform_publisher {x} {y} {z} {qx} {qy} {qz} {qw} {camera} {child}"
-    );
-    let _ = writeln!(s, "# ROS 2 (tf2_ros)");
-    let _ = writeln!(
-        s,
-        "ros2 run tf2_ros static_transform_publisher --x {x} --y {y} --z {z} --qx {qx} --qy {qy} \
-         --qz {qz} --qw {qw} --frame-id {camera} --child-frame-id {child}"
-    );
-    let _ = writeln!(s, "# clock: t_cam = t_imu + {} s", fmt_f(imu.time_offset_s));
-    s
-}
-
-/// [`urdf_robot`]'s robot with the IMU's link and fixed joint (parent: the camera link) added.
-pub fn urdf_with_imu(urdf: &str, imu: &ImuExport, camera: &str) -> String {
-    let t = imu.t_cam_imu.trans;
-    let [roll, pitch, yaw] = rpy_from_rotation(&imu.t_cam_imu.rot).map(fmt_f);
-    let child = &imu.frame;
-    let mut add = String::new();
-    let _ = writeln!(add, "  <link name=\"{child}\"/>");
-    let _ = writeln!(add, "  <joint name=\"{camera}_to_{child}\" type=\"fixed\">");
-    let _ = writeln!(add, "    <parent link=\"{camera}\"/>");
-    let _ = writeln!(add, "    <child link=\"{child}\"/>");
-    let _ = writeln!(
-        add,
-        "    <!-- T_cam_imu; clock: t_cam = t_imu + {} s -->",
-        fmt_f(imu.time_offset_s)
-    );
-    let _ = writeln!(
-        add,
-        "    <origin xyz=\"{} {} {}\" rpy=\"{roll} {pitch} {yaw}\"/>",
-        fmt_f(t.x),
-        fmt_f(t.y),
-        fmt_f(t.z)
-    );
-    let _ = writeln!(add, "  </joint>");
-    match urdf.rfind("</robot>") {
-        Some(i) => format!("{}{add}{}", &urdf[..i], &urdf[i..]),
-        None => format!("{urdf}{add}"),
-    }
-}
-
-/// [`kalibr_camchain_imucam`]'s text with a real IMU in the IMU's place: each camera's
-/// `T_cam_imu` and `timeshift_cam_imu` become the IMU's (`T_camN_imu`, `t_imu = t_cam +
-/// timeshift`, so `-imu_time_offset_s`), while the DVL keeps dvlcal's own keys (`T_cam_dvl`,
-/// `timeshift_cam_dvl`), which Kalibr's readers ignore. `t_cn_c0` per camera, as given to
-/// [`kalibr_camchain_imucam`].
-pub fn camchain_imucam_with_imu(text: &str, imu: &ImuExport, t_cn_c0: &[Matrix4<f64>]) -> String {
-    let mut out = String::new();
-    // The plain file's first three lines say the DVL is in the IMU's place: not so here.
-    let _ = writeln!(
-        out,
-        "# dvlcal {}: camera chain, IMU and DVL in the form of Kalibr's camchain-imucam.yaml.\n\
-         # T_cam_imu maps IMU-frame points into camera n, timeshift_cam_imu: t_imu = t_cam +\n\
-         # timeshift (= -imu_time_offset_s). The DVL is under T_cam_dvl and timeshift_cam_dvl\n\
-         # (t_dvl = t_cam + timeshift = t_cam - time_offset_s), which Kalibr's readers ignore.\n\
-         # IMU frame: {}.",
-        env!("CARGO_PKG_VERSION"),
-        imu.frame
-    );
-    let mut lines = text.lines().skip(3).peekable();
-    let mut cam = 0usize;
-    while let Some(line) = lines.next() {
-        if let Some(n) = line.strip_prefix("cam").and_then(|r| r.strip_suffix(':')) {
-            cam = n.parse().unwrap_or(cam);
-        }
-        if line.trim_start() == "T_cam_imu:" {
-            let m = t_cn_c0.get(cam).copied().unwrap_or_else(Matrix4::identity)
-                * imu.t_cam_imu.to_matrix();
-            let _ = writeln!(out, "{line}");
-            for _ in 0..4 {
-                lines.next();
-            }
-            matrix_rows(&mut out, "  ", &m);
-            continue;
-        }
-        if line.trim_start().starts_with("timeshift_cam_imu:") {
-            let _ = writeln!(out, "  timeshift_cam_imu: {}", fmt_f(-imu.time_offset_s));
-            continue;
-        }
-        let _ = writeln!(out, "{line}");
-    }
-    out
 }
 
 /// Roll, pitch and yaw (radians) of `r` in URDF's and ROS's convention: rotations about the
@@ -462,50 +459,90 @@ pub fn rpy_from_rotation(r: &Matrix3<f64>) -> [f64; 3] {
     }
 }
 
-/// A URDF robot of two links, the camera (parent) and the DVL (child), and the fixed joint
-/// `PARENT_to_CHILD` between them, as ROS's URDF parsers read a file: `<origin xyz rpy>` is
-/// `T_cam_dvl`, rpy as [`rpy_from_rotation`]. The clock offset and scale, which a URDF cannot
-/// hold, are given in a comment, and `notes` in a comment above the origin. To add the DVL to a
-/// robot's own URDF, copy the DVL link and the joint (the parent link is the robot's camera).
-pub fn urdf_robot(c: &CalibrationParams, names: &FrameNames, notes: &ExportNotes) -> String {
-    let t = c.t_cam_dvl.trans;
-    let [roll, pitch, yaw] = rpy_from_rotation(&c.t_cam_dvl.rot).map(fmt_f);
-    let (parent, child) = (&names.camera, &names.dvl);
-    let mut s = String::new();
-    let _ = writeln!(s, "<?xml version=\"1.0\"?>");
-    let _ = writeln!(
-        s,
-        "<!-- dvlcal {}: the DVL frame in the camera frame (T_cam_dvl); rpy = fixed-axis roll \
-         about x, then pitch about y, then yaw about z (R = Rz(yaw) Ry(pitch) Rx(roll)), rad.\n     \
-         Clock: t_cam = t_dvl + {} s; DVL velocity scale {}.\n     \
-         To add the DVL to a robot's URDF, copy the link {child} and the joint; {parent} is the \
-         robot's camera link. -->",
-        env!("CARGO_PKG_VERSION"),
-        fmt_f(c.time_offset_s),
-        fmt_f(c.velocity_scale)
-    );
-    let _ = writeln!(s, "<robot name=\"{parent}_{child}_calibration\">");
-    let _ = writeln!(s, "  <link name=\"{parent}\"/>");
+/// The link `child` and the fixed joint `PARENT_to_CHILD` that places it at `t` in `parent`,
+/// with `comments` above the origin.
+fn urdf_joint(s: &mut String, parent: &str, child: &str, t: &Se3, comments: &[String]) {
+    let [roll, pitch, yaw] = rpy_from_rotation(&t.rot).map(fmt_f);
     let _ = writeln!(s, "  <link name=\"{child}\"/>");
     let _ = writeln!(s, "  <joint name=\"{parent}_to_{child}\" type=\"fixed\">");
     let _ = writeln!(s, "    <parent link=\"{parent}\"/>");
     let _ = writeln!(s, "    <child link=\"{child}\"/>");
-    for l in notes.lines([
-        "rotation (origin rpy)",
-        "lever arm (origin xyz)",
-        "clock offset",
-        "DVL velocity scale",
-    ]) {
-        let _ = writeln!(s, "    <!-- {} -->", xml_comment_text(&l));
+    for c in comments {
+        let _ = writeln!(s, "    <!-- {} -->", xml_comment_text(c));
     }
     let _ = writeln!(
         s,
         "    <origin xyz=\"{} {} {}\" rpy=\"{roll} {pitch} {yaw}\"/>",
-        fmt_f(t.x),
-        fmt_f(t.y),
-        fmt_f(t.z)
+        fmt_f(t.trans.x),
+        fmt_f(t.trans.y),
+        fmt_f(t.trans.z)
     );
     let _ = writeln!(s, "  </joint>");
+}
+
+/// A URDF robot of the camera link (parent) and the DVL's and the IMU's links (each present),
+/// each child on a fixed joint `PARENT_to_CHILD`, as ROS's URDF parsers read a file: the DVL's
+/// `<origin xyz rpy>` is `T_cam_dvl`, the IMU's `T_cam_imu`, rpy as [`rpy_from_rotation`]. The
+/// clock offsets and the DVL's scale, which a URDF cannot hold, are given in comments, and
+/// `notes` in a comment above the DVL's origin (above the IMU's without a DVL). To add the
+/// sensors to a robot's own URDF, copy their links and joints (the parent link is the robot's
+/// camera).
+pub fn urdf_robot(e: &Export) -> String {
+    let parent = &e.names.camera;
+    let mut s = String::new();
+    let _ = writeln!(s, "<?xml version=\"1.0\"?>");
+    let convention = "rpy = fixed-axis roll about x, then pitch about y, then yaw about z (R = \
+                      Rz(yaw) Ry(pitch) Rx(roll)), rad.";
+    let version = env!("CARGO_PKG_VERSION");
+    let child = match (e.dvl, e.imu) {
+        (Some(c), _) => {
+            let child = &e.names.dvl;
+            let _ = writeln!(
+                s,
+                "<!-- dvlcal {version}: the DVL frame in the camera frame (T_cam_dvl); \
+                 {convention}\n     Clock: t_cam = t_dvl + {} s; DVL velocity scale {}.\n     \
+                 To add the DVL to a robot's URDF, copy the link {child} and the joint; {parent} \
+                 is the robot's camera link. -->",
+                fmt_f(c.time_offset_s),
+                fmt_f(c.velocity_scale)
+            );
+            child
+        }
+        (None, Some(imu)) => {
+            let child = &imu.frame;
+            let _ = writeln!(
+                s,
+                "<!-- dvlcal {version}: the IMU frame in the camera frame (T_cam_imu); \
+                 {convention}\n     Clock: t_cam = t_imu + {} s.\n     \
+                 To add the IMU to a robot's URDF, copy the link {child} and the joint; {parent} \
+                 is the robot's camera link. -->",
+                fmt_f(imu.time_offset_s)
+            );
+            child
+        }
+        (None, None) => &e.names.dvl,
+    };
+    let _ = writeln!(s, "<robot name=\"{parent}_{child}_calibration\">");
+    let _ = writeln!(s, "  <link name=\"{parent}\"/>");
+    let notes = e.notes.lines([
+        "rotation (origin rpy)",
+        "lever arm (origin xyz)",
+        "clock offset",
+        "DVL velocity scale",
+    ]);
+    if let Some(c) = e.dvl {
+        urdf_joint(&mut s, parent, &e.names.dvl, &c.t_cam_dvl, &notes);
+    }
+    if let Some(imu) = e.imu {
+        let mut comments = vec![format!(
+            "T_cam_imu; clock: t_cam = t_imu + {} s",
+            fmt_f(imu.time_offset_s)
+        )];
+        if e.dvl.is_none() {
+            comments.extend(notes);
+        }
+        urdf_joint(&mut s, parent, &imu.frame, &imu.t_cam_imu, &comments);
+    }
     let _ = writeln!(s, "</robot>");
     s
 }
@@ -527,7 +564,8 @@ mod tests {
     #[test]
     fn ros_line_carries_the_pose_of_the_dvl_in_the_camera() {
         let c = params();
-        let text = ros_static_transform(&c, &FrameNames::default(), &ExportNotes::default());
+        let (names, notes) = (FrameNames::default(), ExportNotes::default());
+        let text = ros_static_transform(&Export::dvl(&c, &names, &notes));
         let line = text
             .lines()
             .find(|l| l.starts_with("rosrun"))
@@ -575,8 +613,8 @@ mod tests {
                 overlaps: vec![0],
             },
         ];
-        let text =
-            kalibr_camchain_imucam(&c, &cams, &FrameNames::default(), &ExportNotes::default());
+        let (names, notes) = (FrameNames::default(), ExportNotes::default());
+        let text = kalibr_camchain_imucam(&Export::dvl(&c, &names, &notes), &cams);
         let v: serde_yaml::Value = serde_yaml::from_str(&text).expect("valid YAML");
         // Kalibr counts the cameras as the top-level keys: nothing else may be there.
         let keys: Vec<&str> = v
@@ -603,6 +641,121 @@ mod tests {
             text.contains("intrinsics and distortion are unknown"),
             "{text}"
         );
+    }
+
+    fn imu() -> ImuExport {
+        ImuExport {
+            t_cam_imu: Se3::exp(&Vector6::new(0.02, 0.05, -0.01, -1.2, 0.3, 1.6)),
+            time_offset_s: -0.0375,
+            frame: "imu".into(),
+        }
+    }
+
+    /// A stereo chain with both cameras' keys: cam1 12 cm beside cam0.
+    fn stereo() -> Vec<KalibrCamera> {
+        let t_c1_c0 = Se3::new(Matrix3::identity(), Vector3::new(-0.12, 0.0, 0.0));
+        vec![
+            KalibrCamera {
+                entry: "  camera_model: pinhole\n  intrinsics: [460.0, 459.5, 367.0, 248.0]\n"
+                    .into(),
+                t_cn_c0: Matrix4::identity(),
+                overlaps: vec![1],
+            },
+            KalibrCamera {
+                entry: "  camera_model: pinhole\n  intrinsics: [457.0, 456.0, 379.0, 255.0]\n"
+                    .into(),
+                t_cn_c0: t_c1_c0.to_matrix(),
+                overlaps: vec![0],
+            },
+        ]
+    }
+
+    /// The DVL and an IMU: ROS commands, URDF and Kalibr file byte for byte as the writers that
+    /// added the IMU to the DVL's finished text wrote them (tests/fixtures/exports_imu, with
+    /// `VERSION` for the version).
+    #[test]
+    fn with_the_dvl_the_imus_exports_are_what_they_were() {
+        let golden = |text: &str| {
+            text.replace(
+                "dvlcal VERSION:",
+                &format!("dvlcal {}:", env!("CARGO_PKG_VERSION")),
+            )
+        };
+        let (c, imu) = (params(), imu());
+        let names = FrameNames::parse("camera_link,dvl_link").unwrap();
+        let notes = ExportNotes::default();
+        let e = Export::dvl(&c, &names, &notes).with_imu(Some(&imu));
+        assert_eq!(
+            ros_static_transform(&e),
+            golden(include_str!("../../tests/fixtures/exports_imu/tf.txt"))
+        );
+        assert_eq!(
+            urdf_robot(&e),
+            golden(include_str!("../../tests/fixtures/exports_imu/urdf.xml"))
+        );
+        assert_eq!(
+            kalibr_camchain_imucam(&e, &stereo()),
+            golden(include_str!(
+                "../../tests/fixtures/exports_imu/camchain-imucam.yaml"
+            ))
+        );
+    }
+
+    /// The camera and an IMU without a DVL: the Kalibr file parses, holds the two cameras as
+    /// its only top-level keys, each with the IMU in Kalibr's IMU keys (composed with the
+    /// camera's `T_cn_c0`, the time shift `-imu_time_offset_s`) and no DVL key; the URDF is a
+    /// robot `check_urdf` (Debian's liburdfdom-tools) reads with the IMU as the camera's one
+    /// child; the ROS commands publish the IMU alone.
+    #[test]
+    fn without_a_dvl_the_exports_hold_the_imu_alone_and_parse() {
+        let imu = imu();
+        let (names, notes) = (FrameNames::default(), ExportNotes::default());
+        let e = Export {
+            dvl: None,
+            imu: Some(&imu),
+            names: &names,
+            notes: &notes,
+        };
+        let cams = stereo();
+        let text = kalibr_camchain_imucam(&e, &cams);
+        let v: serde_yaml::Value = serde_yaml::from_str(&text).expect("valid YAML");
+        let keys = |v: &serde_yaml::Value| -> Vec<String> {
+            v.as_mapping()
+                .into_iter()
+                .flatten()
+                .filter_map(|(k, _)| k.as_str().map(String::from))
+                .collect()
+        };
+        assert_eq!(keys(&v), ["cam0", "cam1"]);
+        for (n, cam) in ["cam0", "cam1"].into_iter().enumerate() {
+            let want = cams[n].t_cn_c0 * imu.t_cam_imu.to_matrix();
+            let d = (matrix_of(&v[cam]["T_cam_imu"]) - want).abs().max();
+            assert!(d < 1e-11, "{cam} T_cam_imu off by {d}");
+            assert_eq!(v[cam]["timeshift_cam_imu"].as_f64(), Some(0.0375));
+            assert!(!keys(&v[cam]).iter().any(|k| k.contains("dvl")), "{text}");
+        }
+        assert!(!text.contains("DVL"), "{text}");
+
+        let urdf =
+            std::env::temp_dir().join(format!("dvlcal-imu-only-urdf-{}.xml", std::process::id()));
+        std::fs::write(&urdf, urdf_robot(&e)).unwrap();
+        let r = std::process::Command::new("check_urdf")
+            .arg(&urdf)
+            .output()
+            .expect("check_urdf (Debian's liburdfdom-tools) runs");
+        let _ = std::fs::remove_file(&urdf);
+        let parsed = String::from_utf8_lossy(&r.stdout);
+        assert!(r.status.success(), "{parsed}");
+        assert!(
+            parsed.contains("root Link: cam0 has 1 child(ren)")
+                && parsed.contains("child(1):  imu"),
+            "{parsed}"
+        );
+
+        let tf = ros_static_transform(&e);
+        assert_eq!(tf.matches("rosrun").count(), 1, "{tf}");
+        assert!(tf.contains("--frame-id cam0 --child-frame-id imu"), "{tf}");
+        assert!(tf.contains("# clock: t_cam = t_imu + -0.0375 s"), "{tf}");
     }
 
     /// R = Rz(yaw) Ry(pitch) Rx(roll) written out entry by entry (URDF's definition), not
@@ -673,7 +826,8 @@ mod tests {
             velocity_scale: 1.0,
         };
         let names = FrameNames::parse("camera_link,dvl_link").unwrap();
-        let x = urdf_robot(&c, &names, &ExportNotes::default());
+        let notes = ExportNotes::default();
+        let x = urdf_robot(&Export::dvl(&c, &names, &notes));
         assert!(x.contains("<parent link=\"camera_link\"/>"), "{x}");
         assert!(x.contains("<child link=\"dvl_link\"/>"), "{x}");
         assert!(

@@ -19,7 +19,7 @@ use crate::io::calib_yaml::{
 use crate::io::camchain::kalibr_entry;
 use crate::io::dvl::DvlLog;
 use crate::io::exports::{
-    FrameNames, KalibrCamera, kalibr_camchain_imucam, ros_static_transform, urdf_robot,
+    Export, FrameNames, KalibrCamera, kalibr_camchain_imucam, ros_static_transform, urdf_robot,
 };
 use crate::io::provenance::Provenance;
 use crate::io::tum::CameraSegment;
@@ -42,6 +42,8 @@ pub struct CalibrationRun {
     pub file: CalibrationFile,
     /// Seconds spent in [`calibrate`] (the dataset was read before).
     pub elapsed_s: f64,
+    /// The IMU calibrated against the camera, when the dataset has one.
+    pub imu: Option<super::imu::ImuCalibration>,
 }
 
 /// Calibrates `data` with `opts` on a pool of `threads` workers (`None`: all cores; the result
@@ -66,9 +68,7 @@ pub fn calibrate_dataset(
     let imu = workers.install(|| super::imu::calibrate_imu(data, &mut imu_warnings));
     let elapsed_s = start.elapsed().as_secs_f64();
     let mut file = result_file(&outcome, log);
-    if let Some(est) = &imu {
-        super::imu::note_imu(&mut file, est, data, &opts.weak);
-    }
+    let imu = imu.map(|est| super::imu::note_imu(&mut file, est, data, &opts.weak));
     if !imu_warnings.is_empty() {
         file.info
             .get_or_insert_with(Default::default)
@@ -87,6 +87,7 @@ pub fn calibrate_dataset(
         outcome,
         file,
         elapsed_s,
+        imu,
     })
 }
 
@@ -703,20 +704,12 @@ pub fn write_results(
     let notes = super::exports::export_notes(&run.outcome);
     let imu = super::imu::imu_export(&run.file);
     let cams = kalibr_cameras(data);
-    let (mut tf_text, mut urdf_text, mut imucam_text) = (
-        ros_static_transform(calib, &names, &notes),
-        urdf_robot(calib, &names, &notes),
-        kalibr_camchain_imucam(calib, &cams, &names, &notes),
+    let export = Export::dvl(calib, &names, &notes).with_imu(imu.as_ref());
+    let (tf_text, urdf_text, imucam_text) = (
+        ros_static_transform(&export),
+        urdf_robot(&export),
+        kalibr_camchain_imucam(&export, &cams),
     );
-    if let Some(imu) = &imu {
-        tf_text.push_str(&crate::io::exports::ros_static_transform_imu(
-            imu,
-            &names.camera,
-        ));
-        urdf_text = crate::io::exports::urdf_with_imu(&urdf_text, imu, &names.camera);
-        let t_cn_c0: Vec<_> = cams.iter().map(|c| c.t_cn_c0).collect();
-        imucam_text = crate::io::exports::camchain_imucam_with_imu(&imucam_text, imu, &t_cn_c0);
-    }
     write_atomic(&tf, tf_text.as_bytes())?;
     write_atomic(&urdf, urdf_text.as_bytes())?;
     write_atomic(&imucam, imucam_text.as_bytes())?;
@@ -774,6 +767,7 @@ pub fn write_report(
         result_name: Some(&name),
         result_yaml: yaml.as_deref(),
         elapsed_s: Some(run.elapsed_s),
+        imu: run.imu.as_ref().map(|i| i.report_input()),
         ..ReportInput::new(&run.outcome, &data.poses)
     };
     let html = render_html(&input)?;

@@ -7,7 +7,7 @@ use crate::io::calib_yaml::Observability;
 use crate::io::exports::ExportNotes;
 
 /// The state the result file gives a parameter with verdict `v`.
-fn state(v: &Verdict) -> Observability {
+pub(super) fn state(v: &Verdict) -> Observability {
     match v.by {
         DeterminedBy::Fixed => Observability::Fixed,
         DeterminedBy::Prior => Observability::Prior,

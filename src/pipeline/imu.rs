@@ -8,12 +8,14 @@ use std::fmt::Write as _;
 use nalgebra::Vector3;
 
 use super::dataset::Dataset;
+use crate::calib::diagnostics::{ImuVerdicts, imu_verdicts};
 use crate::calib::imu::{ImuEstimate, ImuOptions, calibrate_camera_imu};
 use crate::calib::options::WeakThresholds;
 use crate::io::calib_yaml::{
     CalibrationFile, ImuBiasFile, ImuObservability, ImuStd, Observability, rows,
 };
 use crate::io::exports::ImuExport;
+use crate::report::ImuReportInput;
 
 /// The camera-IMU calibration of `data`, when it has an IMU stream and a noise file; a
 /// warning (and `None`) when it has one without the other, or when the calibration fails (the
@@ -50,9 +52,34 @@ pub fn calibrate_imu(data: &Dataset, warnings: &mut Vec<String>) -> Option<ImuEs
     }
 }
 
+/// The IMU's calibration in a run, with its verdicts (for the report).
+#[derive(Clone, Debug)]
+pub struct ImuCalibration {
+    /// The estimate.
+    pub estimate: ImuEstimate,
+    /// Its verdicts and the motion they were made from.
+    pub verdicts: ImuVerdicts,
+}
+
+impl ImuCalibration {
+    /// What the report shows of it.
+    pub fn report_input(&self) -> ImuReportInput<'_> {
+        ImuReportInput {
+            estimate: &self.estimate,
+            verdicts: &self.verdicts,
+        }
+    }
+}
+
 /// Writes `est` into the result file `f`, with verdicts by the thresholds `weak` (the DVL's:
-/// per-axis rotation and lever-arm std and the offset's std).
-pub fn note_imu(f: &mut CalibrationFile, est: &ImuEstimate, data: &Dataset, weak: &WeakThresholds) {
+/// per-axis rotation and lever-arm std and the offset's) and a warning per weak one; the
+/// calibration with its verdicts.
+pub fn note_imu(
+    f: &mut CalibrationFile,
+    est: ImuEstimate,
+    data: &Dataset,
+    weak: &WeakThresholds,
+) -> ImuCalibration {
     let v = |x: &Vector3<f64>| [x.x, x.y, x.z];
     let st = &est.state;
     f.t_cam_imu = Some(rows(&st.t_cam_imu.to_matrix()));
@@ -64,50 +91,17 @@ pub fn note_imu(f: &mut CalibrationFile, est: &ImuEstimate, data: &Dataset, weak
     });
     let (s_rot, s_lever, s_off) = est.std();
     let s_rot_deg = s_rot.map(f64::to_degrees);
-    let judge = |worst: f64, limit: f64| {
-        if worst.is_finite() && worst <= limit {
-            Observability::Ok
-        } else {
-            Observability::Weak
-        }
-    };
+    let judged = imu_verdicts(&est, weak);
     let verdicts = ImuObservability {
-        rotation: judge(s_rot_deg.max(), weak.rotation_deg),
-        lever_arm: judge(s_lever.max(), weak.lever_arm_m),
-        time_offset: judge(s_off, weak.time_offset_s),
+        rotation: super::exports::state(&judged.rotation),
+        lever_arm: super::exports::state(&judged.lever_arm),
+        time_offset: super::exports::state(&judged.time_offset),
     };
-    let mut warnings = Vec::new();
-    for (name, o, std, limit, unit) in [
-        (
-            "rotation",
-            verdicts.rotation,
-            s_rot_deg.max(),
-            weak.rotation_deg,
-            "deg",
-        ),
-        (
-            "lever arm",
-            verdicts.lever_arm,
-            s_lever.max(),
-            weak.lever_arm_m,
-            "m",
-        ),
-        (
-            "clock offset",
-            verdicts.time_offset,
-            s_off,
-            weak.time_offset_s,
-            "s",
-        ),
-    ] {
-        if o == Observability::Weak {
-            warnings.push(format!(
-                "IMU {name}: standard deviation {std:.3e} {unit} exceeds {limit} {unit}: the \
-                 motion did not determine it well (rotate about several axes, and vary the \
-                 rotation rate, while the board stays in view)"
-            ));
-        }
-    }
+    let warnings: Vec<String> = [&judged.rotation, &judged.lever_arm, &judged.time_offset]
+        .into_iter()
+        .filter(|v| !v.ok)
+        .map(|v| v.reason.clone())
+        .collect();
     if let Some(s) = f.std.as_mut() {
         s.imu = Some(ImuStd {
             rotation_deg: v(&s_rot_deg),
@@ -134,6 +128,10 @@ pub fn note_imu(f: &mut CalibrationFile, est: &ImuEstimate, data: &Dataset, weak
              noise densities; its standard deviations are scaled by these factors",
             est.noise_factor.0, est.noise_factor.1
         ));
+    }
+    ImuCalibration {
+        estimate: est,
+        verdicts: judged,
     }
 }
 

@@ -51,6 +51,7 @@ pub use dataset::{Dataset, dataset_files, describe_files};
 pub use evaluate::{
     Baseline, CrossValidation, baselines, cross_validate, odometry_check, odometry_table,
 };
+pub use imu::ImuCalibration;
 pub use outputs::{CameraOutputs, RESULT_EXPORTS, check_result_outputs};
 pub use simulate::{
     ImageRequest, SimulateRequest, SimulatedRecording, simulated_imu_config,

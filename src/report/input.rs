@@ -1,7 +1,9 @@
-//! What a report is made from: the calibration outcome, the poses, the DVL log's counts and the
-//! image statistics of a run.
+//! What a report is made from: the calibration outcome, the poses, the DVL log's counts, the
+//! image statistics of a run and the IMU calibrated beside the DVL.
 
 use crate::calib::CalibrationOutcome;
+use crate::calib::diagnostics::ImuVerdicts;
+use crate::calib::imu::ImuEstimate;
 use crate::io::dvl::DvlLogStats;
 use crate::time::Epoch;
 use crate::types::PoseMeasurement;
@@ -151,6 +153,17 @@ pub struct ReportInput<'a> {
     pub elapsed_s: Option<f64>,
     /// Image size (width, height) of each camera, pixels, for runs from images.
     pub image_sizes: Option<&'a [(u32, u32)]>,
+    /// The IMU calibrated against the camera in the same run, when there is one.
+    pub imu: Option<ImuReportInput<'a>>,
+}
+
+/// An IMU calibrated against the camera, as the report shows it.
+#[derive(Clone, Copy, Debug)]
+pub struct ImuReportInput<'a> {
+    /// The estimate: `T_cam_imu`, the clock offset, gravity, biases, covariance, noise factors.
+    pub estimate: &'a ImuEstimate,
+    /// Its verdicts and the motion they were made from.
+    pub verdicts: &'a ImuVerdicts,
 }
 
 impl<'a> ReportInput<'a> {
@@ -167,6 +180,7 @@ impl<'a> ReportInput<'a> {
             result_yaml: None,
             elapsed_s: None,
             image_sizes: None,
+            imu: None,
         }
     }
 }

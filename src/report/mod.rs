@@ -11,7 +11,9 @@
 //! lever-arm velocity against the speed, the clock-offset objective, the cost per iteration,
 //! per-frame detection statistics, each camera's reprojection errors over the image and over
 //! time, pose residuals and a top view of the trajectory, followed by the DVL log's summary and
-//! the result file.
+//! the result file. A run that calibrated an IMU beside the DVL has a section of the IMU's
+//! ([`IMU_SECTION_ID`]): `T_cam_imu`, its clock offset, gravity, biases and noise factors with
+//! their verdicts and the motion that observed them.
 //!
 //! A calibration that stopped with an error gets [`render_failure_html`]: what was found and why
 //! it stopped.
@@ -25,6 +27,7 @@ mod failure;
 mod frames;
 mod guidance;
 mod html;
+mod imu;
 mod input;
 mod motion;
 mod page;
@@ -47,8 +50,8 @@ pub use cameras::{
 pub use failure::{FAILURE_PLOT_IDS, FAILURE_SECTION_IDS, FailureReportInput, render_failure_html};
 pub use guidance::{NextStep, StepKind, next_steps};
 pub use input::{
-    BLUR_FACTOR, BLUR_MARGIN_PX, BLURRED_EDGE_PX, FrameDrop, FrameStat, ReportInput, frame_stats,
-    posed_edge_width_px,
+    BLUR_FACTOR, BLUR_MARGIN_PX, BLURRED_EDGE_PX, FrameDrop, FrameStat, ImuReportInput,
+    ReportInput, frame_stats, posed_edge_width_px,
 };
 pub use words::{WATER_SOUND_SPEED_MPS, implausible_water, sound_speed_words};
 
@@ -108,6 +111,9 @@ pub const SECTION_IDS: &[&str] = &[
     "dvl-log",
     "result-file",
 ];
+
+/// The id of the IMU's section, present (after `correlation`) when the run calibrated an IMU.
+pub const IMU_SECTION_ID: &str = "imu";
 
 /// Renders the report as one HTML document.
 pub fn render_html(input: &ReportInput) -> Result<String> {

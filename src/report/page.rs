@@ -35,6 +35,9 @@ pub(super) fn render(input: &ReportInput, d: &Derived) -> String {
     next_steps_section(&mut s, &steps, warned.len());
     results(&mut s, input);
     s.push_str(&super::correlation::correlation_section(o));
+    if let Some(imu) = &input.imu {
+        super::imu::imu_section(&mut s, imu);
+    }
     warnings(&mut s, &warned);
     s.push_str(&super::timeline::residual_time_section(
         &d.samples,

@@ -12,7 +12,7 @@ use super::words::estimated;
 use crate::calib::{DeterminedBy, Verdict, WeakCause};
 
 /// The verdict cell of the results table.
-fn verdict_cell(v: &Verdict, free: bool) -> &'static str {
+pub(super) fn verdict_cell(v: &Verdict, free: bool) -> &'static str {
     if !free {
         "<span class=\"fixed\">fixed (from --init)</span>"
     } else if v.by == DeterminedBy::Prior && v.cause == Some(WeakCause::UserPrior) {
@@ -28,7 +28,7 @@ fn verdict_cell(v: &Verdict, free: bool) -> &'static str {
 
 /// One sentence on one parameter; `spread` describes its standard deviation (weak verdicts
 /// already quote it in their reason), `loss` the frames the image pipeline lost.
-fn verdict_sentence(
+pub(super) fn verdict_sentence(
     name: &str,
     v: &Verdict,
     free: bool,

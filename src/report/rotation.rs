@@ -38,33 +38,63 @@ pub(super) fn axis_angle_deg(r: &Matrix3<f64>) -> (Option<Vector3<f64>>, f64) {
 /// Roll, pitch, yaw and axis-angle of `R_cam_dvl` as a small HTML table (`start`: where the
 /// refinement started, shown beside).
 pub(super) fn rotation_table(r: &Matrix3<f64>, start: &Matrix3<f64>) -> String {
+    rotation_forms(
+        "rotation-forms",
+        "R_cam_dvl",
+        ", as --rotation-prior and rpy_cam_dvl_deg take them",
+        r,
+        Some(start),
+    )
+}
+
+/// Roll, pitch, yaw and axis-angle of the rotation `name` as a small HTML table with the id
+/// `id` (`takes`: which options take the angles, after the convention; `start`: where the
+/// refinement started, shown beside).
+pub(super) fn rotation_forms(
+    id: &str,
+    name: &str,
+    takes: &str,
+    r: &Matrix3<f64>,
+    start: Option<&Matrix3<f64>>,
+) -> String {
     let mut s = String::new();
     let rpy = rpy_deg(r);
-    let rpy0 = rpy_deg(start);
     let (axis, angle) = axis_angle_deg(r);
-    let (axis0, angle0) = axis_angle_deg(start);
     let axis_words = |a: Option<Vector3<f64>>, angle: f64| match a {
         Some(a) => format!("{angle:.3} deg about [{:.4}, {:.4}, {:.4}]", a.x, a.y, a.z),
         None => "no rotation".to_owned(),
     };
-    s.push_str(
-        "<table id=\"rotation-forms\"><tr><th>R_cam_dvl as</th><th>value \
-         <span class=\"start\">(refinement start)</span></th></tr>",
-    );
+    let (head, rpy0, axis0) = match start {
+        Some(start) => {
+            let rpy0 = rpy_deg(start);
+            let (axis0, angle0) = axis_angle_deg(start);
+            (
+                " <span class=\"start\">(refinement start)</span>",
+                format!(
+                    "<br><span class=\"start\">([{:.3}, {:.3}, {:.3}])</span>",
+                    rpy0[0], rpy0[1], rpy0[2]
+                ),
+                format!(
+                    "<br><span class=\"start\">({})</span>",
+                    escape(&axis_words(axis0, angle0))
+                ),
+            )
+        }
+        None => ("", String::new(), String::new()),
+    };
     let _ = write!(
         s,
-        "<tr><td>roll, pitch, yaw (deg; R = Rz(yaw) Ry(pitch) Rx(roll), as --rotation-prior and \
-         rpy_cam_dvl_deg take them)</td><td class=\"num\">[{:.3}, {:.3}, {:.3}]<br>\
-         <span class=\"start\">([{:.3}, {:.3}, {:.3}])</span></td></tr>",
-        rpy[0], rpy[1], rpy[2], rpy0[0], rpy0[1], rpy0[2]
+        "<table id=\"{id}\"><tr><th>{name} as</th><th>value{head}</th></tr>\
+         <tr><td>roll, pitch, yaw (deg; R = Rz(yaw) Ry(pitch) Rx(roll){takes})</td>\
+         <td class=\"num\">[{:.3}, {:.3}, {:.3}]{rpy0}</td></tr>",
+        rpy[0], rpy[1], rpy[2]
     );
     let _ = writeln!(
         s,
-        "<tr><td>axis and angle (the axis has the same coordinates in the camera and the DVL \
-         frame)</td><td class=\"num\">{}<br>\
-         <span class=\"start\">({})</span></td></tr></table>",
+        "<tr><td>axis and angle (the axis has the same coordinates in the camera and the {} \
+         frame)</td><td class=\"num\">{}{axis0}</td></tr></table>",
+        name.rsplit('_').next().unwrap_or("sensor").to_uppercase(),
         escape(&axis_words(axis, angle)),
-        escape(&axis_words(axis0, angle0))
     );
     if rpy[1].abs() > 85.0 {
         let _ = writeln!(

@@ -193,7 +193,7 @@ fn headline(input: &ReportInput, steps: &[NextStep], warnings: &[String]) -> Str
 }
 
 /// The log's warnings, the calibration's, the frames the image pipeline lost, and one per
-/// parameter that is weak or comes from its prior.
+/// parameter that is weak or comes from its prior (the IMU's included).
 pub(super) fn all_warnings(input: &ReportInput) -> Vec<String> {
     let o = input.outcome;
     let mut w: Vec<String> = input
@@ -221,6 +221,14 @@ pub(super) fn all_warnings(input: &ReportInput) -> Vec<String> {
             w.push(format!("{name} comes from its prior, not the data: {why}"));
         } else if !v.ok {
             w.push(format!("{name} is weakly observable: {why}"));
+        }
+    }
+    if let Some(imu) = &input.imu {
+        let v = imu.verdicts;
+        for v in [&v.rotation, &v.lever_arm, &v.time_offset] {
+            if !v.ok {
+                w.push(v.reason.clone());
+            }
         }
     }
     w

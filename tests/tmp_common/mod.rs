@@ -13,6 +13,35 @@ pub fn dvlcal(args: &[&str]) -> Output {
         .expect("run dvlcal")
 }
 
+/// The built `dvlcal` run with `args`, asserted to succeed: its standard output.
+#[allow(dead_code)]
+pub fn dvlcal_ok(args: &[&str]) -> String {
+    let out = dvlcal(args);
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(
+        out.status.success(),
+        "dvlcal {args:?}: {stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    stdout
+}
+
+/// `dvlcal simulate --imu` of 60 s (seed 4) into `dir`: a recording with an IMU and its noise
+/// file whose calibration the motion determines well.
+#[allow(dead_code)]
+pub fn simulate_imu_recording(dir: &Path) {
+    dvlcal_ok(&[
+        "simulate",
+        "--imu",
+        "--duration",
+        "60",
+        "--seed",
+        "4",
+        "--out",
+        s(dir),
+    ]);
+}
+
 /// A path as an argument (test paths are UTF-8).
 #[allow(dead_code)]
 pub fn s(p: &Path) -> &str {
