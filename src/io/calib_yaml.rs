@@ -740,6 +740,13 @@ pub fn read_calib_yaml(path: &Path) -> Result<CalibrationFile> {
 /// Parses the text of a calibration file as [`read_calib_yaml`] does; `path` names the file in
 /// messages.
 pub fn parse_calib_yaml(text: &str, path: &Path) -> Result<CalibrationFile> {
+    if super::imu_result::is_imu_only_text(text) {
+        return Err(Error::Input(format!(
+            "{}: a camera + IMU result (T_cam_imu, no T_cam_dvl): it holds no DVL calibration, \
+             which is what is read here",
+            path.display()
+        )));
+    }
     let c: CalibrationFile = serde_yaml::from_str(text).map_err(|e| match e.location() {
         Some(loc) => Error::parse(path, loc.line(), format!("column {}: {e}", loc.column())),
         None => Error::Input(format!("{}: {e}", path.display())),
