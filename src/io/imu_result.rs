@@ -182,10 +182,3 @@ pub fn read_imu_result_yaml(path: &Path) -> Result<ImuResultFile> {
         None => Error::Input(format!("{}: {e}", path.display())),
     })
 }
-
-/// Whether the text of a result file holds the IMU's keys and none of the DVL's (a camera +
-/// IMU result), from its top-level keys.
-pub fn is_imu_only_text(text: &str) -> bool {
-    let top = |k: &str| text.lines().any(|l| l.starts_with(k));
-    top("T_cam_imu:") && !top("T_cam_dvl:")
-}

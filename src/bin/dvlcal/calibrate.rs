@@ -109,7 +109,7 @@ pub struct CalibrateArgs {
     #[command(flatten)]
     pub dvl_input: DvlInputArgs,
     #[command(flatten)]
-    pub estimator: EstimatorArgs,
+    pub estimator: Box<EstimatorArgs>,
     /// The speed of sound the DVL was set to, m/s, when its log holds no configuration reply:
     /// the velocity scale is then also read as the water's sound speed.
     #[arg(long, value_name = "M_PER_S")]
