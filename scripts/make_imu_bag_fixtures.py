@@ -35,10 +35,29 @@ Files written (replacing earlier output; README.md is kept):
                        30  stamp 47.5 ms before message 29's (time goes backwards)
                        40  the stamp of message 39 (a repeated time stamp)
                        45  stamp zero (record time used instead)
+
+The camera + DVL + IMU bag packs a recording that `dvlcal simulate` made (its numbers are the
+simulator's, the packing is this script's and rosbags'; the binary is needed while the script
+runs, not by the tests):
+
+    dvlcal simulate --imu --duration 30 --imu-rate 100 --seed 21 --out TMP
+
+  cam_dvl_imu.mcap   bare MCAP, zstd chunks: /mocap/rig/pose (geometry_msgs/PoseStamped, frame
+                     world, header stamp = the TUM line's time exactly), /dvl/velocity_report
+                     (marine_acoustic_msgs/Dvl as Water Linked's ROS 2 driver fills it from a
+                     velocity report, header stamp = time_of_validity) and /imu/data
+                     (sensor_msgs/Imu, header stamp = the CSV's ns, orientation unknown:
+                     orientation_covariance[0] = -1); record times 2 ms after the stamps
+  cam_dvl_imu_truth/ the recording's imu.yaml (Kalibr noise), truth/imu.yaml and
+                     truth/calibration.yaml, copied as the simulator wrote them
 """
 
+import argparse
+import json
 import math
 import shutil
+import subprocess
+import tempfile
 from importlib.metadata import version
 from pathlib import Path
 
@@ -46,7 +65,7 @@ import numpy as np
 from rosbags.rosbag1 import Writer as Ros1Writer
 from rosbags.rosbag2 import Writer as Ros2Writer
 from rosbags.rosbag2.enums import CompressionFormat, CompressionMode, StoragePlugin
-from rosbags.typesys import Stores, get_typestore
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 OUT = Path(__file__).resolve().parent.parent / "tests" / "fixtures" / "imu_bags"
 
@@ -59,6 +78,36 @@ BAD_N = 60
 
 TS2 = get_typestore(Stores.ROS2_HUMBLE)
 TS1 = get_typestore(Stores.ROS1_NOETIC)
+
+# marine_acoustic_msgs/msg/Dvl (apl-ocean-engineering/marine_msgs), fields only, as in
+# scripts/make_sample_bags.py.
+DVL_MSG = """
+std_msgs/Header header
+uint8 velocity_mode
+uint8 dvl_type
+geometry_msgs/Vector3 velocity
+float64[9] velocity_covar
+float64 altitude
+float64 course_gnd
+float64 speed_gnd
+uint8 num_good_beams
+float32 sound_speed
+bool beam_ranges_valid
+bool beam_velocities_valid
+geometry_msgs/Vector3[4] beam_unit_vec
+float64[4] range
+float32[4] range_covar
+float32[4] beam_quality
+float32[4] beam_velocity
+float32[4] beam_velocity_covar
+"""
+DVL = "marine_acoustic_msgs/msg/Dvl"
+TS2.register(get_types_from_msg(DVL_MSG, DVL))
+# The A50 beam directions the Water Linked ROS 2 driver fills in (22.5 deg off z, 45 deg about z).
+_A, _C = 0.6532814824381883, 0.38268343236508984
+A50_BEAMS = [(-_A, _A, _C), (-_A, -_A, _C), (_A, -_A, _C), (_A, _A, _C)]
+SIM_ARGS = ["simulate", "--imu", "--duration", "30", "--imu-rate", "100", "--seed", "21"]
+LATENCY_NS = 2_000_000
 
 
 def gyro(k):
@@ -189,7 +238,102 @@ def write_ros1(path, msgs, fmt=None):
     w.close()
 
 
+def decimal_ns(text):
+    """Integer nanoseconds of a decimal time stamp (exact: no float)."""
+    whole, _, frac = text.partition(".")
+    return int(whole) * 1_000_000_000 + int((frac + "000000000")[:9])
+
+
+def sim_pose(ns, p):
+    T = TS2.types
+    return T["geometry_msgs/msg/PoseStamped"](
+        header=header(TS2, ns, "world"),
+        pose=T["geometry_msgs/msg/Pose"](
+            position=T["geometry_msgs/msg/Point"](x=p[0], y=p[1], z=p[2]),
+            orientation=T["geometry_msgs/msg/Quaternion"](x=p[3], y=p[4], z=p[5], w=p[6]),
+        ),
+    )
+
+
+def sim_dvl(rep):
+    """marine_acoustic_msgs/Dvl as waterlinked_dvl_driver fills it from a velocity report."""
+    T = TS2.types
+    vec = T["geometry_msgs/msg/Vector3"]
+    vx, vy, vz = rep["vx"], rep["vy"], rep["vz"]
+    beams = rep["transducers"]
+    return T[DVL](
+        header=header(TS2, int(rep["time_of_validity"]) * 1000, "dvl"),
+        velocity_mode=1,
+        dvl_type=0,
+        velocity=vec(x=float(vx), y=float(vy), z=float(vz)),
+        velocity_covar=np.array(rep["covariance"], dtype=np.float64).reshape(-1),
+        altitude=float(rep["altitude"]),
+        course_gnd=math.atan2(vy, vx),
+        speed_gnd=math.hypot(vx, vy),
+        num_good_beams=sum(1 for b in beams if b["beam_valid"]),
+        sound_speed=0.0,
+        beam_ranges_valid=True,
+        beam_velocities_valid=bool(rep["velocity_valid"]),
+        beam_unit_vec=[vec(x=u[0], y=u[1], z=u[2]) for u in A50_BEAMS],
+        range=np.array([b["distance"] for b in beams], dtype=np.float64),
+        range_covar=np.zeros(4, dtype=np.float32),
+        beam_quality=np.array([b["rssi"] for b in beams], dtype=np.float32),
+        beam_velocity=np.array([b["velocity"] for b in beams], dtype=np.float32),
+        beam_velocity_covar=np.zeros(4, dtype=np.float32),
+    )
+
+
+def sim_imu(ns, v):
+    T = TS2.types
+    vec = T["geometry_msgs/msg/Vector3"]
+    unknown = np.zeros(9, dtype=np.float64)
+    unknown[0] = -1.0
+    return T[IMU](
+        header=header(TS2, ns, "imu"),
+        orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
+        orientation_covariance=unknown,
+        angular_velocity=vec(x=v[0], y=v[1], z=v[2]),
+        angular_velocity_covariance=np.zeros(9, dtype=np.float64),
+        linear_acceleration=vec(x=v[3], y=v[4], z=v[5]),
+        linear_acceleration_covariance=np.zeros(9, dtype=np.float64),
+    )
+
+
+def cam_dvl_imu(dvlcal):
+    """The simulated recording's poses, DVL reports and IMU samples, in record order."""
+    with tempfile.TemporaryDirectory() as tmp:
+        rec = Path(tmp) / "rec"
+        subprocess.run([dvlcal, *SIM_ARGS, "--out", str(rec)], check=True, stdout=subprocess.DEVNULL)
+        out = []
+        for line in (rec / "poses.txt").read_text().splitlines():
+            if line.strip() and not line.startswith("#"):
+                f = line.split()
+                ns = decimal_ns(f[0])
+                msg = sim_pose(ns, [float(x) for x in f[1:8]])
+                out.append(("/mocap/rig/pose", "geometry_msgs/msg/PoseStamped", ns + LATENCY_NS, cdr_le(msg, "geometry_msgs/msg/PoseStamped")))
+        for line in (rec / "dvl.jsonl").read_text().splitlines():
+            rep = json.loads(line) if line.strip() else {}
+            if rep.get("type") == "velocity":
+                ns = int(rep["time_of_validity"]) * 1000
+                out.append(("/dvl/velocity_report", DVL, ns + LATENCY_NS, cdr_le(sim_dvl(rep), DVL)))
+        for line in (rec / "imu0" / "data.csv").read_text().splitlines():
+            if line.strip() and not line.startswith("#"):
+                f = line.split(",")
+                ns = int(f[0])
+                out.append(("/imu/data", IMU, ns + LATENCY_NS, cdr_le(sim_imu(ns, [float(x) for x in f[1:7]]), IMU)))
+        out.sort(key=lambda m: (m[2], m[0]))
+        truth = OUT / "cam_dvl_imu_truth"
+        (truth / "truth").mkdir(parents=True)
+        shutil.copy(rec / "imu.yaml", truth / "imu.yaml")
+        for name in ("imu.yaml", "calibration.yaml"):
+            shutil.copy(rec / "truth" / name, truth / "truth" / name)
+    return out
+
+
 def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--dvlcal", default=str(OUT.parent.parent.parent / "target" / "release" / "dvlcal"), help="the dvlcal binary that simulates the camera + DVL + IMU recording")
+    args = ap.parse_args()
     OUT.mkdir(parents=True, exist_ok=True)
     for p in OUT.iterdir():
         if p.is_dir():
@@ -204,6 +348,7 @@ def main():
     write_bare_mcap("two_imus.mcap", two(TS2, cdr_le))
     write_ros1(OUT / "bad_imu.bag", bad(TS1, ros1))
     write_bare_mcap("bad_imu.mcap", bad(TS2, cdr_le))
+    write_bare_mcap("cam_dvl_imu.mcap", cam_dvl_imu(args.dvlcal), compress=True)
 
     print(f"rosbags {version('rosbags')}: wrote {OUT}")
     total = 0

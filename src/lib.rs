@@ -78,7 +78,7 @@
 //! let data = Dataset::load(files, &VisionOptions::default(), &DvlReadOptions::default(), &mut |_| {})?;
 //! let run = calibrate_dataset(&data, &CalibOptions::default(), None)?;
 //! write_results(Path::new("out/calibration.yaml"), &run, &data, &OutputOptions::default())?;
-//! print!("{}", run.summary(&data.log));
+//! print!("{}", run.summary(data.dvl()?));
 //! # Ok(())
 //! # }
 //! ```

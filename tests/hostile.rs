@@ -153,7 +153,8 @@ fn a_velocity_out_of_range_is_a_counted_rejection_and_byte_order_marks_are_harml
         &mut |_| {},
     )
     .expect("dataset");
-    let o = calibrate(&data.poses, &data.log.samples, &CalibOptions::default()).expect("calibrate");
+    let log = data.dvl().expect("DVL log");
+    let o = calibrate(&data.poses, &log.samples, &CalibOptions::default()).expect("calibrate");
     assert!(o.status.is_ok(), "{:?}", o.status);
 }
 

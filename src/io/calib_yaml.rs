@@ -737,9 +737,23 @@ pub fn read_calib_yaml(path: &Path) -> Result<CalibrationFile> {
     parse_calib_yaml(&text, path)
 }
 
+/// Whether the text of a result file holds the IMU's keys and none of the DVL's (a camera +
+/// IMU result, [`super::imu_result`]), from its top-level keys.
+pub fn is_imu_only_text(text: &str) -> bool {
+    let top = |k: &str| text.lines().any(|l| l.starts_with(k));
+    top("T_cam_imu:") && !top("T_cam_dvl:")
+}
+
 /// Parses the text of a calibration file as [`read_calib_yaml`] does; `path` names the file in
 /// messages.
 pub fn parse_calib_yaml(text: &str, path: &Path) -> Result<CalibrationFile> {
+    if is_imu_only_text(text) {
+        return Err(Error::Input(format!(
+            "{}: a camera + IMU result (T_cam_imu, no T_cam_dvl): it holds no DVL calibration, \
+             which is what is read here",
+            path.display()
+        )));
+    }
     let c: CalibrationFile = serde_yaml::from_str(text).map_err(|e| match e.location() {
         Some(loc) => Error::parse(path, loc.line(), format!("column {}: {e}", loc.column())),
         None => Error::Input(format!("{}: {e}", path.display())),

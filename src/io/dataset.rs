@@ -20,7 +20,10 @@
 //! An IMU is optional: its stream is `imu0/data.csv` (EuRoC's `mav0/imu0/data.csv`), its noise
 //! a YAML holding Kalibr's four noise keys (`imu.yaml`; at the top level or under `imu0`), or
 //! else EuRoC's `imu0/sensor.yaml` beside the stream. A YAML with only some of the noise keys
-//! is listed as ignored with the keys it lacks.
+//! is listed as ignored with the keys it lacks. An IMU stream or noise file named explicitly
+//! wins: the folder's own is then listed as ignored, saying which is used instead. A folder
+//! with an IMU stream needs no DVL log (a camera + IMU calibration); without either, the
+//! missing DVL log is the error.
 
 use std::path::{Path, PathBuf};
 
@@ -107,8 +110,8 @@ impl DatasetFiles {
             dvl: Some(given.dvl.clone().unwrap_or_else(|| bag.to_path_buf())),
             poses: given.poses.clone(),
             bag: (given.images.is_none() && given.poses.is_none()).then(|| bag.to_path_buf()),
-            imu: None,
-            imu_noise: None,
+            imu: given.imu.clone(),
+            imu_noise: given.imu_noise.clone(),
             bag_options: given.bag_options.clone(),
             ignored: Vec::new(),
         }
@@ -133,6 +136,11 @@ pub struct DatasetOverrides {
     pub bag: Option<PathBuf>,
     /// Which topics of a bag play which part, and which time to use.
     pub bag_options: BagOptions,
+    /// The IMU stream (EuRoC's IMU CSV); wins over the folder's `imu0/data.csv` and a bag's
+    /// IMU topic.
+    pub imu: Option<PathBuf>,
+    /// The IMU's noise (Kalibr's `imu.yaml`); wins over the folder's.
+    pub imu_noise: Option<PathBuf>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -394,12 +402,33 @@ pub fn discover(dir: &Path, given: &DatasetOverrides) -> Result<DatasetFiles> {
     found.target = pick(Role::Target, &given.target)?;
     found.dvl = pick(Role::Dvl, &given.dvl)?;
     found.imu = find_imu(dir)?;
+    if let (Some(named), Some(here)) = (&given.imu, &found.imu) {
+        found.ignored.push((
+            here.clone(),
+            format!("the IMU stream named instead ({}) is used", named.display()),
+        ));
+    }
+    if given.imu.is_some() {
+        found.imu = given.imu.clone();
+    }
     let noise: Vec<&PathBuf> = candidates
         .iter()
         .filter(|(r, _)| *r == Role::ImuNoise)
         .map(|(_, p)| p)
         .collect();
     found.imu_noise = match noise.as_slice() {
+        _ if given.imu_noise.is_some() => {
+            for p in noise
+                .iter()
+                .filter(|p| given.imu_noise.as_ref() != Some(**p))
+            {
+                found.ignored.push((
+                    (*p).clone(),
+                    "the IMU noise file named instead is used".into(),
+                ));
+            }
+            given.imu_noise.clone()
+        }
         [] => found.imu.as_deref().and_then(sensor_yaml_noise),
         [one] => Some((*one).clone()),
         many => {
@@ -462,7 +491,7 @@ pub fn discover(dir: &Path, given: &DatasetOverrides) -> Result<DatasetFiles> {
             dir.display()
         )));
     }
-    if found.dvl.is_none() {
+    if found.dvl.is_none() && found.imu.is_none() {
         return Err(Error::Input(format!(
             "{}: no DVL log (A50 JSON lines, serial capture or a ROS bag) found",
             dir.display()

@@ -15,6 +15,7 @@ pub mod frames_csv;
 pub mod image;
 pub mod images;
 pub mod imu;
+pub mod imu_result;
 pub mod provenance;
 pub mod target;
 pub mod times;

@@ -54,9 +54,9 @@ pub fn calibrate_dataset(
     opts: &CalibOptions,
     threads: Option<usize>,
 ) -> Result<CalibrationRun> {
+    let log = data.dvl()?;
     let workers = crate::parallel::worker_pool(threads)?;
     let start = Instant::now();
-    let log = &data.log;
     let plan = if data.camera_segments.len() > 1 {
         SegmentPlan::camera(data, opts, &workers)?
     } else {
@@ -133,7 +133,7 @@ impl<'d> SegmentPlan<'d> {
     /// whole finds the offset the junctions fall at on the DVL clock, the reports are split
     /// there, and each stretch's own offset absorbs what the one-frame assumption missed.
     fn camera(data: &'d Dataset, opts: &CalibOptions, workers: &rayon::ThreadPool) -> Result<Self> {
-        let log = &data.log;
+        let log = data.dvl()?;
         let cam = &data.camera_segments;
         let poses_path = data.camera_source.display();
         if log.clock_segments.len() > 1 {
@@ -631,7 +631,7 @@ pub fn dataset_inputs(data: &Dataset) -> Vec<(String, PathBuf)> {
 /// The cameras of the camchain-imucam export: every camera of the chain the poses were solved
 /// with (each overlapping all others: they were paired on the same board views), or, with poses
 /// from elsewhere, cam0 without a calibration.
-fn kalibr_cameras(data: &Dataset) -> Vec<KalibrCamera> {
+pub(super) fn kalibr_cameras(data: &Dataset) -> Vec<KalibrCamera> {
     match &data.vision {
         Some(run) => {
             let n = run.chain.cams.len();
@@ -735,6 +735,7 @@ pub fn write_report(
         path,
         inputs.iter().map(|p| p.as_path()).chain([result]),
     )?;
+    let log = data.dvl()?;
     let frames = data
         .vision
         .as_ref()
@@ -742,7 +743,7 @@ pub fn write_report(
     let mut dataset = format!(
         "camera poses: {}; DVL log: {}",
         data.camera_source.display(),
-        data.log.stats.path.display()
+        log.stats.path.display()
     );
     if let Some(cams) = &data.cameras {
         dataset.push_str(&format!(
@@ -762,7 +763,7 @@ pub fn write_report(
     let input = ReportInput {
         image_sizes: sizes.as_deref(),
         dataset: &dataset,
-        dvl_stats: Some(&data.log.stats),
+        dvl_stats: Some(&log.stats),
         frames: frames.as_deref(),
         result_name: Some(&name),
         result_yaml: yaml.as_deref(),
@@ -783,11 +784,20 @@ fn image_sizes(data: &Dataset) -> Option<Vec<(u32, u32)>> {
 
 /// What [`calibrate_dataset`] was doing, in words, for its error messages.
 pub fn calibration_context(data: &Dataset) -> String {
-    format!(
-        "calibrating {} against {}",
-        data.dvl_path.display(),
-        data.camera_source.display()
-    )
+    match &data.dvl_path {
+        Some(dvl) => format!(
+            "calibrating {} against {}",
+            dvl.display(),
+            data.camera_source.display()
+        ),
+        None => format!(
+            "calibrating the IMU {} against {} (camera + IMU: no DVL log given)",
+            data.imu
+                .as_ref()
+                .map_or("-".into(), |l| l.path.display().to_string()),
+            data.camera_source.display()
+        ),
+    }
 }
 
 /// Writes, atomically to `path`, the report of a calibration of `data` that stopped with
@@ -797,6 +807,7 @@ pub fn calibration_context(data: &Dataset) -> String {
 pub fn write_failure_report(path: &Path, data: &Dataset, error: &Error) -> Result<()> {
     let files = &data.files;
     crate::files::refuse_input("--report", path, files.inputs().iter().map(|p| p.as_path()))?;
+    let log = data.dvl()?;
     let mut inputs: Vec<(String, String)> = Vec::new();
     let mut add = |k: &str, p: &Option<PathBuf>| {
         if let Some(p) = p {
@@ -832,8 +843,8 @@ pub fn write_failure_report(path: &Path, data: &Dataset, error: &Error) -> Resul
         error,
         inputs: &inputs,
         poses: &data.poses,
-        dvl: &data.log.samples,
-        dvl_stats: Some(&data.log.stats),
+        dvl: &log.samples,
+        dvl_stats: Some(&log.stats),
         frames: frames.as_deref(),
         detection: detection.as_deref(),
         notes: &data.notes,

@@ -1,5 +1,7 @@
-//! One dataset (camera trajectory and DVL log) read into memory: from a dataset folder, from
-//! files named one by one, or both (named files win).
+//! One dataset (camera trajectory, DVL log and IMU stream) read into memory: from a dataset
+//! folder, from files named one by one, or both (named files win). The DVL log may be missing
+//! when an IMU stream and its noise file are there: a camera + IMU calibration
+//! ([`super::imu_only`]).
 
 use std::path::{Path, PathBuf};
 
@@ -40,11 +42,13 @@ pub fn dataset_files(dir: Option<&Path>, given: &DatasetOverrides) -> Result<Dat
     if let Some(b) = &given.bag {
         return Ok(DatasetFiles::from_bag(b, given));
     }
-    let Some(dvl) = &given.dvl else {
+    if given.dvl.is_none() && given.imu.is_none() {
         return Err(Error::Input(
-            "give a dataset folder, or --dvl LOG with --poses FILE or --images DIR".into(),
+            "give a dataset folder, or --dvl LOG (or --imu FILE --imu-noise FILE) with --poses \
+             FILE or --images DIR"
+                .into(),
         ));
-    };
+    }
     match (&given.poses, &given.images) {
         (Some(_), _) => {}
         (None, Some(_)) => {
@@ -67,14 +71,31 @@ pub fn dataset_files(dir: Option<&Path>, given: &DatasetOverrides) -> Result<Dat
         images: given.images.clone(),
         camchain: given.camchain.clone(),
         target: given.target.clone(),
-        dvl: Some(dvl.clone()),
+        dvl: given.dvl.clone(),
         poses: given.poses.clone(),
         bag: None,
-        imu: None,
-        imu_noise: None,
+        imu: given.imu.clone(),
+        imu_noise: given.imu_noise.clone(),
         bag_options: given.bag_options.clone(),
         ignored: Vec::new(),
     })
+}
+
+/// [`dataset_files`], with the camera + IMU mode checked at once: without a DVL log the IMU
+/// stream needs its noise file.
+pub fn dataset_files_checked(dir: Option<&Path>, given: &DatasetOverrides) -> Result<DatasetFiles> {
+    let files = dataset_files(dir, given)?;
+    if let (None, Some(imu), None) = (&files.dvl, &files.imu, &files.imu_noise) {
+        return Err(Error::dataset(
+            &files.root,
+            format!(
+                "no DVL log, and the IMU stream {} has no noise file: a camera + IMU \
+                 calibration needs the IMU's noise (Kalibr's imu.yaml: --imu-noise FILE)",
+                imu.display()
+            ),
+        ));
+    }
+    Ok(files)
 }
 
 /// One line on what a dataset folder holds, then one per ignored file with the reason.
@@ -128,20 +149,22 @@ fn read_imu_files(
     files: &DatasetFiles,
     epoch: crate::time::Epoch,
     notes: &mut Vec<String>,
-) -> (Option<ImuLog>, Option<ImuNoiseFile>) {
-    let imu = files
-        .imu
-        .as_deref()
-        .and_then(|p| match read_imu_csv(p, Some(epoch)) {
-            Ok(log) => {
-                notes.extend(log.summary());
-                Some(log)
-            }
-            Err(e) => {
-                notes.push(format!("IMU stream not used: {e}"));
-                None
-            }
-        });
+) -> Result<(Option<ImuLog>, Option<ImuNoiseFile>)> {
+    let from_file = files.imu.as_deref().map(|p| read_imu_csv(p, Some(epoch)));
+    let read = match from_file {
+        Some(r) => Some(r),
+        None => super::imu_bag::imu_from_bag(files, epoch, notes)?,
+    };
+    let imu = read.and_then(|r| match r {
+        Ok(log) => {
+            notes.extend(log.summary());
+            Some(log)
+        }
+        Err(e) => {
+            notes.push(format!("IMU stream not used: {e}"));
+            None
+        }
+    });
     let noise = files
         .imu_noise
         .as_deref()
@@ -162,10 +185,38 @@ fn read_imu_files(
                 None
             }
         });
-    (imu, noise)
+    Ok((imu, noise))
 }
 
-/// A dataset read into memory: the camera poses and the DVL log on one epoch.
+/// The DVL log `path` of `files`, read on `epoch` (a bag's DVL topic and time as `files`
+/// chooses them); a polled capture without the DVL's time is refused.
+fn read_dvl(
+    path: &Path,
+    files: &DatasetFiles,
+    epoch: crate::time::Epoch,
+    read: &DvlReadOptions,
+) -> Result<DvlLog> {
+    let mut read = DvlReadOptions {
+        epoch: Some(epoch),
+        ..read.clone()
+    };
+    if crate::io::bag::is_bag(path) {
+        if read.topic.is_none() {
+            read.topic = files.bag_options.dvl_topic.clone();
+        }
+        if files.bag_options.time == crate::io::bag::roles::BagTime::Record {
+            read.time_source = crate::io::dvl::DvlTimeSource::Host;
+        }
+    }
+    let log = read_dvl_log(path, &read)?;
+    // A polled capture without the DVL's time has a squeezed time line: nothing to fit.
+    if let Some(p) = log.stats.polled.as_ref().filter(|p| p.unusable()) {
+        return Err(Error::Input(format!("{}: {}", path.display(), p.explain())));
+    }
+    Ok(log)
+}
+
+/// A dataset read into memory: the camera poses, the DVL log and the IMU stream on one epoch.
 #[derive(Debug)]
 pub struct Dataset {
     /// Where each part came from.
@@ -177,10 +228,11 @@ pub struct Dataset {
     /// The camera calibration run from the same images, when the dataset had images but no
     /// camchain (its chain is the one the poses were solved with).
     pub cameras: Option<CameraCalRun>,
-    /// The DVL log, read on the poses' epoch.
-    pub log: DvlLog,
-    /// The DVL log's file.
-    pub dvl_path: PathBuf,
+    /// The DVL log, read on the poses' epoch; `None` in a camera + IMU dataset (no DVL log
+    /// given: [`super::imu_only`]).
+    pub log: Option<DvlLog>,
+    /// The DVL log's file (`None` as `log`).
+    pub dvl_path: Option<PathBuf>,
     /// What the camera trajectory came from: the pose file or the image folder.
     pub camera_source: PathBuf,
     /// Things the user should know about the camera data (a bag's zero stamps, the source of
@@ -341,31 +393,22 @@ impl Dataset {
                 }
             }
         };
-        let Some(dvl_path) = files.dvl.clone() else {
-            return Err(Error::dataset(&files.root, "no DVL log"));
+        let log = match &files.dvl {
+            Some(p) => Some(read_dvl(p, &files, epoch, read)?),
+            None => None,
         };
-        let mut read = DvlReadOptions {
-            epoch: Some(epoch),
-            ..read.clone()
-        };
-        if crate::io::bag::is_bag(&dvl_path) {
-            if read.topic.is_none() {
-                read.topic = files.bag_options.dvl_topic.clone();
-            }
-            if files.bag_options.time == crate::io::bag::roles::BagTime::Record {
-                read.time_source = crate::io::dvl::DvlTimeSource::Host;
-            }
+        let (imu, imu_noise) = read_imu_files(&files, epoch, &mut notes)?;
+        if log.is_none() && imu.is_none() {
+            let why = notes.iter().find(|n| n.starts_with("IMU stream not used"));
+            return Err(Error::dataset(
+                &files.root,
+                format!(
+                    "no DVL log, and no IMU stream that could be used{}",
+                    why.map_or(String::new(), |w| format!(" ({w})"))
+                ),
+            ));
         }
-        let log = read_dvl_log(&dvl_path, &read)?;
-        // A polled capture without the DVL's time has a squeezed time line: nothing to fit.
-        if let Some(p) = log.stats.polled.as_ref().filter(|p| p.unusable()) {
-            return Err(Error::Input(format!(
-                "{}: {}",
-                dvl_path.display(),
-                p.explain()
-            )));
-        }
-        let (imu, imu_noise) = read_imu_files(&files, epoch, &mut notes);
+        let dvl_path = log.as_ref().and(files.dvl.clone());
         Ok(Dataset {
             imu,
             imu_noise,
@@ -373,14 +416,45 @@ impl Dataset {
             poses,
             vision: run,
             cameras,
-            log,
             dvl_path,
+            log,
             camera_source,
             notes,
             camera_frame,
             camera_clock_steps,
             camera_segments,
         })
+    }
+
+    /// The DVL log, or the error of a camera + IMU dataset that has none.
+    pub fn dvl(&self) -> Result<&DvlLog> {
+        self.log.as_ref().ok_or_else(|| {
+            Error::dataset(
+                &self.files.root,
+                "no DVL log: this dataset is a camera + IMU one (only its IMU can be calibrated)",
+            )
+        })
+    }
+
+    /// The sound speed the DVL was set to as the user gives it (`--dvl-sound-speed`), m/s:
+    /// used when the DVL log holds no configuration reply; when it holds one, the log's wins
+    /// and the warning returned says so. Nothing without a DVL log or a speed.
+    pub fn give_sound_speed(&mut self, given: Option<f64>) -> Option<String> {
+        let (st, c) = (&mut self.log.as_mut()?.stats, given?);
+        match st.sound_speed_mps {
+            None => {
+                st.sound_speed_mps = Some(c);
+                st.sound_speed_source = Some("--dvl-sound-speed".into());
+                None
+            }
+            Some(logged) => Some(format!(
+                "--dvl-sound-speed {c} m/s not used: the DVL log's configuration reply gives the \
+                 sound speed it was set to, {logged} m/s{}",
+                st.sound_speed_source
+                    .as_deref()
+                    .map_or(String::new(), |s| format!(" ({s})"))
+            )),
+        }
     }
 
     /// The dataset's name in tables: its folder's last component.

@@ -17,7 +17,7 @@ pub fn odometry_check(
     calib: &CalibrationParams,
     opts: &OdometryOptions,
 ) -> Result<Odometry> {
-    dvl_odometry(&data.poses, &data.log.samples, calib, opts)
+    dvl_odometry(&data.poses, &data.dvl()?.samples, calib, opts)
 }
 
 /// The odometry table of one calibration over datasets (Markdown): ATE, RPE, path length, ATE
@@ -137,8 +137,9 @@ pub fn cross_validate(
                 method: b.method.clone(),
                 ..base.clone()
             };
+            let log = di.dvl()?;
             let o = workers
-                .install(|| calibrate(&di.poses, &di.log.samples, &opts))
+                .install(|| calibrate(&di.poses, &log.samples, &opts))
                 .map_err(|e| in_dataset(di, b.name, e))?;
             let c = o.params;
             progress(&format!(

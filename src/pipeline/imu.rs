@@ -26,7 +26,7 @@ pub fn calibrate_imu(data: &Dataset, warnings: &mut Vec<String>) -> Option<ImuEs
         (Some(log), None) => {
             warnings.push(format!(
                 "{}: an IMU stream without a noise file (Kalibr's imu.yaml): the IMU was not \
-                 calibrated; put its imu.yaml beside the dataset",
+                 calibrated; give --imu-noise FILE (or put its imu.yaml beside the dataset)",
                 log.path.display()
             ));
             None

@@ -32,6 +32,8 @@ mod dataset;
 mod evaluate;
 mod exports;
 mod imu;
+mod imu_bag;
+pub mod imu_only;
 mod outputs;
 mod simulate;
 pub mod unused;
@@ -47,11 +49,14 @@ pub use cameras::{
     CameraCalOptions, CameraCalRun, SEPARATE_CAMERA_RECORDING, calibrate_cameras_from_bag,
     calibrate_cameras_from_images,
 };
-pub use dataset::{Dataset, dataset_files, describe_files};
+pub use dataset::{Dataset, dataset_files, dataset_files_checked, describe_files};
 pub use evaluate::{
     Baseline, CrossValidation, baselines, cross_validate, odometry_check, odometry_table,
 };
 pub use imu::ImuCalibration;
+pub use imu_only::{
+    CameraImuRun, calibrate_camera_imu_dataset, write_camera_imu_results, wrote_words,
+};
 pub use outputs::{CameraOutputs, RESULT_EXPORTS, check_result_outputs};
 pub use simulate::{
     ImageRequest, SimulateRequest, SimulatedRecording, simulated_imu_config,

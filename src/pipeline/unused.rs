@@ -103,8 +103,29 @@ pub fn evaluate_options(cross_validate: bool, given: &[&str], estimator: &[&str]
     }
 }
 
+/// The options of `calibrate` that only the DVL's calibration reads: refused in the camera +
+/// IMU mode (no DVL log).
+const DVL_ONLY: [&str; 15] = [
+    "--method",
+    "--dvl-sigma",
+    "--offset-range",
+    "--lever-arm-prior",
+    "--rotation-prior",
+    "--loss",
+    "--default-lever-arm-sigma",
+    "--model-covariance",
+    "--clock-drift",
+    "--dvl-sound-speed",
+    "--init",
+    "--estimate-offset",
+    "--biased",
+    "--strict",
+    "--report",
+];
+
 /// The options a dataset's inputs would not use: the bag options when no input is a bag
-/// (`--dvl-topic` when the DVL log is not one), the camchain and board beside a pose file.
+/// (`--dvl-topic` when the DVL log is not one), the camchain and board beside a pose file,
+/// `--imu-noise` without an IMU stream, and the DVL's settings without a DVL log.
 pub fn input_options(files: &DatasetFiles, given: &[&str]) -> Result<()> {
     let dvl = files
         .dvl
@@ -144,6 +165,24 @@ pub fn input_options(files: &DatasetFiles, given: &[&str]) -> Result<()> {
              log's times)"
         ));
     }
+    let bag_in = camera_bag || dvl_bag;
+    if has(given, "--imu-noise") && files.imu.is_none() && !bag_in {
+        return refuse(
+            "--imu-noise gives the noise of an IMU stream; there is none here (no --imu FILE, \
+             no imu0/data.csv in the dataset, no bag with a sensor_msgs/Imu topic): drop \
+             --imu-noise, or give the IMU's stream with --imu FILE"
+                .into(),
+        );
+    }
+    if files.dvl.is_none()
+        && let Some(f) = DVL_ONLY.iter().find(|f| has(given, f))
+    {
+        return refuse(format!(
+            "{f} applies to the DVL's calibration; there is no DVL log here, so only the IMU is \
+             calibrated against the camera (camera + IMU): drop {f}, or give the DVL log with \
+             --dvl LOG"
+        ));
+    }
     if let Some(p) = &files.poses
         && let Some(f) = ["--camchain", "--target"].iter().find(|f| has(given, f))
     {
@@ -174,6 +213,21 @@ pub fn image_options(data: &Dataset, given: &[&str]) -> Result<()> {
         )),
         _ => Ok(()),
     }
+}
+
+/// The options the loaded `data` would not use: the image pipeline's ([`image_options`]), and
+/// `--imu-noise` when no IMU stream was found (a bag without a sensor_msgs/Imu topic).
+pub fn data_options(data: &Dataset, given: &[&str]) -> Result<()> {
+    image_options(data, given)?;
+    if has(given, "--imu-noise") && data.imu.is_none() {
+        return refuse(format!(
+            "--imu-noise gives the noise of an IMU stream; {} holds none that could be used \
+             (no --imu FILE, no imu0/data.csv, no usable sensor_msgs/Imu topic): drop \
+             --imu-noise, or give the IMU's stream with --imu FILE",
+            data.files.root.display()
+        ));
+    }
+    Ok(())
 }
 
 /// The bag options of a command that reads images (`detect`, `calibrate-cameras`) when the

@@ -30,9 +30,8 @@ pub struct BagArgs {
     /// Child frame whose transforms on a tf2_msgs/TFMessage topic are the camera's poses.
     #[arg(long, value_name = "FRAME")]
     pub pose_frame: Option<String>,
-    /// IMU topic of a bag (sensor_msgs/Imu), when the bag holds more than one: bag-info labels
-    /// it; calibrate checks that it exists, but does not yet calibrate a bag's IMU (put
-    /// imu0/data.csv and imu.yaml in a dataset folder for that).
+    /// IMU topic of a bag (sensor_msgs/Imu), when it holds more than one: calibrate reads the
+    /// IMU from it (noise from --imu-noise), bag-info labels it.
     #[arg(long, value_name = "TOPIC")]
     pub imu_topic: Option<String>,
     /// Times of a bag's messages: header (header.stamp; a zero stamp falls back to the record

@@ -15,9 +15,9 @@ use dvlcal::io::calib_yaml::{read_calibration_guess, rotation_from_rpy_deg};
 use dvlcal::io::exports::FrameNames;
 use dvlcal::io::provenance::this_command_line;
 use dvlcal::pipeline::{
-    CameraOutputs, OutputOptions, SEPARATE_CAMERA_RECORDING, calibrate_dataset,
-    calibration_context, check_result_outputs, unused, write_failure_report, write_report,
-    write_results,
+    CameraOutputs, OutputOptions, SEPARATE_CAMERA_RECORDING, calibrate_camera_imu_dataset,
+    calibrate_dataset, calibration_context, check_result_outputs, unused, write_camera_imu_results,
+    write_failure_report, write_report, write_results, wrote_words,
 };
 use dvlcal::types::CalibrationParams;
 
@@ -109,7 +109,7 @@ pub struct CalibrateArgs {
     #[command(flatten)]
     pub dvl_input: DvlInputArgs,
     #[command(flatten)]
-    pub estimator: EstimatorArgs,
+    pub estimator: Box<EstimatorArgs>,
     /// The speed of sound the DVL was set to, m/s, when its log holds no configuration reply:
     /// the velocity scale is then also read as the water's sound speed.
     #[arg(long, value_name = "M_PER_S")]
@@ -248,7 +248,7 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
     // will go is checked before the long run.
     let cameras_out = CameraOutputs::plan(&a.out, a.report.as_deref(), &files)?;
     let mut data = read_files(files, &a.vision.options(), &read)?;
-    unused::image_options(&data, &given)?;
+    unused::data_options(&data, &given)?;
     if let (Some(cams), Some(to)) = (&data.cameras, &cameras_out) {
         let command = this_command_line();
         for line in to.write(&a.out, cams, Some(command))? {
@@ -262,20 +262,21 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
             );
         }
     }
-    let st = &mut data.log.stats;
-    match (st.sound_speed_mps, a.dvl_sound_speed) {
-        (None, Some(c)) => {
-            st.sound_speed_mps = Some(c);
-            st.sound_speed_source = Some("--dvl-sound-speed".into());
-        }
-        (Some(logged), Some(c)) => eprintln!(
-            "warning: --dvl-sound-speed {c} m/s not used: the DVL log's configuration reply \
-             gives the sound speed it was set to, {logged} m/s{}",
-            st.sound_speed_source
-                .as_deref()
-                .map_or(String::new(), |s| format!(" ({s})"))
-        ),
-        _ => {}
+    let output = OutputOptions {
+        force: a.force,
+        frames,
+        command_line: Some(this_command_line()),
+        extra_inputs: a.init.iter().map(|p| ("init".into(), p.clone())).collect(),
+    };
+    if data.log.is_none() {
+        let run = calibrate_camera_imu_dataset(&data, &opts.weak, a.vision.detect.threads)?;
+        let paths = write_camera_imu_results(&a.out, &run, &data, &output)?;
+        print!("{}", run.summary(&data));
+        println!("{}", wrote_words(&paths));
+        return Ok(());
+    }
+    if let Some(w) = data.give_sound_speed(a.dvl_sound_speed) {
+        eprintln!("warning: {w}");
     }
     let run = match calibrate_dataset(&data, &opts, a.vision.detect.threads) {
         Ok(run) => run,
@@ -289,27 +290,9 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
             return Err(e).context(calibration_context(&data));
         }
     };
-    let output = OutputOptions {
-        force: a.force,
-        frames,
-        command_line: Some(this_command_line()),
-        extra_inputs: a.init.iter().map(|p| ("init".into(), p.clone())).collect(),
-    };
     let paths = write_results(&a.out, &run, &data, &output)?;
-    print!("{}", run.summary(&data.log));
-    match (&paths.tf, &paths.urdf, &paths.camchain_imucam) {
-        (Some(tf), Some(urdf), Some(imucam)) => println!(
-            "wrote {}, {}, {} and {}",
-            paths.result.display(),
-            tf.display(),
-            urdf.display(),
-            imucam.display()
-        ),
-        _ => println!(
-            "wrote {} (status: failed; no ROS or Kalibr exports: --force writes them)",
-            paths.result.display()
-        ),
-    }
+    print!("{}", run.summary(data.dvl()?));
+    println!("{}", wrote_words(&paths));
     if let Some(path) = &a.report {
         write_report(path, &run, &data, &paths.result).context("building the report")?;
         println!("wrote {}", path.display());

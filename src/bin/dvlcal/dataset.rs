@@ -7,7 +7,7 @@ use clap::Args;
 
 use dvlcal::io::dataset::{DatasetFiles, DatasetOverrides};
 use dvlcal::io::dvl::DvlReadOptions;
-use dvlcal::pipeline::{Dataset, VisionOptions, VisionRun, dataset_files, describe_files};
+use dvlcal::pipeline::{Dataset, VisionOptions, VisionRun, dataset_files_checked, describe_files};
 
 /// The parts of a dataset that can be named on the command line.
 #[derive(Args, Debug, Clone, Default)]
@@ -35,6 +35,13 @@ pub struct DatasetArgs {
     /// DVL data unless --dvl names a log.
     #[arg(long, value_name = "BAG")]
     pub bag: Option<PathBuf>,
+    /// IMU stream, EuRoC's IMU CSV (ns, rad/s, m/s^2); wins over imu0/data.csv and a bag's
+    /// Imu topic. Without a DVL log: camera + IMU (T_cam_imu, imu_time_offset_s alone).
+    #[arg(long, value_name = "FILE")]
+    pub imu: Option<PathBuf>,
+    /// The IMU's noise, Kalibr's imu.yaml (for --imu, imu0/data.csv or a bag's Imu topic).
+    #[arg(long, value_name = "FILE")]
+    pub imu_noise: Option<PathBuf>,
     #[command(flatten)]
     pub bag_args: crate::bag::BagArgs,
 }
@@ -49,13 +56,15 @@ impl DatasetArgs {
             poses: self.poses.clone(),
             bag: self.bag.clone(),
             bag_options: self.bag_args.options(read.topic.clone()),
+            imu: self.imu.clone(),
+            imu_noise: self.imu_noise.clone(),
         }
     }
 }
 
 /// Finds a dataset's files, printing what was found (for a folder).
 pub fn find(dir: Option<&Path>, args: &DatasetArgs, read: &DvlReadOptions) -> Result<DatasetFiles> {
-    let files = dataset_files(dir, &args.overrides(read))?;
+    let files = dataset_files_checked(dir, &args.overrides(read))?;
     if dir.is_some() {
         print!("{}", describe_files(&files));
     }
@@ -82,11 +91,12 @@ pub fn read_files(
     for n in &data.notes {
         eprintln!("note: {n}");
     }
-    let st = &data.log.stats;
-    if st.rejected_lines > 0 {
+    if let Some(st) = data.log.as_ref().map(|l| &l.stats)
+        && st.rejected_lines > 0
+    {
         eprintln!(
             "{}: {} malformed lines skipped (dvlcal dvl-info lists them)",
-            data.dvl_path.display(),
+            st.path.display(),
             st.rejected_lines
         );
     }

@@ -133,12 +133,9 @@ pub fn read_imu_from_bag(
         bag.messages(&|i| i == idx, &mut |m| {
             s.messages += 1;
             match cdr::decode::<cdr::Imu>(m.data, ser) {
-                Err(e) => {
-                    s.undecodable += 1;
-                    if undecodable.len() < LISTED {
-                        undecodable.push(format!("{}: {e}", name(m.index)));
-                    }
-                }
+                Err(e) => count(&mut s.undecodable, &mut undecodable, || {
+                    format!("{}: {e}", name(m.index))
+                }),
                 Ok(imu) => {
                     let w = &imu.angular_velocity;
                     let a = &imu.linear_acceleration;
@@ -153,16 +150,15 @@ pub fn read_imu_from_bag(
                             accel,
                         });
                     } else {
-                        s.non_finite += 1;
-                        if non_finite.len() < LISTED {
-                            non_finite.push(format!(
+                        count(&mut s.non_finite, &mut non_finite, || {
+                            format!(
                                 "{}: a value that is not finite: angular_velocity {:?}, \
                                  linear_acceleration {:?}",
                                 name(m.index),
                                 [w.x, w.y, w.z],
                                 [a.x, a.y, a.z]
-                            ));
-                        }
+                            )
+                        });
                     }
                 }
             }
@@ -181,40 +177,7 @@ pub fn read_imu_from_bag(
     s.warnings
         .extend(summary.problems.iter().map(|p| format!("{shown}: {p}")));
 
-    // Time order as the bag holds it: each step back named, then the samples sorted (stably:
-    // of two samples with one time stamp the earlier message is kept).
-    let mut backwards = Vec::new();
-    for w in read.windows(2) {
-        if w[1].t_ns < w[0].t_ns {
-            s.backwards += 1;
-            if backwards.len() < LISTED {
-                backwards.push(format!(
-                    "{}: time goes back {:.9} s from message {}",
-                    name(w[1].index),
-                    (w[0].t_ns - w[1].t_ns) as f64 * 1e-9,
-                    w[0].index
-                ));
-            }
-        }
-    }
-    read.sort_by_key(|r| r.t_ns);
-    let mut repeated = Vec::new();
-    let mut kept: Vec<Read> = Vec::with_capacity(read.len());
-    for r in read {
-        match kept.last() {
-            Some(last) if last.t_ns == r.t_ns => {
-                s.repeated += 1;
-                if repeated.len() < LISTED {
-                    repeated.push(format!(
-                        "{}: repeats the time stamp of message {} (dropped)",
-                        name(r.index),
-                        last.index
-                    ));
-                }
-            }
-            _ => kept.push(r),
-        }
-    }
+    let (kept, backwards, repeated) = time_order(read, &mut s, &name);
     push_warnings(&mut s, [&undecodable, &non_finite, &backwards, &repeated]);
     s.problems = [undecodable, non_finite, backwards, repeated].concat();
 
@@ -244,6 +207,55 @@ pub fn read_imu_from_bag(
     Ok((samples, s))
 }
 
+/// Counts one problem in `n`, and names its message in `named` while fewer than [`LISTED`] are.
+fn count(n: &mut usize, named: &mut Vec<String>, what: impl FnOnce() -> String) {
+    *n += 1;
+    if named.len() < LISTED {
+        named.push(what());
+    }
+}
+
+/// The samples in time order, as the bag holds them: each step back counted and named, the
+/// samples sorted (stably: of two samples with one time stamp the earlier message is kept),
+/// then each repeated time stamp counted, named and dropped. Returns the samples kept and the
+/// messages named going back and repeating.
+fn time_order(
+    mut read: Vec<Read>,
+    s: &mut ImuBagSummary,
+    name: &dyn Fn(u64) -> String,
+) -> (Vec<Read>, Vec<String>, Vec<String>) {
+    let (mut backwards, mut repeated) = (Vec::new(), Vec::new());
+    for w in read.windows(2) {
+        if w[1].t_ns < w[0].t_ns {
+            count(&mut s.backwards, &mut backwards, || {
+                format!(
+                    "{}: time goes back {:.9} s from message {}",
+                    name(w[1].index),
+                    (w[0].t_ns - w[1].t_ns) as f64 * 1e-9,
+                    w[0].index
+                )
+            });
+        }
+    }
+    read.sort_by_key(|r| r.t_ns);
+    let mut kept: Vec<Read> = Vec::with_capacity(read.len());
+    for r in read {
+        match kept.last() {
+            Some(last) if last.t_ns == r.t_ns => {
+                count(&mut s.repeated, &mut repeated, || {
+                    format!(
+                        "{}: repeats the time stamp of message {} (dropped)",
+                        name(r.index),
+                        last.index
+                    )
+                });
+            }
+            _ => kept.push(r),
+        }
+    }
+    (kept, backwards, repeated)
+}
+
 /// The summary's counts as warnings, each naming the bag, the topic and the first message
 /// (`named`: the messages named of each count, in the order undecodable, not finite, backwards,
 /// repeated).
@@ -258,52 +270,47 @@ fn push_warnings(s: &mut ImuBagSummary, named: [&[String]; 4]) {
         1 => format!("1 {noun}"),
         _ => format!("{count} {noun}s"),
     };
-    let lines = [
+    // Each count with its noun and what happened to those messages ({} is the count).
+    let rows = [
         (
             s.undecodable,
-            format!(
-                "{} skipped, not decodable as sensor_msgs/Imu",
-                n(s.undecodable, "message")
-            ),
-            first(0),
+            "message",
+            "{} skipped, not decodable as sensor_msgs/Imu",
+            Some(0),
         ),
         (
             s.non_finite,
-            format!(
-                "{} skipped, an angular velocity or linear acceleration not finite (NaN)",
-                n(s.non_finite, "message")
-            ),
-            first(1),
+            "message",
+            "{} skipped, an angular velocity or linear acceleration not finite (NaN)",
+            Some(1),
         ),
         (
             s.backwards,
-            format!(
-                "time goes backwards {}; the samples were sorted by time",
-                n(s.backwards, "time")
-            ),
-            first(2),
+            "time",
+            "time goes backwards {}; the samples were sorted by time",
+            Some(2),
         ),
         (
             s.repeated,
-            format!(
-                "{} dropped, repeating an earlier time stamp",
-                n(s.repeated, "sample")
-            ),
-            first(3),
+            "sample",
+            "{} dropped, repeating an earlier time stamp",
+            Some(3),
         ),
         (
             s.zero_stamps,
-            format!(
-                "{} with a zero header.stamp, placed at the record time",
-                n(s.zero_stamps, "message")
-            ),
-            String::new(),
+            "message",
+            "{} with a zero header.stamp, placed at the record time",
+            None,
         ),
     ];
-    let out: Vec<String> = lines
+    let out: Vec<String> = rows
         .into_iter()
-        .filter(|(count, _, _)| *count > 0)
-        .map(|(_, what, first)| format!("{prefix}{}: {what}{first}", s.topic))
+        .filter(|(count, ..)| *count > 0)
+        .map(|(count, noun, what, k)| {
+            let what = what.replace("{}", &n(count, noun));
+            let first = k.map_or(String::new(), first);
+            format!("{prefix}{}: {what}{first}", s.topic)
+        })
         .collect();
     s.warnings.extend(out);
 }

@@ -332,6 +332,26 @@ pub fn parse_imu_csv(text: &str, path: &Path, epoch: Option<Epoch>) -> Result<Im
     })
 }
 
+/// An IMU stream read from elsewhere than a CSV (a bag's topic, `path` the bag): `samples` in
+/// time order, strictly increasing, relative to `epoch`; the figures number them from 1 where
+/// a CSV's name lines. Checked as a CSV is (the units), and an error without samples.
+pub fn imu_log_of(path: &Path, epoch: Epoch, samples: Vec<ImuSample>) -> Result<ImuLog> {
+    if samples.is_empty() {
+        return Err(Error::Input(format!("{}: no IMU samples", path.display())));
+    }
+    let lines: Vec<usize> = (1..=samples.len()).collect();
+    let stamps: Vec<i64> = samples.iter().map(|s| (s.t * 1e9).round() as i64).collect();
+    let stats = stream_stats(&samples, &stamps, &lines, None, samples.len(), 0);
+    check_units(path, 1, &stats)?;
+    Ok(ImuLog {
+        path: path.to_path_buf(),
+        epoch,
+        samples,
+        lines,
+        stats,
+    })
+}
+
 /// A first line without `#` that names the columns (`timestamp [ns],w_RS_S_x ...`).
 fn starts_like_header(content: &str) -> bool {
     content
