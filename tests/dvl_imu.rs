@@ -1,14 +1,23 @@
 //! The DVL calibrated against an IMU, with and without a camera: at the Cramér-Rao bound over
-//! many simulated seeds (each error over its own std), and refusing an IMU that does not fit.
+//! many simulated seeds (each error over its own std), refusing an IMU that does not fit, and
+//! the DVL + IMU mode of `dvlcal calibrate` (no camera data).
+
+mod tmp_common;
 
 use dvlcal::calib::imu::dvl::calibrate_dvl_imu;
 use dvlcal::calib::imu::{ImuOptions, calibrate_camera_imu_dvl};
 use dvlcal::calib::model::difference;
 use dvlcal::calib::{CalibOptions, calibrate};
+use dvlcal::io::calib_yaml::read_calib_yaml;
+use dvlcal::io::dvl_imu_result::read_dvl_imu_result_yaml;
+use dvlcal::io::imu::truth::read_imu_truth;
+use dvlcal::lie::{Se3, so3};
 use dvlcal::sim::imu::{ImuSimConfig, simulate_imu};
 use dvlcal::sim::{MotionKind, SimConfig, SimDataset, build_motion, simulate_with};
 use dvlcal::types::CalibrationParams;
 use dvlcal::types::imu::ImuSample;
+use nalgebra::Matrix4;
+use tmp_common::{TmpDir, dvlcal, dvlcal_ok, s};
 
 /// A 60 s simulated recording (poses at 10 Hz, the A50 at its rate, a 200 Hz IMU with walking
 /// biases) and the IMU's truth.
@@ -203,4 +212,81 @@ fn an_imu_that_does_not_fit_the_dvl_is_refused_with_the_reason() {
             est.params.velocity_scale, est.params.time_offset_s, est.noise_factor
         ),
     }
+}
+
+/// `calibrate` on a dataset folder with a DVL log and an IMU but no camera data writes
+/// `T_imu_dvl`, the offset on the IMU's clock and the scale, each within 4 std of the truth
+/// that `simulate` wrote (`T_cam_imu^-1 T_cam_dvl`, `t_imu = t_dvl + (offset_dvl -
+/// offset_imu)`); options that only a camera run reads are refused, and a reader of camera
+/// results refuses the file with what it is.
+#[test]
+fn calibrate_without_a_camera_writes_the_dvl_relative_to_the_imu() {
+    let tmp = TmpDir::new("dvl_imu_cli");
+    let ds = tmp.path("ds");
+    dvlcal_ok(&[
+        "simulate",
+        "--imu",
+        "--duration",
+        "60",
+        "--seed",
+        "5",
+        "--out",
+        s(&ds),
+    ]);
+    std::fs::remove_file(ds.join("poses.txt")).expect("remove the camera poses");
+    let out = tmp.path("out.yaml");
+    let stdout = dvlcal_ok(&["calibrate", s(&ds), "--out", s(&out)]);
+    assert!(
+        stdout.contains("DVL + IMU: no camera data given"),
+        "{stdout}"
+    );
+    let r = read_dvl_imu_result_yaml(&out).expect("result");
+    let cam = read_calib_yaml(&ds.join("truth/calibration.yaml"))
+        .expect("truth")
+        .to_params()
+        .expect("truth params");
+    let imu = read_imu_truth(&ds.join("truth/imu.yaml")).expect("IMU truth");
+    let truth = imu.t_cam_imu.inverse() * cam.t_cam_dvl;
+    let m = Matrix4::from_fn(|i, j| r.t_imu_dvl[i][j]);
+    let est = Se3::from_matrix(&m);
+    let std = r.std.as_ref().expect("std");
+    let (rot_s, lever_s) = (
+        std.rotation_deg.expect("rotation std"),
+        std.lever_arm_m.expect("lever std"),
+    );
+    // Rotation about the DVL frame's axes (a left perturbation of R_dvl_imu).
+    let e_rot = so3::log(&(est.rot.transpose() * truth.rot)).map(f64::to_degrees);
+    for i in 0..3 {
+        assert!(
+            e_rot[i].abs() < 4.0 * rot_s[i],
+            "rotation {e_rot:?} deg, std {rot_s:?}"
+        );
+        let e = est.trans[i] - truth.trans[i];
+        assert!(
+            e.abs() < 4.0 * lever_s[i],
+            "lever arm axis {i}: {e} m, std {}",
+            lever_s[i]
+        );
+    }
+    let off = cam.time_offset_s - imu.imu_time_offset_s;
+    assert!((r.time_offset_s - off).abs() < 4.0 * std.time_offset_s.expect("offset std"));
+    assert!(
+        (r.velocity_scale - cam.velocity_scale).abs()
+            < 4.0 * std.velocity_scale.expect("scale std")
+    );
+    let obs = r.observability.as_ref().expect("verdicts");
+    assert_eq!(format!("{:?}", obs.lever_arm), "Ok");
+    // A camera run's option is refused; a camera result's reader names the file's kind.
+    let refused = dvlcal(&[
+        "calibrate",
+        s(&ds),
+        "--out",
+        s(&tmp.path("r.yaml")),
+        "--report",
+        s(&tmp.path("r.html")),
+    ]);
+    assert_eq!(refused.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&refused.stderr).contains("DVL + IMU"));
+    let e = read_calib_yaml(&out).expect_err("not a camera result");
+    assert!(e.to_string().contains("a DVL + IMU result"), "{e}");
 }

@@ -754,6 +754,13 @@ pub fn parse_calib_yaml(text: &str, path: &Path) -> Result<CalibrationFile> {
             path.display()
         )));
     }
+    if text.lines().any(|l| l.starts_with("T_imu_dvl:")) {
+        return Err(Error::Input(format!(
+            "{}: a DVL + IMU result (T_imu_dvl, no camera): it holds the DVL relative to the \
+             IMU, not to a camera, which is what is read here",
+            path.display()
+        )));
+    }
     let c: CalibrationFile = serde_yaml::from_str(text).map_err(|e| match e.location() {
         Some(loc) => Error::parse(path, loc.line(), format!("column {}: {e}", loc.column())),
         None => Error::Input(format!("{}: {e}", path.display())),

@@ -479,7 +479,9 @@ pub fn discover(dir: &Path, given: &DatasetOverrides) -> Result<DatasetFiles> {
     if found.dvl.is_none() {
         found.dvl = bag;
     }
-    if found.images.is_none() && found.poses.is_none() && found.bag.is_none() {
+    // No camera at all: only a DVL log with an IMU (the DVL + IMU mode) makes a dataset.
+    let imu_beside_dvl = found.imu.is_some() && found.dvl.is_some();
+    if found.images.is_none() && found.poses.is_none() && found.bag.is_none() && !imu_beside_dvl {
         return Err(Error::Input(format!(
             "{}: no camera data: neither cam0/ (or mav0/cam0/) images, a TUM pose file nor a bag",
             dir.display()

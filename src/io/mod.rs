@@ -9,6 +9,7 @@ pub mod calib_yaml;
 pub mod camchain;
 pub mod dataset;
 pub mod dvl;
+pub mod dvl_imu_result;
 pub mod exports;
 pub mod frames;
 pub mod frames_csv;

@@ -335,6 +335,12 @@ impl Dataset {
                 run.require_poses()?;
                 (run.epoch, run.poses_as_read_back(), Some(run), dir.clone())
             }
+            // DVL + IMU: no camera; the epoch is the IMU's first sample.
+            (None, None) if files.bag.is_none() && files.dvl.is_some() && files.imu.is_some() => {
+                let imu = files.imu.clone().unwrap_or_default();
+                notes.push(super::dvl_imu::MODE.to_owned());
+                (read_imu_csv(&imu, None)?.epoch, Vec::new(), None, imu)
+            }
             (None, None) => {
                 let Some(bag) = &files.bag else {
                     return Err(Error::dataset(&files.root, "no camera data"));

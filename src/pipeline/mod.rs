@@ -29,6 +29,7 @@ mod calibration;
 mod cameras;
 pub mod chain_order;
 mod dataset;
+pub mod dvl_imu;
 mod evaluate;
 mod exports;
 mod imu;

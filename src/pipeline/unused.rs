@@ -123,6 +123,23 @@ const DVL_ONLY: [&str; 15] = [
     "--report",
 ];
 
+/// The options of `calibrate` that the DVL + IMU mode (no camera) does not read.
+const NOT_IN_DVL_IMU: [&str; 13] = [
+    "--method",
+    "--lever-arm-prior",
+    "--rotation-prior",
+    "--loss",
+    "--default-lever-arm-sigma",
+    "--model-covariance",
+    "--clock-drift",
+    "--dvl-sound-speed",
+    "--init",
+    "--estimate-offset",
+    "--biased",
+    "--strict",
+    "--report",
+];
+
 /// The options a dataset's inputs would not use: the bag options when no input is a bag
 /// (`--dvl-topic` when the DVL log is not one), the camchain and board beside a pose file,
 /// `--imu-noise` without an IMU stream, and the DVL's settings without a DVL log.
@@ -181,6 +198,17 @@ pub fn input_options(files: &DatasetFiles, given: &[&str]) -> Result<()> {
             "{f} applies to the DVL's calibration; there is no DVL log here, so only the IMU is \
              calibrated against the camera (camera + IMU): drop {f}, or give the DVL log with \
              --dvl LOG"
+        ));
+    }
+    let no_camera = files.poses.is_none() && files.images.is_none() && files.bag.is_none();
+    if no_camera
+        && files.imu.is_some()
+        && let Some(f) = NOT_IN_DVL_IMU.iter().find(|f| has(given, f))
+    {
+        return refuse(format!(
+            "{f} applies to a calibration against a camera; there is no camera data here, so \
+             the DVL is calibrated against the IMU (DVL + IMU): drop {f}, or give the camera's \
+             images, poses or bag"
         ));
     }
     if let Some(p) = &files.poses

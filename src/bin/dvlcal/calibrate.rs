@@ -14,6 +14,7 @@ use dvlcal::error::Error;
 use dvlcal::io::calib_yaml::{read_calibration_guess, rotation_from_rpy_deg};
 use dvlcal::io::exports::FrameNames;
 use dvlcal::io::provenance::this_command_line;
+use dvlcal::pipeline::dvl_imu;
 use dvlcal::pipeline::{
     CameraOutputs, OutputOptions, SEPARATE_CAMERA_RECORDING, calibrate_camera_imu_dataset,
     calibrate_dataset, calibration_context, check_result_outputs, unused, write_camera_imu_results,
@@ -273,6 +274,13 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
         let paths = write_camera_imu_results(&a.out, &run, &data, &output)?;
         print!("{}", run.summary(&data));
         println!("{}", wrote_words(&paths));
+        return Ok(());
+    }
+    if data.poses.is_empty() && data.vision.is_none() && data.imu.is_some() {
+        let run = dvl_imu::calibrate_dvl_imu_dataset(&data, &opts)?;
+        dvl_imu::write_dvl_imu_results(&a.out, &run, &data, &output)?;
+        print!("{}", run.summary());
+        println!("wrote {}", a.out.display());
         return Ok(());
     }
     if let Some(w) = data.give_sound_speed(a.dvl_sound_speed) {
