@@ -290,3 +290,47 @@ fn calibrate_without_a_camera_writes_the_dvl_relative_to_the_imu() {
     let e = read_calib_yaml(&out).expect_err("not a camera result");
     assert!(e.to_string().contains("a DVL + IMU result"), "{e}");
 }
+
+/// With a camera, an IMU and a DVL log, `calibrate` takes the DVL's values from the three
+/// sensors together (a note says so, with the joint std), each within 4 of the std it writes
+/// (the camera-only ones, an upper bound) of the truth.
+#[test]
+fn calibrate_with_all_three_takes_the_dvls_values_from_the_joint_problem() {
+    let tmp = TmpDir::new("dvl_imu_three");
+    let ds = tmp.path("ds");
+    dvlcal_ok(&[
+        "simulate",
+        "--imu",
+        "--duration",
+        "60",
+        "--seed",
+        "6",
+        "--out",
+        s(&ds),
+    ]);
+    let out = tmp.path("out.yaml");
+    dvlcal_ok(&["calibrate", s(&ds), "--out", s(&out)]);
+    let f = read_calib_yaml(&out).expect("result");
+    let notes = f
+        .info
+        .as_ref()
+        .map(|i| i.notes.join("\n"))
+        .unwrap_or_default();
+    assert!(notes.contains("calibrated together"), "{notes}");
+    let est = f.to_params().expect("params");
+    let truth = read_calib_yaml(&ds.join("truth/calibration.yaml"))
+        .expect("truth")
+        .to_params()
+        .expect("truth params");
+    let e = difference(&est, &truth);
+    let std = f.std.as_ref().expect("std");
+    let rs = std.rotation_deg.expect("rotation std");
+    let ls = std.lever_arm_m.expect("lever std");
+    for i in 0..3 {
+        assert!(e[i].to_degrees().abs() < 4.0 * rs[i], "rotation {i}: {e:?}");
+        assert!(e[3 + i].abs() < 4.0 * ls[i], "lever {i}: {e:?}");
+    }
+    assert!(e[6].abs() < 4.0 * std.velocity_scale.expect("scale std"));
+    assert!(e[7].abs() < 4.0 * std.time_offset_s.expect("offset std"));
+    assert!(f.t_cam_imu.is_some(), "the IMU's keys beside the DVL's");
+}

@@ -62,18 +62,21 @@ pub fn calibrate_dataset(
     } else {
         SegmentPlan::dvl(log)
     };
-    let (outcome, segments) =
+    let (mut outcome, segments) =
         workers.install(|| calibrate_segments(&data.poses, &plan.parts, &plan.names, opts))?;
-    let mut imu_warnings = Vec::new();
-    let imu = workers.install(|| super::imu::calibrate_imu(data, &mut imu_warnings));
+    let (mut imu_warnings, mut imu_notes) = (Vec::new(), Vec::new());
+    let joint = super::imu::joint_eligible(&outcome, plan.parts.len()).then_some((&outcome, opts));
+    let imu = workers.install(|| super::imu::calibrate_imu(data, joint, &mut imu_warnings));
+    if let Some(est) = &imu {
+        super::imu::adopt_joint_dvl(&mut outcome, est, &mut imu_warnings, &mut imu_notes);
+    }
     let elapsed_s = start.elapsed().as_secs_f64();
     let mut file = result_file(&outcome, log);
     let imu = imu.map(|est| super::imu::note_imu(&mut file, est, data, &opts.weak));
-    if !imu_warnings.is_empty() {
-        file.info
-            .get_or_insert_with(Default::default)
-            .warnings
-            .extend(imu_warnings);
+    if !imu_warnings.is_empty() || !imu_notes.is_empty() {
+        let info = file.info.get_or_insert_with(Default::default);
+        info.warnings.extend(imu_warnings);
+        info.notes.extend(imu_notes);
     }
     plan.note(&mut file, &outcome, &segments, data);
     if let Some(cams) = &data.cameras {

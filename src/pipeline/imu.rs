@@ -9,8 +9,11 @@ use nalgebra::Vector3;
 
 use super::dataset::Dataset;
 use crate::calib::diagnostics::{ImuVerdicts, imu_verdicts};
-use crate::calib::imu::{ImuEstimate, ImuOptions, calibrate_camera_imu};
+use crate::calib::imu::{ImuEstimate, ImuOptions, calibrate_camera_imu, calibrate_camera_imu_dvl};
+use crate::calib::model::{NPARAM, difference};
+use crate::calib::options::CalibOptions;
 use crate::calib::options::WeakThresholds;
+use crate::calib::outcome::{CalibrationOutcome, DeterminedBy, Status};
 use crate::io::calib_yaml::{
     CalibrationFile, ImuBiasFile, ImuObservability, ImuStd, Observability, rows,
 };
@@ -19,8 +22,15 @@ use crate::report::ImuReportInput;
 
 /// The camera-IMU calibration of `data`, when it has an IMU stream and a noise file; a
 /// warning (and `None`) when it has one without the other, or when the calibration fails (the
-/// DVL's result stands without the IMU's, and the warning says why).
-pub fn calibrate_imu(data: &Dataset, warnings: &mut Vec<String>) -> Option<ImuEstimate> {
+/// DVL's result stands without the IMU's, and the warning says why). With `dvl` (the DVL's
+/// camera-only outcome, when [`joint_eligible`]), the DVL's velocities join the problem and the
+/// estimate's state carries the DVL's parameters from the three sensors together; should that
+/// fail, the camera-IMU calibration alone runs.
+pub fn calibrate_imu(
+    data: &Dataset,
+    dvl: Option<(&CalibrationOutcome, &CalibOptions)>,
+    warnings: &mut Vec<String>,
+) -> Option<ImuEstimate> {
     match (&data.imu, &data.imu_noise) {
         (None, None) => None,
         (Some(log), None) => {
@@ -33,12 +43,32 @@ pub fn calibrate_imu(data: &Dataset, warnings: &mut Vec<String>) -> Option<ImuEs
         }
         (None, Some(_)) => None,
         (Some(log), Some(noise)) => {
-            match calibrate_camera_imu(
-                &data.poses,
-                &log.samples,
-                &noise.noise,
-                &ImuOptions::default(),
-            ) {
+            let opts = ImuOptions::default();
+            let joint = dvl.zip(data.log.as_ref()).map(|((o, c), dvl_log)| {
+                calibrate_camera_imu_dvl(
+                    &data.poses,
+                    &log.samples,
+                    &noise.noise,
+                    &dvl_log.samples,
+                    &o.params,
+                    c,
+                    &opts,
+                )
+            });
+            let alone = || calibrate_camera_imu(&data.poses, &log.samples, &noise.noise, &opts);
+            let result = match joint {
+                Some(Ok(est)) => Ok(est),
+                Some(Err(e)) => {
+                    warnings.push(format!(
+                        "{}: the camera, IMU and DVL could not be calibrated together ({e}); \
+                         the IMU was calibrated against the camera alone",
+                        log.path.display()
+                    ));
+                    alone()
+                }
+                None => alone(),
+            };
+            match result {
                 Ok(est) => Some(est),
                 Err(e) => {
                     warnings.push(format!(
@@ -50,6 +80,63 @@ pub fn calibrate_imu(data: &Dataset, warnings: &mut Vec<String>) -> Option<ImuEs
             }
         }
     }
+}
+
+/// Whether the DVL's camera-only outcome may be refined with the IMU in one problem: it
+/// succeeded on one clock without drift, every parameter was estimated from the data, and no
+/// DVL report was down-weighted as an outlier (the joint problem weighs every report fully).
+pub fn joint_eligible(o: &CalibrationOutcome, segments: usize) -> bool {
+    let v = &o.verdicts;
+    matches!(o.status, Status::Ok)
+        && segments <= 1
+        && o.clock_drift.is_none()
+        && o.robust.dvl.outliers == 0
+        && [&v.rotation, &v.lever_arm, &v.time_offset, &v.velocity_scale]
+            .iter()
+            .all(|x| x.by == DeterminedBy::Data)
+}
+
+/// Takes the DVL's values from the three-sensor problem into `o` when they agree with the
+/// camera-only ones (each within 3 of the camera-only std); the std and verdicts stay the
+/// camera-only run's, an upper bound (the joint problem's own std are noted in `notes`). A
+/// disagreement keeps the camera-only values and is a warning.
+pub fn adopt_joint_dvl(
+    o: &mut CalibrationOutcome,
+    est: &ImuEstimate,
+    warnings: &mut Vec<String>,
+    notes: &mut Vec<String>,
+) -> bool {
+    let (Some(p), Some(js)) = (est.state.dvl, est.dvl_std()) else {
+        return false;
+    };
+    let d = difference(&p, &o.params);
+    let worst = (0..NPARAM)
+        .map(|i| d[i].abs() / o.covariance[(i, i)].max(1e-300).sqrt())
+        .fold(0.0, f64::max);
+    if !(worst <= 3.0) {
+        warnings.push(format!(
+            "the DVL's calibration with the IMU differs from the camera-only one by {worst:.1} \
+             of its std: the camera-only values are kept (is the IMU's noise file right, and \
+             its stream from this recording?)"
+        ));
+        return false;
+    }
+    o.params = p;
+    notes.push(format!(
+        "the DVL's values come from the camera, IMU and DVL calibrated together (within \
+         {worst:.1} std of the camera-only values); its std are the camera-only ones, an upper \
+         bound: together they are rotation {:.3} {:.3} {:.3} deg, lever arm {:.1} {:.1} {:.1} \
+         mm, scale {:.5}, offset {:.2} ms",
+        js[0].to_degrees(),
+        js[1].to_degrees(),
+        js[2].to_degrees(),
+        1e3 * js[3],
+        1e3 * js[4],
+        1e3 * js[5],
+        js[6],
+        1e3 * js[7]
+    ));
+    true
 }
 
 /// The IMU's calibration in a run, with its verdicts (for the report).
