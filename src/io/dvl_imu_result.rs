@@ -13,7 +13,8 @@ use super::calib_yaml::{
     CalibrationInfo, CalibrationStd, ImuBiasFile, ObservabilityFlags, ResultStatus,
 };
 use super::provenance::Provenance;
-use crate::error::{Error, Result};
+use super::result_text::{flow, read_result_text, write_result_text};
+use crate::error::Result;
 
 /// A DVL + IMU result file.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -68,27 +69,7 @@ pub fn write_dvl_imu_result_yaml(path: &Path, c: &DvlImuResultFile) -> Result<()
             "a DVL-IMU calibration value".into(),
         ));
     }
-    let yaml_err = |e: serde_yaml::Error| Error::Input(format!("{}: {e}", path.display()));
-    let flow = |v: &[f64]| {
-        let items: Vec<String> = v.iter().map(|x| format!("{x:?}")).collect();
-        format!("[{}]", items.join(", "))
-    };
-    let mut s = String::from(HEADER);
-    #[derive(Serialize)]
-    struct Head<'a> {
-        #[serde(skip_serializing_if = "Option::is_none")]
-        status: &'a Option<ResultStatus>,
-        #[serde(skip_serializing_if = "<[String]>::is_empty")]
-        failure: &'a [String],
-    }
-    if c.status.is_some() || !c.failure.is_empty() {
-        let head = Head {
-            status: &c.status,
-            failure: &c.failure,
-        };
-        s.push_str(&serde_yaml::to_string(&head).map_err(yaml_err)?);
-    }
-    let _ = writeln!(s, "T_imu_dvl:");
+    let mut s = String::from("T_imu_dvl:\n");
     for row in &c.t_imu_dvl {
         let _ = writeln!(s, "  - {}", flow(row));
     }
@@ -116,16 +97,11 @@ pub fn write_dvl_imu_result_yaml(path: &Path, c: &DvlImuResultFile) -> Result<()
         info: &c.info,
         provenance: &c.provenance,
     };
-    s.push_str(&serde_yaml::to_string(&tail).map_err(yaml_err)?);
-    super::write_atomic(path, s.as_bytes())
+    write_result_text(path, HEADER, &c.status, &c.failure, &s, &tail)
 }
 
 /// Reads a DVL + IMU result file. Errors name the file, and the line where the YAML parser
 /// reports one.
 pub fn read_dvl_imu_result_yaml(path: &Path) -> Result<DvlImuResultFile> {
-    let text = crate::files::read_text(path)?;
-    serde_yaml::from_str(&text).map_err(|e| match e.location() {
-        Some(loc) => Error::parse(path, loc.line(), format!("column {}: {e}", loc.column())),
-        None => Error::Input(format!("{}: {e}", path.display())),
-    })
+    read_result_text(path)
 }

@@ -14,7 +14,8 @@ use super::calib_yaml::{
     CalibrationFile, CalibrationInfo, ImuBiasFile, ImuObservability, ImuStd, ResultStatus,
 };
 use super::provenance::Provenance;
-use crate::error::{Error, Result};
+use super::result_text::{flow, read_result_text, write_result_text};
+use crate::error::Result;
 
 /// The `std` section of a camera + IMU result: the IMU's alone.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -97,12 +98,6 @@ const HEADER: &str = "\
 # Matrices are listed by rows. Clocks: t_cam = t_imu + imu_time_offset_s.
 ";
 
-/// A YAML flow sequence of numbers (shortest digits that read back exactly).
-fn flow(v: &[f64]) -> String {
-    let items: Vec<String> = v.iter().map(|x| format!("{x:?}")).collect();
-    format!("[{}]", items.join(", "))
-}
-
 /// Writes the camera + IMU result file atomically: a comment header, the main keys (the matrix
 /// one row per line), then the sections. Non-finite numbers in the main keys are refused.
 pub fn write_imu_result_yaml(path: &Path, c: &ImuResultFile) -> Result<()> {
@@ -117,24 +112,7 @@ pub fn write_imu_result_yaml(path: &Path, c: &ImuResultFile) -> Result<()> {
             "an IMU calibration value".to_string(),
         ));
     }
-    let mut s = String::from(HEADER);
-    #[derive(Serialize)]
-    struct Head<'a> {
-        #[serde(skip_serializing_if = "Option::is_none")]
-        status: &'a Option<ResultStatus>,
-        #[serde(skip_serializing_if = "<[String]>::is_empty")]
-        failure: &'a [String],
-    }
-    let yaml_err = |e: serde_yaml::Error| Error::Input(format!("{}: {e}", path.display()));
-    if c.status.is_some() || !c.failure.is_empty() {
-        s.push_str(
-            &serde_yaml::to_string(&Head {
-                status: &c.status,
-                failure: &c.failure,
-            })
-            .map_err(yaml_err)?,
-        );
-    }
+    let mut s = String::new();
     let _ = writeln!(s, "T_cam_imu:");
     for row in &c.t_cam_imu {
         let _ = writeln!(s, "  - {}", flow(row));
@@ -159,26 +137,17 @@ pub fn write_imu_result_yaml(path: &Path, c: &ImuResultFile) -> Result<()> {
         #[serde(skip_serializing_if = "Option::is_none")]
         provenance: &'a Option<Provenance>,
     }
-    if c.std.is_some() || c.observability.is_some() || c.info.is_some() || c.provenance.is_some() {
-        s.push_str(
-            &serde_yaml::to_string(&Tail {
-                std: &c.std,
-                observability: &c.observability,
-                info: &c.info,
-                provenance: &c.provenance,
-            })
-            .map_err(yaml_err)?,
-        );
-    }
-    super::write_atomic(path, s.as_bytes())
+    let tail = Tail {
+        std: &c.std,
+        observability: &c.observability,
+        info: &c.info,
+        provenance: &c.provenance,
+    };
+    write_result_text(path, HEADER, &c.status, &c.failure, &s, &tail)
 }
 
 /// Reads a camera + IMU result file (or the IMU's keys of any result file: the DVL's are
 /// ignored). Errors name the file, and the line where the YAML parser reports one.
 pub fn read_imu_result_yaml(path: &Path) -> Result<ImuResultFile> {
-    let text = crate::files::read_text(path)?;
-    serde_yaml::from_str(&text).map_err(|e| match e.location() {
-        Some(loc) => Error::parse(path, loc.line(), format!("column {}: {e}", loc.column())),
-        None => Error::Input(format!("{}: {e}", path.display())),
-    })
+    read_result_text(path)
 }

@@ -18,6 +18,7 @@ pub mod images;
 pub mod imu;
 pub mod imu_result;
 pub mod provenance;
+mod result_text;
 pub mod target;
 pub mod times;
 pub mod tum;

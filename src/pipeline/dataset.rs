@@ -216,6 +216,9 @@ fn read_dvl(
     Ok(log)
 }
 
+/// The DVL + IMU mode in words ([`super::dvl_imu`]), as the notes and the summary say it.
+pub const DVL_IMU_MODE: &str = "DVL + IMU: no camera data given";
+
 /// A dataset read into memory: the camera poses, the DVL log and the IMU stream on one epoch.
 #[derive(Debug)]
 pub struct Dataset {
@@ -338,7 +341,7 @@ impl Dataset {
             // DVL + IMU: no camera; the epoch is the IMU's first sample.
             (None, None) if files.bag.is_none() && files.dvl.is_some() && files.imu.is_some() => {
                 let imu = files.imu.clone().unwrap_or_default();
-                notes.push(super::dvl_imu::MODE.to_owned());
+                notes.push(DVL_IMU_MODE.to_owned());
                 (read_imu_csv(&imu, None)?.epoch, Vec::new(), None, imu)
             }
             (None, None) => {

@@ -25,7 +25,7 @@ use crate::io::dvl_imu_result::{DvlImuResultFile, write_dvl_imu_result_yaml};
 use crate::io::provenance::Provenance;
 
 /// The mode in words, as the summary and the result's notes state it.
-pub const MODE: &str = "DVL + IMU: no camera data given";
+pub use super::dataset::DVL_IMU_MODE as MODE;
 
 /// A finished DVL + IMU calibration.
 #[derive(Clone, Debug)]
