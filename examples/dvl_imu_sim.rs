@@ -76,14 +76,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!();
     print!("std  ");
     for (i, v) in sd.iter().enumerate() {
-        let f = if i < 3 {
-            57.29578
-        } else if i < 6 {
-            1e3
-        } else if i == 7 {
-            1e3
-        } else {
-            1.0
+        let f = match i {
+            0..=2 => 57.29578,
+            6 => 1.0,
+            _ => 1e3,
         };
         print!(" {:6.3}", v / n * f);
     }

@@ -68,12 +68,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let unit = [57.29578, 57.29578, 57.29578, 1e3, 1e3, 1e3, 1.0, 1e3];
     for (name, k) in [("camera-only", 0), ("joint", 1)] {
         print!("{name:12} RMSE");
-        for i in 0..8 {
-            print!(" {:8.4}", (e2[k][i] / n).sqrt() * unit[i]);
+        for (e, u) in e2[k].iter().zip(unit) {
+            print!(" {:8.4}", (e / n).sqrt() * u);
         }
         print!("   err/std RMS");
-        for i in 0..8 {
-            print!(" {:5.2}", (z2[k][i] / n).sqrt());
+        for z in &z2[k] {
+            print!(" {:5.2}", (z / n).sqrt());
         }
         println!();
     }

@@ -1031,6 +1031,7 @@ mod imu_verdict_tests {
             gravity_rotation: Matrix3::identity(),
             gravity_magnitude: 9.81,
             bias: BiasNodes::spanning(0.0, 10.0, 10.0, ImuBias::default()),
+            dvl: None,
         };
         let n = state.dim();
         ImuEstimate {
@@ -1044,6 +1045,7 @@ mod imu_verdict_tests {
             knots,
             cost: 0.0,
             noise_factor: (1.0, 1.0),
+            dvl_noise_factor: 1.0,
         }
     }
 

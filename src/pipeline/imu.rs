@@ -113,7 +113,7 @@ pub fn adopt_joint_dvl(
     let worst = (0..NPARAM)
         .map(|i| d[i].abs() / o.covariance[(i, i)].max(1e-300).sqrt())
         .fold(0.0, f64::max);
-    if !(worst <= 3.0) {
+    if worst.is_nan() || worst > 3.0 {
         warnings.push(format!(
             "the DVL's calibration with the IMU differs from the camera-only one by {worst:.1} \
              of its std: the camera-only values are kept (is the IMU's noise file right, and \

@@ -113,7 +113,7 @@ pub fn calibrate_dvl_imu(
             (a.min(o.t + start.offset), b.max(o.t + start.offset))
         });
     let (t0, t1) = (b0.max(d0), b1.min(d1));
-    if !(t1 - t0 > 2.0) {
+    if t1 - t0 <= 2.0 || t1.is_nan() || t0.is_nan() {
         return Err(Error::NoTimeOverlap(format!(
             "the DVL and the IMU overlap for {:.2} s at the clock offset found ({:.3} s)",
             (t1 - t0).max(0.0),

@@ -120,14 +120,17 @@ struct Normal {
     r: SMatrix<f64, 15, 1>,
     c: f64,
     rows: usize,
-    /// Per window: the reference attitude, `C^T C` inverse, `C^T A`, `C^T b`.
-    windows: Vec<(
-        Matrix3<f64>,
-        Matrix3<f64>,
-        SMatrix<f64, 3, 15>,
-        Vector3<f64>,
-    )>,
+    /// Per window: what recovers its gravity.
+    windows: Vec<Window>,
 }
+
+/// A window's reference attitude, `C^T C` inverse, `C^T A` and `C^T b`.
+type Window = (
+    Matrix3<f64>,
+    Matrix3<f64>,
+    SMatrix<f64, 3, 15>,
+    Vector3<f64>,
+);
 
 /// The first estimate.
 #[derive(Clone, Debug)]
