@@ -333,4 +333,14 @@ fn calibrate_with_all_three_takes_the_dvls_values_from_the_joint_problem() {
     assert!(e[6].abs() < 4.0 * std.velocity_scale.expect("scale std"));
     assert!(e[7].abs() < 4.0 * std.time_offset_s.expect("offset std"));
     assert!(f.t_cam_imu.is_some(), "the IMU's keys beside the DVL's");
+    // The IMU's files are inputs of the run, digested in its provenance.
+    let roles: Vec<String> = f
+        .provenance
+        .as_ref()
+        .map(|p| p.inputs.iter().map(|i| i.role.clone()).collect())
+        .unwrap_or_default();
+    assert!(
+        roles.iter().any(|r| r == "imu") && roles.iter().any(|r| r == "imu_noise"),
+        "{roles:?}"
+    );
 }

@@ -620,6 +620,14 @@ pub fn dataset_inputs(data: &Dataset) -> Vec<(String, PathBuf)> {
     .into_iter()
     .filter_map(|(role, p)| p.clone().map(|p| (role.to_owned(), p)))
     .collect();
+    // The IMU's files, when its stream was read (the run calibrated it, or says why not).
+    if data.imu.is_some() {
+        for (role, p) in [("imu", &f.imu), ("imu_noise", &f.imu_noise)] {
+            if let Some(p) = p {
+                v.push((role.to_owned(), p.clone()));
+            }
+        }
+    }
     if let Some(run) = &data.vision {
         for (n, dir) in run.scan.folders.iter().enumerate() {
             if let Some(d) = dir {
@@ -629,6 +637,29 @@ pub fn dataset_inputs(data: &Dataset) -> Vec<(String, PathBuf)> {
     }
     v.dedup_by(|a, b| a.1 == b.1);
     v
+}
+
+/// Before a run's files are written: refuses `out` and `also` (its exports) when one is an
+/// input, creates `out`'s folder, and gives the provenance of the run (the command line and
+/// the digest of every input: the dataset's files and `opts.extra_inputs`).
+pub fn prepare_outputs(
+    out: &Path,
+    also: &[&Path],
+    data: &Dataset,
+    opts: &OutputOptions,
+) -> Result<Provenance> {
+    let inputs = data.files.inputs();
+    for written in std::iter::once(out).chain(also.iter().copied()) {
+        crate::files::refuse_input("--out", written, inputs.iter().map(|p| p.as_path()))?;
+    }
+    if let Some(d) = out.parent()
+        && !d.as_os_str().is_empty()
+    {
+        std::fs::create_dir_all(d).map_err(|e| Error::io(d, e))?;
+    }
+    let mut all_inputs = dataset_inputs(data);
+    all_inputs.extend(opts.extra_inputs.iter().cloned());
+    Provenance::of_run(opts.command_line.clone(), &all_inputs)
 }
 
 /// The cameras of the camchain-imucam export: every camera of the chain the poses were solved
@@ -670,22 +701,11 @@ pub fn write_results(
     opts: &OutputOptions,
 ) -> Result<ResultPaths> {
     let names = frame_names(opts, data)?;
-    let inputs = data.files.inputs();
     let tf = sibling(out, "tf.txt");
     let imucam = sibling(out, "camchain-imucam.yaml");
     let urdf = sibling(out, "urdf.xml");
-    for written in [out, tf.as_path(), imucam.as_path(), urdf.as_path()] {
-        crate::files::refuse_input("--out", written, inputs.iter().map(|p| p.as_path()))?;
-    }
-    if let Some(d) = out.parent()
-        && !d.as_os_str().is_empty()
-    {
-        std::fs::create_dir_all(d).map_err(|e| Error::io(d, e))?;
-    }
-    let mut all_inputs = dataset_inputs(data);
-    all_inputs.extend(opts.extra_inputs.iter().cloned());
     let mut file = run.file.clone();
-    file.provenance = Some(Provenance::of_run(opts.command_line.clone(), &all_inputs)?);
+    file.provenance = Some(prepare_outputs(out, &[&tf, &imucam, &urdf], data, opts)?);
     write_calib_yaml(out, &file)?;
     let calib = &run.outcome.params;
     if !(run.outcome.status.is_ok() || opts.force) {

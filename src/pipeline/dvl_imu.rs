@@ -9,7 +9,7 @@ use std::time::Instant;
 
 use nalgebra::Vector3;
 
-use super::calibration::{OutputOptions, dataset_inputs};
+use super::calibration::{OutputOptions, prepare_outputs};
 use super::dataset::Dataset;
 use crate::calib::diagnostics::verdict_by_std;
 use crate::calib::imu::ImuOptions;
@@ -22,7 +22,6 @@ use crate::io::calib_yaml::{
     RunFigures, rows,
 };
 use crate::io::dvl_imu_result::{DvlImuResultFile, write_dvl_imu_result_yaml};
-use crate::io::provenance::Provenance;
 
 /// The mode in words, as the summary and the result's notes state it.
 pub use super::dataset::DVL_IMU_MODE as MODE;
@@ -259,22 +258,7 @@ pub fn write_dvl_imu_results(
     data: &Dataset,
     opts: &OutputOptions,
 ) -> Result<()> {
-    let inputs = data.files.inputs();
-    crate::files::refuse_input("--out", out, inputs.iter().map(|p| p.as_path()))?;
-    if let Some(d) = out.parent()
-        && !d.as_os_str().is_empty()
-    {
-        std::fs::create_dir_all(d).map_err(|e| Error::io(d, e))?;
-    }
-    let mut all_inputs = dataset_inputs(data);
-    let f = &data.files;
-    for (role, p) in [("imu", &f.imu), ("imu_noise", &f.imu_noise)] {
-        if let Some(p) = p {
-            all_inputs.push((role.to_owned(), p.clone()));
-        }
-    }
-    all_inputs.extend(opts.extra_inputs.iter().cloned());
     let mut file = run.file.clone();
-    file.provenance = Some(Provenance::of_run(opts.command_line.clone(), &all_inputs)?);
+    file.provenance = Some(prepare_outputs(out, &[], data, opts)?);
     write_dvl_imu_result_yaml(out, &file)
 }

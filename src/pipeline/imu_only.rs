@@ -20,13 +20,12 @@ use crate::io::exports::{
     Export, ExportNotes, kalibr_camchain_imucam, ros_static_transform, urdf_robot,
 };
 use crate::io::imu_result::{ImuResultFile, write_imu_result_yaml};
-use crate::io::provenance::Provenance;
 use crate::io::write_atomic;
 use crate::lie::Se3;
 use crate::types::CalibrationParams;
 
 use super::calibration::{
-    OutputOptions, ResultPaths, dataset_inputs, frame_names, kalibr_cameras, sibling,
+    OutputOptions, ResultPaths, frame_names, kalibr_cameras, prepare_outputs, sibling,
 };
 use super::dataset::Dataset;
 
@@ -174,28 +173,11 @@ pub fn write_camera_imu_results(
     opts: &OutputOptions,
 ) -> Result<ResultPaths> {
     let names = frame_names(opts, data)?;
-    let inputs = data.files.inputs();
     let tf = sibling(out, "tf.txt");
     let imucam = sibling(out, "camchain-imucam.yaml");
     let urdf = sibling(out, "urdf.xml");
-    for written in [out, tf.as_path(), imucam.as_path(), urdf.as_path()] {
-        crate::files::refuse_input("--out", written, inputs.iter().map(|p| p.as_path()))?;
-    }
-    if let Some(d) = out.parent()
-        && !d.as_os_str().is_empty()
-    {
-        std::fs::create_dir_all(d).map_err(|e| Error::io(d, e))?;
-    }
-    let mut all_inputs = dataset_inputs(data);
-    let f = &data.files;
-    for (role, p) in [("imu", &f.imu), ("imu_noise", &f.imu_noise)] {
-        if let Some(p) = p {
-            all_inputs.push((role.to_owned(), p.clone()));
-        }
-    }
-    all_inputs.extend(opts.extra_inputs.iter().cloned());
     let mut file = run.file.clone();
-    file.provenance = Some(Provenance::of_run(opts.command_line.clone(), &all_inputs)?);
+    file.provenance = Some(prepare_outputs(out, &[&tf, &imucam, &urdf], data, opts)?);
     write_imu_result_yaml(out, &file)?;
     let imu = super::imu::imu_export(&run.whole)
         .ok_or_else(|| Error::Input("the IMU's result is missing".into()))?;
