@@ -370,7 +370,7 @@ fn note_cameras(file: &mut CalibrationFile, cams: &CameraCalRun) {
     }
 }
 
-fn flag(v: &Verdict) -> Observability {
+pub(crate) fn flag(v: &Verdict) -> Observability {
     match v.by {
         DeterminedBy::Fixed => Observability::Fixed,
         DeterminedBy::Prior => Observability::Prior,

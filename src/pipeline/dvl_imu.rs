@@ -9,7 +9,7 @@ use std::time::Instant;
 
 use nalgebra::Vector3;
 
-use super::calibration::{OutputOptions, prepare_outputs};
+use super::calibration::{OutputOptions, flag, prepare_outputs};
 use super::dataset::Dataset;
 use crate::calib::diagnostics::verdict_by_std;
 use crate::calib::imu::ImuOptions;
@@ -18,8 +18,8 @@ use crate::calib::options::CalibOptions;
 use crate::calib::outcome::{Verdict, WeakCause};
 use crate::error::{Error, Result};
 use crate::io::calib_yaml::{
-    CalibrationInfo, CalibrationStd, ImuBiasFile, Observability, ObservabilityFlags, ResultStatus,
-    RunFigures, rows,
+    CalibrationInfo, CalibrationStd, ImuBiasFile, ObservabilityFlags, ResultStatus, RunFigures,
+    rows,
 };
 use crate::io::dvl_imu_result::{DvlImuResultFile, write_dvl_imu_result_yaml};
 
@@ -62,13 +62,6 @@ pub fn calibrate_dvl_imu_dataset(data: &Dataset, opts: &CalibOptions) -> Result<
     let elapsed_s = clock.elapsed().as_secs_f64();
     let verdicts = judge(&est, opts);
     let s = est.std();
-    let flag = |v: &Verdict| {
-        if v.ok {
-            Observability::Ok
-        } else {
-            Observability::Weak
-        }
-    };
     let mut info = CalibrationInfo {
         method: Some("DVL + IMU".into()),
         iterations: Some(est.iterations as u64),

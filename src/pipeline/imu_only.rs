@@ -123,8 +123,7 @@ pub fn calibrate_camera_imu_dataset(
         ));
     }
     whole.info = Some(info);
-    let imu = super::imu::note_imu(&mut whole, estimate, data, weak);
-    let estimate = imu.estimate.clone();
+    let estimate = super::imu::note_imu(&mut whole, estimate, data, weak).estimate;
     let file = ImuResultFile::from_calibration_file(&whole)
         .ok_or_else(|| Error::Input("the IMU's result is missing from its result file".into()))?;
     Ok(CameraImuRun {
