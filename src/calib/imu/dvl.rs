@@ -93,12 +93,8 @@ pub fn calibrate_dvl_imu(
     let bins = make_bins(samples, opts.bin_width_s, noise.update_rate);
     let max_offset = dvl_opts.offset.window_s.max(opts.max_offset_s);
     let g = opts.gravity_magnitude;
-    let start = initial_dvl_imu(
-        &DeadReckoning::new(&bins, Vector3::zeros()),
-        &obs,
-        max_offset,
-        g,
-    )?;
+    let dr = DeadReckoning::new(&bins, Vector3::zeros());
+    let start = initial_dvl_imu(&dr, &obs, max_offset, g)?;
     let params = CalibrationParams::from_r_dvl_cam(
         start.r_imu_dvl.transpose(),
         start.lever,
@@ -124,7 +120,6 @@ pub fn calibrate_dvl_imu(
     let times: Vec<f64> = (0..n)
         .map(|i| t0 + (t1 - t0) * i as f64 / (n - 1) as f64)
         .collect();
-    let dr = DeadReckoning::new(&bins, Vector3::zeros());
     let knots = initial_knots(
         &dr,
         &times,

@@ -526,9 +526,13 @@ impl ImuJoint<'_> {
         if let Some(pd) = &st.dvl {
             let c0 = st.dvl_start();
             let cols: Vec<usize> = (c0..c0 + NPARAM).collect();
+            let mut ls: Option<(usize, LocalState)> = None;
             for (i, k, tau) in self.placed_dvl(st) {
-                let l = local_state(&knots[k], &knots[k + 1]);
-                let t = self.dvl_terms(knots, k, tau, &l, i, pd);
+                if ls.as_ref().is_none_or(|(kk, _)| *kk != k) {
+                    ls = Some((k, local_state(&knots[k], &knots[k + 1])));
+                }
+                let Some((_, l)) = &ls else { continue };
+                let t = self.dvl_terms(knots, k, tau, l, i, pd);
                 let p = project(
                     k,
                     &DMatrix::from_column_slice(3, 18, t.j1.as_slice()),
@@ -538,9 +542,12 @@ impl ImuJoint<'_> {
                 );
                 let w = &self.dvl_info[i];
                 out.dvl.0 += (t.e.transpose() * w * t.e)[0];
-                out.dvl.1 += 3.0
-                    - (w * DMatrix::from_column_slice(3, 3, p.as_slice()).fixed_view::<3, 3>(0, 0))
-                        .trace();
+                // tr(W P), P = J Sigma J^T.
+                let wp: f64 = (0..3)
+                    .flat_map(|r| (0..3).map(move |c| (r, c)))
+                    .map(|(r, c)| w[(r, c)] * p[(c, r)])
+                    .sum();
+                out.dvl.1 += 3.0 - wp;
             }
         }
         Ok(out)
