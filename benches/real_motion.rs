@@ -182,11 +182,13 @@ fn load(track: &Track) -> Result<(Vec<PoseMeasurement>, String), String> {
         .ok_or_else(|| format!("{}: no usable piece", track.file))?
         .to_vec();
     let note = format!(
-        "{} poses cut into {} pieces ({} tracking losses, {} glitches of {} poses, {} jumps, {} \
-         repeated times, {} short pieces dropped); the longest has {} poses",
+        "{} poses cut into {} pieces ({} tracking losses, {} holds of {} poses, {} glitches of {} \
+         poses, {} jumps, {} repeated times, {} short pieces dropped); the longest has {} poses",
         recorded.len(),
         cut.pieces.len(),
         cut.gaps,
+        cut.holds,
+        cut.held_poses,
         cut.glitches,
         cut.glitch_poses,
         cut.jumps,

@@ -39,6 +39,7 @@ const ALL_CAUSES: &[&str] = &[
     "the DVL clock steps",
     "restarts",
     "the clock offset drifts",
+    "repeat the pose before them",
 ];
 
 /// The DVL log with each report's stamps changed by `change(report index, time_us)`.
@@ -287,4 +288,51 @@ fn mistakes_with_the_clocks() {
         f.std.unwrap().clock_drift_ppm.unwrap(),
     );
     assert!((ppm + 200.0).abs() < 3.0 * std, "{ppm} +- {std}");
+}
+
+/// The pose file with the poses of `lines` (1-based file lines) replaced by the pose of the
+/// line before each run, their time stamps kept: a tracker holding its last pose.
+fn held(text: &str, runs: &[std::ops::Range<usize>]) -> String {
+    let lines: Vec<&str> = text.lines().collect();
+    let mut out: Vec<String> = lines.iter().map(|l| l.to_string()).collect();
+    for r in runs {
+        let src: Vec<&str> = lines[r.start - 2].split_whitespace().collect();
+        for k in r.clone() {
+            let stamp = lines[k - 1].split_whitespace().next().unwrap();
+            out[k - 1] = format!("{stamp} {}", src[1..].join(" "));
+        }
+    }
+    out.join("\n") + "\n"
+}
+
+#[test]
+fn mistakes_with_the_poses() {
+    let tmp = TmpDir::new("mistakes-poses");
+    // The tracker held its last pose three times while the rig moved: for 3 frames from line
+    // 101, 1 frame at line 301, 5 frames from line 450. Dropped, named by their lines, counted,
+    // and the result right.
+    let runs = [101..104, 301..302, 450..455];
+    let f = move |t: &str| held(t, &runs);
+    let d = sample(&tmp, POSES, "held", &[("poses.txt", &f)]);
+    check(
+        &tmp,
+        "held",
+        &d,
+        &[],
+        Expect::NamedAndRight(&["repeat the pose before them"]),
+    );
+    let file = read_calib_yaml(&tmp.path("held-out/calibration.yaml")).unwrap();
+    let info = file.info.unwrap();
+    assert_eq!(info.figures.poses_held_dropped, Some(9));
+    assert_eq!(info.figures.poses, Some(601 - 9));
+    let w = info
+        .warnings
+        .iter()
+        .find(|w| w.contains("repeat the pose before them"))
+        .expect("the warning");
+    assert!(
+        w.contains("9 camera poses in 3 holds")
+            && w.contains("lines 101-103, line 301, lines 450-454"),
+        "{w}"
+    );
 }

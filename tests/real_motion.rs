@@ -47,9 +47,11 @@ fn replay(file: &str, time_scale: f64) -> TrackMotion {
 fn cut_and_replay(name: &str, file: &str) -> (CutTrack, TrackMotion) {
     let c = cut(file);
     eprintln!(
-        "{name}: {} pieces, gaps {}, glitches {} ({} poses), jumps {}, short {}",
+        "{name}: {} pieces, gaps {}, holds {} ({} poses), glitches {} ({} poses), jumps {}, short {}",
         c.pieces.len(),
         c.gaps,
+        c.holds,
+        c.held_poses,
         c.glitches,
         c.glitch_poses,
         c.jumps,
@@ -118,10 +120,14 @@ fn the_hand_held_track_is_cut_at_its_tracking_loss_and_replays() {
 #[test]
 fn the_slow_trolley_track_replays_slowly() {
     let (c, r) = cut_and_replay("trolley", TROLLEY);
-    // No tracking losses or glitches: one piece of all 3,121 poses.
-    assert_eq!((c.gaps, c.glitches, c.pieces.len()), (0, 0, 1));
-    assert_eq!(c.pieces[0].len(), 3121);
-    assert!(r.duration_s > 60.0, "{}", r.duration_s);
+    // No glitches, but five holds: the motion capture repeated its last pose for 1-4 frames
+    // while the trolley rolled on at 9 cm/s, then caught up in one step (at 123.0, 123.2,
+    // 125.7, 126.2 and 289.5 s). Without them the last hold is a 0.5 s tracking loss: two
+    // pieces, the longer the first 289.5 s.
+    assert_eq!((c.gaps, c.glitches, c.pieces.len()), (1, 0, 2));
+    assert_eq!((c.holds, c.held_poses), (5, 10));
+    assert_eq!(c.pieces.iter().map(|p| p.len()).sum::<usize>(), 3111);
+    assert!((r.duration_s - 289.5).abs() < 0.05, "{}", r.duration_s);
     assert!(
         (0.05..0.2).contains(&r.rms_speed_mps),
         "{}",
@@ -316,8 +322,13 @@ fn a_trolley_moving_only_forward_is_calibrated_from_the_best_rotation() {
     );
     assert!(o.status.is_ok(), "{:?}", o.status);
     assert!(d.fixed_rows::<3>(0).norm().to_degrees() < 5.0, "{d}");
-    assert!(d.fixed_rows::<3>(3).norm() < 0.15, "{d}");
-    assert!(d[6].abs() < 0.02 && d[7].abs() < 0.06, "{d}");
+    // With the motion capture's holds dropped, the trolley's rotation rates are mostly noise
+    // at 0.1 deg per pose: the lever arm is held at the broad default prior, and the verdict
+    // says so (the lurches after the holds had looked like rotation).
+    assert!(o.lever_arm_from_default_prior && !o.verdicts.lever_arm.ok);
+    // The scale and the offset are estimated around the held lever arm, with std that say
+    // so (about 0.027 and 0.28 s).
+    assert!(d[6].abs() < 0.05 && d[7].abs() < 0.06, "{d}");
     // Each within three of its standard deviations.
     for k in 0..8 {
         let z = d[k] / o.covariance[(k, k)].sqrt();

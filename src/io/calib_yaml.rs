@@ -263,6 +263,8 @@ run_figures! {
     camchain_source: String,
     /// Camera poses given.
     poses: usize,
+    /// Camera poses dropped as held (repeats of the pose before them while the rig moved).
+    poses_held_dropped: usize,
     /// Where the poses' covariances came from.
     pose_covariances: String,
     /// The board's printed size over the size its file states, as the stereo pair measured it.

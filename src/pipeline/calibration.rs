@@ -83,6 +83,7 @@ pub fn calibrate_dataset(
         note_cameras(&mut file, cams);
     }
     note_pose_covariances(&mut file, data);
+    data.note_held_poses(&mut file);
     note_board_size(&mut file, data);
     note_focal_lengths(&mut file, data);
     super::vision::note_image_scan(&mut file, data.vision.as_ref());

@@ -10,6 +10,7 @@ use crate::io::bag::camera_info::camera_from_info;
 use crate::io::bag::frames::plan_frames;
 use crate::io::bag::open::OpenBag;
 use crate::io::bag::poses::read_bag_poses;
+use crate::io::calib_yaml::CalibrationFile;
 use crate::io::camchain::read_camchain;
 use crate::io::dataset::{DatasetFiles, DatasetOverrides, discover};
 use crate::io::dvl::{DvlLog, DvlReadOptions, read_dvl_log};
@@ -255,6 +256,85 @@ pub struct Dataset {
     /// The camera clock's segments of a pose file (one when it did not step; none for images
     /// and bags): the poses of each later segment follow the one before by a frame's interval.
     pub camera_segments: Vec<CameraSegment>,
+    /// The poses dropped as held: repeats of the pose before them while the rig moved
+    /// ([`crate::types::held_pose_runs`]).
+    pub held_poses: HeldPoses,
+}
+
+/// Camera poses dropped as held: the tracker (or the camera) repeated its last pose at new
+/// times while the rig moved, so their times are wrong ([`crate::types::held_pose_runs`]).
+#[derive(Clone, Debug, Default)]
+pub struct HeldPoses {
+    /// Holds found.
+    pub runs: usize,
+    /// Poses they had, dropped.
+    pub poses: usize,
+    /// What was dropped and where, for the result's warnings (`None` when nothing was).
+    pub warning: Option<String>,
+}
+
+/// At most this many holds are located in the warning; the rest are counted.
+const HELD_SHOWN: usize = 5;
+
+/// `poses` without their held poses, and what was dropped. The holds are located by the pose
+/// file's lines when `lines` gives them, else by their time after the first pose. The camera
+/// clock's segments (ranges of pose indices) are moved to the kept poses.
+fn drop_held_poses(
+    poses: Vec<PoseMeasurement>,
+    lines: Option<&[usize]>,
+    source: &Path,
+    segments: &mut [CameraSegment],
+) -> (Vec<PoseMeasurement>, HeldPoses) {
+    let runs = crate::types::held_pose_runs(&poses);
+    if runs.is_empty() {
+        return (poses, HeldPoses::default());
+    }
+    let t0 = poses.first().map_or(0.0, |p| p.t);
+    let place = |r: &std::ops::Range<usize>| match lines {
+        Some(l) if r.len() == 1 => format!("line {}", l.get(r.start).copied().unwrap_or(0)),
+        Some(l) => format!(
+            "lines {}-{}",
+            l.get(r.start).copied().unwrap_or(0),
+            l.get(r.end - 1).copied().unwrap_or(0)
+        ),
+        None => format!(
+            "{} at {:.2} s",
+            r.len(),
+            poses.get(r.start).map_or(f64::NAN, |p| p.t - t0)
+        ),
+    };
+    let shown: Vec<String> = runs.iter().take(HELD_SHOWN).map(place).collect();
+    let more = runs.len().saturating_sub(HELD_SHOWN);
+    let count: usize = runs.iter().map(|r| r.len()).sum();
+    let warning = format!(
+        "{}: {count} camera poses in {} holds repeat the pose before them exactly while the rig \
+         moved ({}{}{}): the tracker held its last pose, or the camera repeated a frame, so \
+         their times are wrong and the motion would seem to stop and lurch; they were dropped",
+        source.display(),
+        runs.len(),
+        if lines.is_some() {
+            ""
+        } else {
+            "poses after the first: "
+        },
+        shown.join(", "),
+        if more > 0 {
+            format!(" and {more} more")
+        } else {
+            String::new()
+        }
+    );
+    let (kept, index) = crate::types::without_runs(poses, &runs);
+    for seg in segments.iter_mut() {
+        let (a, b) = (seg.poses.start, seg.poses.end);
+        seg.poses = index.partition_point(|&i| i < a)..index.partition_point(|&i| i < b);
+    }
+    let held = HeldPoses {
+        runs: runs.len(),
+        poses: count,
+        warning: Some(warning),
+    };
+    (kept, held)
 }
 
 impl Dataset {
@@ -290,6 +370,7 @@ impl Dataset {
         let mut notes = Vec::new();
         let mut camera_frame = None;
         let (mut camera_clock_steps, mut camera_segments) = (Vec::new(), Vec::new());
+        let mut pose_lines = None;
         let (epoch, poses, run, camera_source) = match (&files.poses, &files.images) {
             (Some(p), _) => {
                 let (tum, table) = read_tum_with_covariances(p, None)?;
@@ -308,6 +389,7 @@ impl Dataset {
                 });
                 camera_clock_steps = tum.clock_steps;
                 camera_segments = tum.segments;
+                pose_lines = Some(tum.lines);
                 (tum.epoch, tum.poses, None, p.clone())
             }
             (None, Some(dir)) => {
@@ -402,6 +484,13 @@ impl Dataset {
                 }
             }
         };
+        let (poses, held_poses) = drop_held_poses(
+            poses,
+            pose_lines.as_deref(),
+            &camera_source,
+            &mut camera_segments,
+        );
+        notes.extend(held_poses.warning.clone());
         let log = match &files.dvl {
             Some(p) => Some(read_dvl(p, &files, epoch, read)?),
             None => None,
@@ -432,7 +521,19 @@ impl Dataset {
             camera_frame,
             camera_clock_steps,
             camera_segments,
+            held_poses,
         })
+    }
+
+    /// Records the held poses dropped in a result file: a warning and `info.poses_held_dropped`
+    /// (nothing when there were none).
+    pub fn note_held_poses(&self, file: &mut CalibrationFile) {
+        let Some(w) = &self.held_poses.warning else {
+            return;
+        };
+        let info = file.info.get_or_insert_with(Default::default);
+        info.warnings.push(w.clone());
+        info.figures.poses_held_dropped = Some(self.held_poses.poses);
     }
 
     /// The DVL log, or the error of a camera + IMU dataset that has none.

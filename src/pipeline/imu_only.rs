@@ -123,6 +123,7 @@ pub fn calibrate_camera_imu_dataset(
         ));
     }
     whole.info = Some(info);
+    data.note_held_poses(&mut whole);
     let estimate = super::imu::note_imu(&mut whole, estimate, data, weak).estimate;
     let file = ImuResultFile::from_calibration_file(&whole)
         .ok_or_else(|| Error::Input("the IMU's result is missing from its result file".into()))?;

@@ -259,6 +259,11 @@ pub struct CutTrack {
     pub pieces: Vec<Vec<PoseMeasurement>>,
     /// Poses dropped because their time repeated the previous pose's.
     pub duplicates: usize,
+    /// Holds: runs of poses that repeat the pose before them while the track moves
+    /// ([`crate::types::held_pose_runs`]), dropped.
+    pub holds: usize,
+    /// Poses those holds had.
+    pub held_poses: usize,
     /// Tracking losses the track was split at.
     pub gaps: usize,
     /// Glitches removed.
@@ -305,7 +310,8 @@ fn step_size(a: &PoseMeasurement, b: &PoseMeasurement) -> (f64, f64) {
 /// [`CutOptions::max_step_ratio`] times the median step, and drops glitches: a pose (or a short
 /// run of them) reached by a jump in position or attitude far beyond its neighbourhood's speed
 /// and left by a jump back. A jump that does not come back splits the track. Poses whose time
-/// repeats the previous one's are dropped; time going backwards is an error.
+/// repeats the previous one's are dropped, and so are held poses (the tracker repeating its last
+/// pose at new times, [`crate::types::held_pose_runs`]); time going backwards is an error.
 pub fn cut_track(poses: &[PoseMeasurement], opts: &CutOptions) -> Result<CutTrack> {
     let positive = |x: f64| x.is_finite() && x > 0.0;
     let non_negative = |x: f64| x.is_finite() && x >= 0.0;
@@ -346,6 +352,10 @@ pub fn cut_track(poses: &[PoseMeasurement], opts: &CutOptions) -> Result<CutTrac
             _ => clean.push(p.clone()),
         }
     }
+    let holds = crate::types::held_pose_runs(&clean);
+    out.holds = holds.len();
+    out.held_poses = holds.iter().map(|r| r.len()).sum();
+    let clean = crate::types::without_runs(clean, &holds).0;
     if clean.len() < 3 {
         return Err(input(format!(
             "track cut needs at least 3 poses at distinct times, got {}",

@@ -76,3 +76,118 @@ impl CalibrationParams {
         self.t_cam_dvl.trans
     }
 }
+
+/// Smallest step between poses, metres, that counts as motion on either side of a held pose
+/// ([`held_pose_runs`]).
+pub const HELD_POSE_MIN_STEP_M: f64 = 1e-3;
+/// Smallest rotation between poses, radians, that counts as motion there.
+pub const HELD_POSE_MIN_STEP_RAD: f64 = 1e-3;
+
+/// The runs of held poses in `poses` (in time order): poses that repeat the pose before them
+/// exactly (every number the same, at a later time) while the track moves into the hold and out
+/// of it. That is a tracker holding its last value (a marker lost for a few frames, a camera
+/// driver repeating a frame): the time is new, the pose is old, and the catch-up step after the
+/// hold turns a steady motion into a stop and a lurch. Each range covers the repeats only; the
+/// pose they repeat is a real measurement and is not in it. A hold at the end of the track (no
+/// way out to judge) and one the track neither enters nor leaves moving (a rig at rest printed
+/// at a coarse resolution) are not counted.
+pub fn held_pose_runs(poses: &[PoseMeasurement]) -> Vec<std::ops::Range<usize>> {
+    let same = |a: &PoseMeasurement, b: &PoseMeasurement| {
+        a.pose.trans == b.pose.trans && a.pose.rot == b.pose.rot && b.t > a.t
+    };
+    let moved = |a: &PoseMeasurement, b: &PoseMeasurement| {
+        let d = (b.pose.trans - a.pose.trans).norm();
+        let r = a.pose.rot.transpose() * b.pose.rot;
+        let angle = ((r.trace() - 1.0) / 2.0).clamp(-1.0, 1.0).acos();
+        d > HELD_POSE_MIN_STEP_M || angle > HELD_POSE_MIN_STEP_RAD
+    };
+    let mut runs = Vec::new();
+    let mut k = 1;
+    while k < poses.len() {
+        if !same(&poses[k - 1], &poses[k]) {
+            k += 1;
+            continue;
+        }
+        let start = k;
+        while k < poses.len() && same(&poses[k - 1], &poses[k]) {
+            k += 1;
+        }
+        // poses[start - 1] is the held pose; poses[k] (if any) the first one after the hold.
+        let entered = start >= 2 && moved(&poses[start - 2], &poses[start - 1]);
+        let left = k < poses.len() && moved(&poses[k - 1], &poses[k]);
+        if entered && left {
+            runs.push(start..k);
+        }
+    }
+    runs
+}
+
+/// `poses` without the held poses of `runs` ([`held_pose_runs`]), and for each kept pose its
+/// index in `poses`.
+pub fn without_runs(
+    poses: Vec<PoseMeasurement>,
+    runs: &[std::ops::Range<usize>],
+) -> (Vec<PoseMeasurement>, Vec<usize>) {
+    let mut kept = Vec::with_capacity(poses.len());
+    let mut index = Vec::with_capacity(poses.len());
+    for (k, p) in poses.into_iter().enumerate() {
+        if !runs.iter().any(|r| r.contains(&k)) {
+            kept.push(p);
+            index.push(k);
+        }
+    }
+    (kept, index)
+}
+
+#[cfg(test)]
+mod held_tests {
+    use super::*;
+
+    fn at(t: f64, x: f64, yaw: f64) -> PoseMeasurement {
+        PoseMeasurement {
+            t,
+            pose: Se3::new(
+                *nalgebra::Rotation3::from_euler_angles(0.0, 0.0, yaw).matrix(),
+                Vector3::new(x, 0.0, 0.0),
+            ),
+            cov: None,
+        }
+    }
+
+    /// A track at 0.1 m/s, 10 Hz, whose tracker held poses 5-7 (they repeat pose 4).
+    fn track(held: std::ops::Range<usize>) -> Vec<PoseMeasurement> {
+        (0..20)
+            .map(|k| {
+                let src = if held.contains(&k) { held.start - 1 } else { k };
+                at(k as f64 * 0.1, src as f64 * 0.01, 0.0)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_hold_while_moving_is_found_and_dropped() {
+        let poses = track(5..8);
+        let runs = held_pose_runs(&poses);
+        assert_eq!(runs, vec![5..8]);
+        let (kept, index) = without_runs(poses, &runs);
+        assert_eq!(kept.len(), 17);
+        assert_eq!(&index[3..6], &[3, 4, 8]);
+    }
+
+    #[test]
+    fn a_rig_at_rest_a_hold_at_the_end_and_a_moving_track_have_none() {
+        // At rest: every pose the same.
+        let rest: Vec<_> = (0..10).map(|k| at(k as f64 * 0.1, 1.0, 0.2)).collect();
+        assert!(held_pose_runs(&rest).is_empty());
+        // Held to the end.
+        assert!(held_pose_runs(&track(15..20)).is_empty());
+        // No repeat: nothing.
+        assert!(held_pose_runs(&track(0..0)).is_empty());
+        // A rig turning in place with a held pose counts (rotation is motion).
+        let mut turning: Vec<_> = (0..10)
+            .map(|k| at(k as f64 * 0.1, 0.0, k as f64 * 0.01))
+            .collect();
+        turning[6] = at(0.6, 0.0, 0.05);
+        assert_eq!(held_pose_runs(&turning), vec![6..7]);
+    }
+}
