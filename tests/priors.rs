@@ -30,7 +30,7 @@ fn a_measured_lever_arm_holds_a_weak_one_without_disturbing_the_rest() {
             lever_arm_cam_m: ds.truth.lever_arm_cam_m(),
             sigma_m: sigma,
         }),
-        rotation: None,
+        ..Priors::default()
     };
     let held = calibrate(&ds.poses, &ds.dvl, &with_priors(prior)).expect("with prior");
     let lever_std = |o: &dvlcal::calib::CalibrationOutcome| o.std.lever_arm_m.max();
@@ -92,7 +92,7 @@ fn a_prior_pulls_the_estimate_and_adds_its_information() {
             lever_arm_cam_m: off,
             sigma_m: 1e-4,
         }),
-        rotation: None,
+        ..Priors::default()
     };
     let pulled = calibrate(&ds.poses, &ds.dvl, &with_priors(tight)).expect("tight prior");
     assert!(
@@ -110,11 +110,11 @@ fn a_prior_pulls_the_estimate_and_adds_its_information() {
     // data along the worst axis: its std shrinks by about 1/sqrt(2).
     let s = data.std.rotation_deg.max();
     let r = Priors {
-        lever_arm: None,
         rotation: Some(RotationPrior {
             r_cam_dvl: ds.truth.r_dvl_cam().transpose(),
             sigma_deg: s,
         }),
+        ..Priors::default()
     };
     let both = calibrate(&ds.poses, &ds.dvl, &with_priors(r)).expect("rotation prior");
     let ratio = both.std.rotation_deg.max() / s;
@@ -131,7 +131,7 @@ fn a_prior_pulls_the_estimate_and_adds_its_information() {
             lever_arm_cam_m: off,
             sigma_m: 0.0,
         }),
-        rotation: None,
+        ..Priors::default()
     };
     let e = calibrate(&ds.poses, &ds.dvl, &with_priors(bad))
         .unwrap_err()

@@ -39,6 +39,9 @@ pub struct ClosedForm {
     /// Mean variance of one component of the camera's angular velocity as the trajectory
     /// estimates it, (rad/s)^2: the noise that excitation has to stand out from.
     pub angular_noise_variance: f64,
+    /// The angular-velocity block of the (corrected) normal matrix over the number of rows: the
+    /// mean of `w w^T` in the camera frame, (rad/s)^2.
+    pub rotation_excitation: Matrix3<f64>,
 }
 
 impl ClosedForm {
@@ -47,6 +50,23 @@ impl ClosedForm {
     /// through `w x p`, is not observed.
     pub fn rotation_snr(&self) -> f64 {
         self.min_rotation_excitation / self.angular_noise_variance.max(1e-300)
+    }
+
+    /// The directions of the lever arm (unit vectors in the camera frame) that the rotation
+    /// rates leave in noise. The lever arm is seen through `w x p`, whose information on `p` is
+    /// `tr(S) I - S` for `S` the mean of `w w^T`: along an eigenvector of `S` it is the sum of
+    /// the other two eigenvalues, the excitation about the axes across it. A direction is
+    /// unobserved when that sum is below `2 snr` times the angular velocity's noise variance
+    /// (each of the two axes below `snr`, on average). Rotation about one axis only leaves the
+    /// lever arm along that axis unobserved; about none, all of it; about two or more, none.
+    pub fn unobserved_lever_directions(&self, snr: f64) -> Vec<Vector3<f64>> {
+        let eig = self.rotation_excitation.symmetric_eigen();
+        let total = eig.eigenvalues.sum();
+        let floor = 2.0 * snr * self.angular_noise_variance.max(1e-300);
+        (0..3)
+            .filter(|&i| total - eig.eigenvalues[i] < floor)
+            .map(|i| eig.eigenvectors.column(i).normalize())
+            .collect()
     }
 }
 
@@ -147,6 +167,7 @@ pub fn closed_form(rows: &[ClosedFormRow], bias_corrected: bool) -> Result<Close
         params: CalibrationParams::from_r_dvl_cam(r, lever_arm, scale, 0.0),
         lever_arm_solved,
         min_rotation_excitation: excitation.max(0.0),
+        rotation_excitation: aww,
         angular_noise_variance: rows
             .iter()
             .map(|r| (r.twist_cov[(3, 3)] + r.twist_cov[(4, 4)] + r.twist_cov[(5, 5)]) / 3.0)
@@ -341,6 +362,49 @@ mod tests {
 
     use crate::lie::so3;
     use crate::rng::Rng;
+
+    /// A closed form whose rotation rates have mean `w w^T` = `s` and noise variance 1e-4.
+    fn excited(s: Matrix3<f64>) -> ClosedForm {
+        ClosedForm {
+            params: CalibrationParams::from_r_dvl_cam(
+                Matrix3::identity(),
+                Vector3::zeros(),
+                1.0,
+                0.0,
+            ),
+            lever_arm_solved: true,
+            min_rotation_excitation: s.symmetric_eigenvalues().min(),
+            angular_noise_variance: 1e-4,
+            rotation_excitation: s,
+        }
+    }
+
+    #[test]
+    fn the_lever_arm_along_the_only_rotation_axis_is_the_unobserved_one() {
+        let (big, noise) = (0.05, 1e-4);
+        // Yaw about a tilted axis only: the lever arm along that axis is unobserved.
+        let a = Vector3::new(0.1, 0.2, 1.0).normalize();
+        let one = excited(a * a.transpose() * big + Matrix3::identity() * noise);
+        let dirs = one.unobserved_lever_directions(4.0);
+        assert_eq!(dirs.len(), 1);
+        assert!(dirs[0].dot(&a).abs() > 1.0 - 1e-9, "{:?}", dirs[0]);
+        // Two axes turning: every direction is observed (each has a turning axis across it),
+        // though the least excited axis is noise.
+        let two = excited(Matrix3::from_diagonal(&Vector3::new(big, big, noise)));
+        assert!(two.rotation_snr() < 4.0);
+        assert!(two.unobserved_lever_directions(4.0).is_empty());
+        // No turning: all three.
+        let none = excited(Matrix3::identity() * noise * 2.0);
+        assert_eq!(none.unobserved_lever_directions(4.0).len(), 3);
+        // The second axis at the threshold's edge: its pair sum decides.
+        let edge = |second: f64| {
+            excited(Matrix3::from_diagonal(&Vector3::new(big, second, 0.0)))
+                .unobserved_lever_directions(4.0)
+                .len()
+        };
+        assert_eq!(edge(7.9 * noise), 1);
+        assert_eq!(edge(8.1 * noise), 0);
+    }
 
     #[test]
     fn the_cube_has_24_distinct_rotations() {

@@ -50,8 +50,8 @@ pub(crate) struct CoSensorFit {
     pub robust: RobustSummary,
     /// The weight of each measurement (1: full weight).
     pub weights: Vec<f64>,
-    /// Poses too sparse for the trajectory to follow the motion (a warning says so; a failed
-    /// calibration names it first).
+    /// Poses too sparse for the trajectory to follow the motion (a warning says so, and the
+    /// calibration fails with it as the first reason).
     pub sparse: Option<SparsePoses>,
 }
 

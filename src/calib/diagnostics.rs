@@ -19,7 +19,7 @@ use super::outcome::{
     WeakCause,
 };
 use super::prior::{LeverArmPrior, Priors};
-use super::refinement::{unobserved_why, whitened_residuals};
+use super::refinement::{LeverAxesHeld, unobserved_why, whitened_residuals};
 use super::robust::RobustSummary;
 use super::setting::Setting;
 use super::update::{FreeParams, ParamMat, calibration_update};
@@ -122,7 +122,11 @@ pub(crate) fn prior_roles(
             roles.lever_arm_from_user_prior = free.lever_arm && (d.is_nan() || d > l.sigma_m);
         }
     }
-    if let (None, Some(l)) = (opts.priors.lever_arm, priors.lever_arm) {
+    if let (None, Some(l), None) = (
+        opts.priors.lever_arm,
+        priors.lever_arm,
+        priors.held_lever_axes,
+    ) {
         let data = (3..6)
             .map(|k| data_only[(k, k)].max(0.0).sqrt())
             .fold(0.0, f64::max);
@@ -151,12 +155,26 @@ pub(crate) fn judge(
     init: Option<&InitReport>,
     free: FreeParams,
     lever_held: Option<(f64, LeverArmPrior)>,
+    lever_axes: Option<&LeverAxesHeld>,
     roles: PriorRoles,
     opts: &CalibOptions,
 ) -> Verdicts {
     let mut verdicts = verdicts(std, opts, excitation, init, &free.mask());
     let lever_prior = opts.name(Setting::LeverArmPrior);
-    if let Some((worst, _)) = lever_held {
+    if let Some(a) = lever_axes {
+        verdicts.lever_arm = Verdict {
+            ok: false,
+            reason: format!(
+                "the motion turned about too few axes to observe the lever arm along {}: that \
+                 component is held at the broad default prior's value, zero (its std is the \
+                 prior's), the others are measured; measure it and give {lever_prior}, or rotate \
+                 about another axis too",
+                a.words()
+            ),
+            by: DeterminedBy::Data,
+            cause: Some(WeakCause::FewRotationAxes),
+        };
+    } else if let Some((worst, _)) = lever_held {
         verdicts.lever_arm = Verdict {
             ok: false,
             reason: format!(
@@ -960,7 +978,7 @@ mod prior_note_tests {
                 lever_arm_cam_m: Vector3::zeros(),
                 sigma_m: sp,
             }),
-            rotation: None,
+            ..Priors::default()
         };
         let mut data_only = ParamMat::identity() * 1e-6;
         for k in 3..6 {

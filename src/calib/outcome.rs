@@ -35,11 +35,12 @@ impl Status {
     }
 
     /// A failure with `cause` (the cause the other reasons only show symptoms of) as its first
-    /// reason; a passed result stays as it is.
-    pub fn led_by(self, cause: Option<String>) -> Status {
+    /// reason, also when nothing else failed: the cause alone makes the result untrustworthy.
+    pub fn failed_first_by(self, cause: Option<String>) -> Status {
         match (self, cause) {
             (Status::Failed(r), Some(c)) => Status::Failed(std::iter::once(c).chain(r).collect()),
-            (s, _) => s,
+            (Status::Ok, Some(c)) => Status::Failed(vec![c]),
+            (s, None) => s,
         }
     }
 }
@@ -110,7 +111,8 @@ pub enum WeakCause {
     LittleMotion,
     /// The value comes mainly from the user's prior.
     UserPrior,
-    /// The rig rotated about at most one axis (the IMU's rotation).
+    /// The rig rotated about at most one axis (the IMU's rotation; the lever arm along that
+    /// axis).
     FewRotationAxes,
     /// The rotation rate varied too little (the IMU's clock offset).
     SteadyRotationRate,

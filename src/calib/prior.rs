@@ -31,6 +31,20 @@ pub struct RotationPrior {
     pub sigma_deg: f64,
 }
 
+/// Directions of the lever arm held at a value: a tight prior along each, none across them. The
+/// calibration sets it when the motion turned about too few axes to observe some components of
+/// the lever arm (see `refinement`); a user's prior is [`LeverArmPrior`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HeldLeverAxes {
+    /// Orthogonal projector onto the held directions (camera frame).
+    pub projector: Matrix3<f64>,
+    /// The value the held components are held at (camera frame, metres; only its projection
+    /// counts).
+    pub lever_arm_cam_m: Vector3<f64>,
+    /// Standard deviation along the held directions, metres (tight: they are held).
+    pub sigma_m: f64,
+}
+
 /// The priors of a calibration; none by default.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Priors {
@@ -38,6 +52,8 @@ pub struct Priors {
     pub lever_arm: Option<LeverArmPrior>,
     /// A prior on the rotation.
     pub rotation: Option<RotationPrior>,
+    /// Lever-arm directions held (set by the calibration, not by the user).
+    pub held_lever_axes: Option<HeldLeverAxes>,
 }
 
 /// A prior's contribution at some parameters: cost, information and gradient (`J^T W r`).
@@ -54,7 +70,7 @@ pub struct PriorTerms {
 impl Priors {
     /// Whether any prior is given.
     pub fn any(&self) -> bool {
-        self.lever_arm.is_some() || self.rotation.is_some()
+        self.lever_arm.is_some() || self.rotation.is_some() || self.held_lever_axes.is_some()
     }
 
     /// Checks the priors: finite values, positive standard deviations, a proper rotation.
@@ -109,6 +125,15 @@ impl Priors {
         }
         if let Some(l) = &self.lever_arm {
             add(3, l.lever_arm_cam_m - p.lever_arm_cam_m(), l.sigma_m);
+        }
+        if let Some(h) = &self.held_lever_axes {
+            let w = 1.0 / (h.sigma_m * h.sigma_m);
+            let r = h.projector * (h.lever_arm_cam_m - p.lever_arm_cam_m());
+            t.cost += w * r.norm_squared();
+            let mut block = t.information.fixed_view_mut::<3, 3>(3, 3);
+            block += h.projector * w;
+            let mut g = t.gradient.fixed_rows_mut::<3>(3);
+            g += r * w;
         }
         t
     }
@@ -166,5 +191,60 @@ impl std::str::FromStr for SigmaOrNone {
                 _ => Err("a positive number of metres, or `none`".into()),
             },
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn at(p: Vector3<f64>) -> CalibrationParams {
+        CalibrationParams::from_r_dvl_cam(Matrix3::identity(), p, 1.0, 0.0)
+    }
+
+    #[test]
+    fn held_lever_axes_pull_along_their_directions_only() {
+        let u = Vector3::new(0.0, 0.6, 0.8);
+        let held = Priors {
+            held_lever_axes: Some(HeldLeverAxes {
+                projector: u * u.transpose(),
+                lever_arm_cam_m: Vector3::zeros(),
+                sigma_m: 1e-3,
+            }),
+            ..Priors::default()
+        };
+        assert!(held.any());
+        let p = Vector3::new(0.3, -0.2, 0.1);
+        let t = held.terms(&at(p));
+        // Cost: the component along u, whitened; information w u u^T; gradient w u (u.r).
+        let along = u.dot(&p);
+        assert!((t.cost - (along / 1e-3).powi(2)).abs() < 1e-9 * t.cost);
+        let info = t.information.fixed_view::<3, 3>(3, 3).into_owned();
+        assert!((info - u * u.transpose() * 1e6).norm() < 1e-6);
+        assert!((t.gradient.fixed_rows::<3>(3) + u * along * 1e6).norm() < 1e-6);
+        // Nothing on the other parameters, nothing across u.
+        assert_eq!(t.information.fixed_view::<3, 3>(0, 0).norm(), 0.0);
+        let across = Vector3::new(1.0, 0.8, -0.6);
+        assert!(held.terms(&at(across)).cost < 1e-20);
+        // With every direction held it is the isotropic prior.
+        let all = Priors {
+            held_lever_axes: Some(HeldLeverAxes {
+                projector: Matrix3::identity(),
+                lever_arm_cam_m: Vector3::new(0.1, 0.0, 0.0),
+                sigma_m: 0.5,
+            }),
+            ..Priors::default()
+        };
+        let iso = Priors {
+            lever_arm: Some(LeverArmPrior {
+                lever_arm_cam_m: Vector3::new(0.1, 0.0, 0.0),
+                sigma_m: 0.5,
+            }),
+            ..Priors::default()
+        };
+        let (a, b) = (all.terms(&at(p)), iso.terms(&at(p)));
+        assert!((a.cost - b.cost).abs() < 1e-12);
+        assert!((a.information - b.information).norm() < 1e-12);
+        assert!((a.gradient - b.gradient).norm() < 1e-12);
     }
 }

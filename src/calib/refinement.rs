@@ -4,7 +4,7 @@
 //! a negative scale checked against its mirrored solution; then the DVL reports reweighted by the
 //! robust loss and the refinement repeated until the weights settle ([`reweigh`]).
 
-use nalgebra::Matrix3;
+use nalgebra::{Matrix3, Vector3};
 
 use super::cosensor::CoSensorFit;
 use super::joint::covariance::joint_covariance;
@@ -13,7 +13,7 @@ use super::joint::steps::{joint_cost, joint_step, state_update};
 use super::model::{DvlObs, predict};
 use super::options::CalibOptions;
 use super::outcome::{InitReport, IterationRecord, StageClock};
-use super::prior::{LeverArmPrior, Priors};
+use super::prior::{HeldLeverAxes, LeverArmPrior, Priors};
 use super::robust::{self, RobustSummary};
 use super::setting::Setting;
 use super::update::{self, FreeParams, calibration_update};
@@ -30,6 +30,9 @@ pub(crate) struct Setup {
     /// The lever arm held at the broad default prior: the data's standard deviation of it
     /// (infinite when the rotation is noise) and the prior.
     pub lever_held: Option<(f64, LeverArmPrior)>,
+    /// Directions of the lever arm held at the broad default prior, the others estimated (the
+    /// motion turned about too few axes).
+    pub lever_axes: Option<LeverAxesHeld>,
     /// The trajectory fitted to the co-sensor alone, for the noise and drift checks: the
     /// refined one has absorbed part of the DVL's misfit.
     pub pose_only: Trajectory,
@@ -74,12 +77,19 @@ pub(crate) fn refine<'a>(
     }
     let pose_only = traj.clone();
     let mut start = start;
+    // With a closed form, the excitation of its rotation rates decides which directions of the
+    // lever arm the motion observes (the linearised std cannot see the runaway anyway); without
+    // one, the data's own std at the guess decide for the whole lever arm.
+    let unobserved = match (opts.priors.lever_arm, priors.lever_arm, init) {
+        (None, Some(_), Some(i)) if free.lever_arm => {
+            i.closed_form.unobserved_lever_directions(LEVER_HOLD_SNR)
+        }
+        _ => Vec::new(),
+    };
     let lever_held = match (opts.priors.lever_arm, priors.lever_arm) {
-        // With a closed form its excitation decides (the linearised std cannot see the runaway
-        // anyway); without one, the data's own std at the guess.
-        (None, Some(l)) if free.lever_arm && init.is_some() => init
-            .filter(|i| i.closed_form.rotation_snr() < LEVER_HOLD_SNR)
-            .map(|_| (f64::INFINITY, l)),
+        (None, Some(l)) if free.lever_arm && init.is_some() => {
+            (unobserved.len() == 3).then_some((f64::INFINITY, l))
+        }
         (None, Some(l)) if free.lever_arm => {
             let taken = std::mem::take(&mut jp.priors);
             let (data_only, _) = joint_covariance(&jp, &traj, &start, &mask)?;
@@ -88,6 +98,39 @@ pub(crate) fn refine<'a>(
                 .map(|k| data_only[(k, k)].max(0.0).sqrt())
                 .fold(0.0, f64::max);
             (worst.is_nan() || worst > LEVER_HOLD_FRACTION * l.sigma_m).then_some((worst, l))
+        }
+        _ => None,
+    };
+    let mut priors = priors;
+    let lever_axes = match priors.lever_arm {
+        Some(l) if lever_held.is_none() && !unobserved.is_empty() => {
+            let projector: Matrix3<f64> = unobserved.iter().map(|u| u * u.transpose()).sum();
+            let axes = HeldLeverAxes {
+                projector,
+                lever_arm_cam_m: l.lever_arm_cam_m,
+                sigma_m: l.sigma_m * HELD_AXIS_SIGMA_FRACTION,
+            };
+            priors.held_lever_axes = Some(axes);
+            jp.priors = priors;
+            let p = start.lever_arm_cam_m();
+            start = CalibrationParams::from_r_dvl_cam(
+                start.r_dvl_cam(),
+                p - projector * (p - l.lever_arm_cam_m),
+                start.velocity_scale,
+                start.time_offset_s,
+            );
+            let held = LeverAxesHeld {
+                directions: unobserved,
+                prior: l,
+            };
+            warnings.push(format!(
+                "the motion turned about too few axes to observe the lever arm along {}: that \
+                 component is held at the broad default prior's value, zero, and the others are \
+                 estimated; measure it and give {}, or rotate about another axis too",
+                held.words(),
+                opts.name(Setting::LeverArmPrior)
+            ));
+            Some(held)
         }
         _ => None,
     };
@@ -128,6 +171,7 @@ pub(crate) fn refine<'a>(
             free,
             start,
             lever_held,
+            lever_axes,
             pose_only,
             priors,
         },
@@ -329,6 +373,43 @@ const LEVER_HOLD_FRACTION: f64 = 0.25;
 /// ... and so is one whose least excited rotation axis's mean squared rate is below this many
 /// times the angular velocity's noise variance.
 const LEVER_HOLD_SNR: f64 = 4.0;
+
+/// The held directions' standard deviation as a fraction of the broad prior's: tight enough
+/// to hold them (a micrometre for the 1 m default), loose enough for the normal equations.
+const HELD_AXIS_SIGMA_FRACTION: f64 = 1e-6;
+
+/// Lever-arm directions held at the broad default prior while the others are estimated.
+#[derive(Clone, Debug)]
+pub(crate) struct LeverAxesHeld {
+    /// The held directions, unit vectors in the camera frame.
+    pub directions: Vec<Vector3<f64>>,
+    /// The broad default prior they are held at.
+    pub prior: LeverArmPrior,
+}
+
+impl LeverAxesHeld {
+    /// The projector onto the held directions.
+    pub fn projector(&self) -> Matrix3<f64> {
+        self.directions.iter().map(|u| u * u.transpose()).sum()
+    }
+
+    /// The held directions in words, as the warnings and verdicts say them.
+    pub fn words(&self) -> String {
+        let v: Vec<String> = self.directions.iter().map(axis_words).collect();
+        v.join(" and ")
+    }
+}
+
+/// A direction of the camera frame in words: its nearest axis when within 10 degrees
+/// (`the camera's z axis`), else its components.
+pub(crate) fn axis_words(u: &Vector3<f64>) -> String {
+    let k = u.iamax();
+    if u[k].abs() > 10f64.to_radians().cos() {
+        format!("the camera's {} axis", ["x", "y", "z"][k])
+    } else {
+        format!("the camera direction ({:.2}, {:.2}, {:.2})", u.x, u.y, u.z)
+    }
+}
 
 /// What the refinement ends with.
 pub(crate) struct Refined {

@@ -32,7 +32,7 @@ impl SparsePoses {
         (self.turn_p90_rad / MAX_TURN_RAD) / self.median_interval_s
     }
 
-    /// The warning, and the first reason of a failed calibration.
+    /// The warning, and the first reason of the failed calibration.
     pub fn reason(&self) -> String {
         format!(
             "the camera poses are too sparse for the motion: {} poses {:.2} s apart (median, \

@@ -176,6 +176,7 @@ fn explained_by_frames(cause: Option<WeakCause>) -> bool {
         Some(
             WeakCause::RotationRateNoise
                 | WeakCause::LittleRotation
+                | WeakCause::FewRotationAxes
                 | WeakCause::FewDirections
                 | WeakCause::LittleSpeedChange
                 | WeakCause::LittleMotion
@@ -326,7 +327,7 @@ pub fn next_steps(input: &ReportInput) -> Vec<NextStep> {
     }
     let lever_motion = matches!(
         v.lever_arm.cause,
-        Some(WeakCause::RotationRateNoise | WeakCause::LittleRotation)
+        Some(WeakCause::RotationRateNoise | WeakCause::LittleRotation | WeakCause::FewRotationAxes)
     );
     if ext && !v.lever_arm.ok && lever_motion {
         steps.push(rotate_more(

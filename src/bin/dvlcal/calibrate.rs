@@ -89,6 +89,7 @@ impl EstimatorArgs {
                 r_cam_dvl: rotation_from_rpy_deg(&p.v),
                 sigma_deg: p.sigma.unwrap_or(2.0),
             }),
+            ..Priors::default()
         }
     }
 }
