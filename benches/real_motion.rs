@@ -29,7 +29,7 @@ use std::path::Path;
 
 use common::par_map;
 use dvlcal::calib::model::difference;
-use dvlcal::calib::{CalibOptions, calibrate, jerk_density_evidence};
+use dvlcal::calib::{CalibOptions, WeakCause, calibrate, jerk_density_evidence};
 use dvlcal::eval::spline_baseline::{BaselineOptions, spline_baseline};
 use dvlcal::io::tum::read_tum;
 use dvlcal::sim::{
@@ -88,6 +88,8 @@ struct Run {
     z: [f64; 8],
     spline: [f64; 8],
     lever_held: bool,
+    /// The lever arm held along the one axis the motion turned about, the rest estimated.
+    lever_axis_held: bool,
     /// dvlcal's status said the result cannot be trusted.
     failed: bool,
 }
@@ -137,6 +139,7 @@ fn run(seed: u64, track: &TrackMotion, damage: &Corruption) -> Option<Run> {
         z: [0.0; 8],
         spline: [0.0; 8],
         lever_held: o.lever_arm_from_default_prior,
+        lever_axis_held: o.verdicts.lever_arm.cause == Some(WeakCause::FewRotationAxes),
         failed: !o.status.is_ok(),
     };
     for k in 0..8 {
@@ -319,10 +322,11 @@ fn bench_scale(track_def: &Track, recorded: &[PoseMeasurement], scale: f64, seed
             .flatten()
             .partition(|r| r.failed);
         println!(
-            "### {name}: {} runs, lever arm held at the default prior in {}, {} more failed by \
-             dvlcal's status (not in the table) ({:.0} s)\n",
+            "### {name}: {} runs, lever arm held at the default prior in {} (along one axis \
+             in {} more), {} more failed by dvlcal's status (not in the table) ({:.0} s)\n",
             runs.len(),
             runs.iter().filter(|r| r.lever_held).count(),
+            runs.iter().filter(|r| r.lever_axis_held).count(),
             failed.len(),
             start.elapsed().as_secs_f64()
         );
