@@ -19,7 +19,7 @@ use super::outcome::{
     WeakCause,
 };
 use super::prior::{LeverArmPrior, Priors};
-use super::refinement::{LeverAxesHeld, unobserved_why, whitened_residuals};
+use super::refinement::{PartialLeverHold, unobserved_why, whitened_residuals};
 use super::robust::RobustSummary;
 use super::setting::Setting;
 use super::update::{FreeParams, ParamMat, calibration_update};
@@ -155,7 +155,7 @@ pub(crate) fn judge(
     init: Option<&InitReport>,
     free: FreeParams,
     lever_held: Option<(f64, LeverArmPrior)>,
-    lever_axes: Option<&LeverAxesHeld>,
+    lever_axes: Option<&PartialLeverHold>,
     roles: PriorRoles,
     opts: &CalibOptions,
 ) -> Verdicts {

@@ -32,7 +32,7 @@ pub(crate) struct Setup {
     pub lever_held: Option<(f64, LeverArmPrior)>,
     /// Directions of the lever arm held at the broad default prior, the others estimated (the
     /// motion turned about too few axes).
-    pub lever_axes: Option<LeverAxesHeld>,
+    pub lever_axes: Option<PartialLeverHold>,
     /// The trajectory fitted to the co-sensor alone, for the noise and drift checks: the
     /// refined one has absorbed part of the DVL's misfit.
     pub pose_only: Trajectory,
@@ -119,7 +119,7 @@ pub(crate) fn refine<'a>(
                 start.velocity_scale,
                 start.time_offset_s,
             );
-            let held = LeverAxesHeld {
+            let held = PartialLeverHold {
                 directions: unobserved,
                 prior: l,
             };
@@ -380,14 +380,14 @@ const HELD_AXIS_SIGMA_FRACTION: f64 = 1e-6;
 
 /// Lever-arm directions held at the broad default prior while the others are estimated.
 #[derive(Clone, Debug)]
-pub(crate) struct LeverAxesHeld {
+pub(crate) struct PartialLeverHold {
     /// The held directions, unit vectors in the camera frame.
     pub directions: Vec<Vector3<f64>>,
     /// The broad default prior they are held at.
     pub prior: LeverArmPrior,
 }
 
-impl LeverAxesHeld {
+impl PartialLeverHold {
     /// The projector onto the held directions.
     pub fn projector(&self) -> Matrix3<f64> {
         self.directions.iter().map(|u| u * u.transpose()).sum()
