@@ -24,9 +24,7 @@ use crate::io::write_atomic;
 use crate::lie::Se3;
 use crate::types::CalibrationParams;
 
-use super::calibration::{
-    OutputOptions, ResultPaths, frame_names, kalibr_cameras, prepare_outputs, sibling,
-};
+use super::calibration::{OutputOptions, ResultPaths, kalibr_cameras, prepare_with_exports};
 use super::dataset::Dataset;
 
 /// The mode in words, as the summary and the result's notes state it.
@@ -172,12 +170,9 @@ pub fn write_camera_imu_results(
     data: &Dataset,
     opts: &OutputOptions,
 ) -> Result<ResultPaths> {
-    let names = frame_names(opts, data)?;
-    let tf = sibling(out, "tf.txt");
-    let imucam = sibling(out, "camchain-imucam.yaml");
-    let urdf = sibling(out, "urdf.xml");
+    let (names, [tf, imucam, urdf], provenance) = prepare_with_exports(out, data, opts)?;
     let mut file = run.file.clone();
-    file.provenance = Some(prepare_outputs(out, &[&tf, &imucam, &urdf], data, opts)?);
+    file.provenance = Some(provenance);
     write_imu_result_yaml(out, &file)?;
     let imu = super::imu::imu_export(&run.whole)
         .ok_or_else(|| Error::Input("the IMU's result is missing".into()))?;
