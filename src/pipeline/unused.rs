@@ -123,22 +123,9 @@ const DVL_ONLY: [&str; 15] = [
     "--report",
 ];
 
-/// The options of `calibrate` that the DVL + IMU mode (no camera) does not read.
-const NOT_IN_DVL_IMU: [&str; 13] = [
-    "--method",
-    "--lever-arm-prior",
-    "--rotation-prior",
-    "--loss",
-    "--default-lever-arm-sigma",
-    "--model-covariance",
-    "--clock-drift",
-    "--dvl-sound-speed",
-    "--init",
-    "--estimate-offset",
-    "--biased",
-    "--strict",
-    "--report",
-];
+/// The DVL's options that the DVL + IMU mode (no camera) reads too; the rest of [`DVL_ONLY`] it
+/// does not read.
+const READ_BY_DVL_IMU: [&str; 2] = ["--dvl-sigma", "--offset-range"];
 
 /// The options a dataset's inputs would not use: the bag options when no input is a bag
 /// (`--dvl-topic` when the DVL log is not one), the camchain and board beside a pose file,
@@ -203,7 +190,10 @@ pub fn input_options(files: &DatasetFiles, given: &[&str]) -> Result<()> {
     let no_camera = files.poses.is_none() && files.images.is_none() && files.bag.is_none();
     if no_camera
         && files.imu.is_some()
-        && let Some(f) = NOT_IN_DVL_IMU.iter().find(|f| has(given, f))
+        && let Some(f) = DVL_ONLY
+            .iter()
+            .filter(|f| !READ_BY_DVL_IMU.contains(f))
+            .find(|f| has(given, f))
     {
         return refuse(format!(
             "{f} applies to a calibration against a camera; there is no camera data here, so \
