@@ -104,13 +104,16 @@ pub(crate) fn refine<'a>(
     let mut priors = priors;
     let lever_axes = match priors.lever_arm {
         Some(l) if lever_held.is_none() && !unobserved.is_empty() => {
-            let projector: Matrix3<f64> = unobserved.iter().map(|u| u * u.transpose()).sum();
-            let axes = HeldLeverAxes {
+            let held = PartialLeverHold {
+                directions: unobserved,
+                prior: l,
+            };
+            let projector = held.projector();
+            priors.held_lever_axes = Some(HeldLeverAxes {
                 projector,
                 lever_arm_cam_m: l.lever_arm_cam_m,
                 sigma_m: l.sigma_m * HELD_AXIS_SIGMA_FRACTION,
-            };
-            priors.held_lever_axes = Some(axes);
+            });
             jp.priors = priors;
             let p = start.lever_arm_cam_m();
             start = CalibrationParams::from_r_dvl_cam(
@@ -119,10 +122,6 @@ pub(crate) fn refine<'a>(
                 start.velocity_scale,
                 start.time_offset_s,
             );
-            let held = PartialLeverHold {
-                directions: unobserved,
-                prior: l,
-            };
             warnings.push(format!(
                 "the motion turned about too few axes to observe the lever arm along {}: that \
                  component is held at the broad default prior's value, zero, and the others are \

@@ -97,8 +97,7 @@ pub fn held_pose_runs(poses: &[PoseMeasurement]) -> Vec<std::ops::Range<usize>> 
     };
     let moved = |a: &PoseMeasurement, b: &PoseMeasurement| {
         let d = (b.pose.trans - a.pose.trans).norm();
-        let r = a.pose.rot.transpose() * b.pose.rot;
-        let angle = ((r.trace() - 1.0) / 2.0).clamp(-1.0, 1.0).acos();
+        let angle = crate::lie::so3::log(&(a.pose.rot.transpose() * b.pose.rot)).norm();
         d > HELD_POSE_MIN_STEP_M || angle > HELD_POSE_MIN_STEP_RAD
     };
     let mut runs = Vec::new();
