@@ -663,25 +663,6 @@ pub fn prepare_outputs(
     Provenance::of_run(opts.command_line.clone(), &all_inputs)
 }
 
-/// [`prepare_outputs`] for a run that writes the three exports beside `out`: the exports' frame
-/// names, their paths (`RESULT-tf.txt`, `RESULT-camchain-imucam.yaml`, `RESULT-urdf.xml`) and
-/// the run's provenance.
-pub(super) fn prepare_with_exports(
-    out: &Path,
-    data: &Dataset,
-    opts: &OutputOptions,
-) -> Result<(FrameNames, [PathBuf; 3], Provenance)> {
-    let names = frame_names(opts, data)?;
-    let paths = [
-        sibling(out, "tf.txt"),
-        sibling(out, "camchain-imucam.yaml"),
-        sibling(out, "urdf.xml"),
-    ];
-    let [tf, imucam, urdf] = &paths;
-    let provenance = prepare_outputs(out, &[tf, imucam, urdf], data, opts)?;
-    Ok((names, paths, provenance))
-}
-
 /// The cameras of the camchain-imucam export: every camera of the chain the poses were solved
 /// with (each overlapping all others: they were paired on the same board views), or, with poses
 /// from elsewhere, cam0 without a calibration.
@@ -720,9 +701,12 @@ pub fn write_results(
     data: &Dataset,
     opts: &OutputOptions,
 ) -> Result<ResultPaths> {
-    let (names, [tf, imucam, urdf], provenance) = prepare_with_exports(out, data, opts)?;
+    let names = frame_names(opts, data)?;
+    let tf = sibling(out, "tf.txt");
+    let imucam = sibling(out, "camchain-imucam.yaml");
+    let urdf = sibling(out, "urdf.xml");
     let mut file = run.file.clone();
-    file.provenance = Some(provenance);
+    file.provenance = Some(prepare_outputs(out, &[&tf, &imucam, &urdf], data, opts)?);
     write_calib_yaml(out, &file)?;
     let calib = &run.outcome.params;
     if !(run.outcome.status.is_ok() || opts.force) {

@@ -24,7 +24,9 @@ use crate::io::write_atomic;
 use crate::lie::Se3;
 use crate::types::CalibrationParams;
 
-use super::calibration::{OutputOptions, ResultPaths, kalibr_cameras, prepare_with_exports};
+use super::calibration::{
+    OutputOptions, ResultPaths, frame_names, kalibr_cameras, prepare_outputs, sibling,
+};
 use super::dataset::Dataset;
 
 /// The mode in words, as the summary and the result's notes state it.
@@ -170,9 +172,12 @@ pub fn write_camera_imu_results(
     data: &Dataset,
     opts: &OutputOptions,
 ) -> Result<ResultPaths> {
-    let (names, [tf, imucam, urdf], provenance) = prepare_with_exports(out, data, opts)?;
+    let names = frame_names(opts, data)?;
+    let tf = sibling(out, "tf.txt");
+    let imucam = sibling(out, "camchain-imucam.yaml");
+    let urdf = sibling(out, "urdf.xml");
     let mut file = run.file.clone();
-    file.provenance = Some(provenance);
+    file.provenance = Some(prepare_outputs(out, &[&tf, &imucam, &urdf], data, opts)?);
     write_imu_result_yaml(out, &file)?;
     let imu = super::imu::imu_export(&run.whole)
         .ok_or_else(|| Error::Input("the IMU's result is missing".into()))?;
