@@ -127,3 +127,15 @@ pub fn prepare_output(option: &'static str, out: &Path) -> Result<()> {
         .map_err(cannot)?;
     std::fs::remove_file(&probe).map_err(cannot)
 }
+
+/// Removes the files `paths` an earlier run left, so that none can be taken for this run's; a
+/// file that is not there is no error.
+pub fn remove_stale(paths: &[&Path]) -> Result<()> {
+    for p in paths {
+        match std::fs::remove_file(p) {
+            Err(e) if e.kind() != std::io::ErrorKind::NotFound => return Err(Error::io(p, e)),
+            _ => {}
+        }
+    }
+    Ok(())
+}

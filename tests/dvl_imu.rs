@@ -16,7 +16,8 @@ use dvlcal::sim::imu::{ImuSimConfig, simulate_imu};
 use dvlcal::sim::{MotionKind, SimConfig, SimDataset, build_motion, simulate_with};
 use dvlcal::types::CalibrationParams;
 use dvlcal::types::imu::ImuSample;
-use nalgebra::Matrix4;
+use nalgebra::{Matrix4, Vector3};
+use std::path::Path;
 use tmp_common::{TmpDir, dvlcal, dvlcal_ok, s};
 
 /// A 60 s simulated recording (poses at 10 Hz, the A50 at its rate, a 200 Hz IMU with walking
@@ -235,6 +236,9 @@ fn calibrate_without_a_camera_writes_the_dvl_relative_to_the_imu() {
     ]);
     std::fs::remove_file(ds.join("poses.txt")).expect("remove the camera poses");
     let out = tmp.path("out.yaml");
+    // A Kalibr file an earlier camera run left beside the result: it cannot be this run's.
+    let stale = tmp.path("out-camchain-imucam.yaml");
+    std::fs::write(&stale, "cam0: {}\n").expect("stale export");
     let stdout = dvlcal_ok(&["calibrate", s(&ds), "--out", s(&out)]);
     assert!(
         stdout.contains("DVL + IMU: no camera data given"),
@@ -276,6 +280,8 @@ fn calibrate_without_a_camera_writes_the_dvl_relative_to_the_imu() {
     );
     let obs = r.observability.as_ref().expect("verdicts");
     assert_eq!(format!("{:?}", obs.lever_arm), "Ok");
+    exports_hold_the_dvl_in_the_imu(&tmp, &ds, &est, &stdout);
+    assert!(!stale.exists(), "the stale Kalibr file was left");
     // A camera run's option is refused; a camera result's reader names the file's kind.
     let refused = dvlcal(&[
         "calibrate",
@@ -289,6 +295,76 @@ fn calibrate_without_a_camera_writes_the_dvl_relative_to_the_imu() {
     assert!(String::from_utf8_lossy(&refused.stderr).contains("DVL + IMU"));
     let e = read_calib_yaml(&out).expect_err("not a camera result");
     assert!(e.to_string().contains("a DVL + IMU result"), "{e}");
+}
+
+/// The ROS commands and the URDF beside a DVL + IMU result publish `est` (`T_imu_dvl`, read
+/// from the result) as the DVL frame in the IMU frame, with the IMU's clock; the URDF is a robot
+/// `check_urdf` (Debian's liburdfdom-tools) reads with the IMU as its root; there is no Kalibr
+/// file (no camera). `--frames` names the two frames.
+fn exports_hold_the_dvl_in_the_imu(tmp: &TmpDir, ds: &Path, est: &Se3, stdout: &str) {
+    let (tf, urdf) = (tmp.path("out-tf.txt"), tmp.path("out-urdf.xml"));
+    assert!(
+        stdout.contains(&format!("{} and {}", tf.display(), urdf.display())),
+        "{stdout}"
+    );
+    let text = std::fs::read_to_string(&tf).expect("tf export");
+    let line = text
+        .lines()
+        .find(|l| l.starts_with("rosrun"))
+        .unwrap_or_default();
+    assert!(line.ends_with(" imu dvl"), "{text}");
+    let v: Vec<f64> = line
+        .split_whitespace()
+        .skip(3)
+        .take(7)
+        .filter_map(|x| x.parse().ok())
+        .collect();
+    assert_eq!(v.len(), 7, "{line}");
+    let back = Se3::from_quaternion_xyzw(&[v[3], v[4], v[5], v[6]], Vector3::new(v[0], v[1], v[2]));
+    let d = (back.inverse() * *est).log().norm();
+    assert!(d < 1e-9, "the tf export is {d} from T_imu_dvl: {line}");
+    assert!(text.contains("the DVL frame in the IMU frame"), "{text}");
+    assert!(text.contains("# clock: t_imu = t_dvl + "), "{text}");
+    let parsed = check_urdf(&urdf);
+    assert!(
+        parsed.contains("root Link: imu has 1 child(ren)"),
+        "{parsed}"
+    );
+    let xml = std::fs::read_to_string(&urdf).expect("URDF");
+    assert!(
+        xml.contains("(T_imu_dvl)") && xml.contains("robot's IMU link"),
+        "{xml}"
+    );
+    // Named frames.
+    let named = tmp.path("named.yaml");
+    dvlcal_ok(&[
+        "calibrate",
+        s(ds),
+        "--out",
+        s(&named),
+        "--frames",
+        "base_imu,a50",
+    ]);
+    let text = std::fs::read_to_string(tmp.path("named-tf.txt")).expect("tf export");
+    assert!(text.contains(" base_imu a50\n"), "{text}");
+    let parsed = check_urdf(&tmp.path("named-urdf.xml"));
+    assert!(parsed.contains("root Link: base_imu"), "{parsed}");
+    assert!(!tmp.path("named-camchain-imucam.yaml").exists());
+}
+
+/// `check_urdf` on `urdf`: its output, after asserting it parsed.
+fn check_urdf(urdf: &Path) -> String {
+    let r = std::process::Command::new("check_urdf")
+        .arg(urdf)
+        .output()
+        .unwrap_or_else(|e| panic!("check_urdf (Debian's liburdfdom-tools, make test-deps): {e}"));
+    let out = String::from_utf8_lossy(&r.stdout).into_owned();
+    assert!(
+        r.status.success(),
+        "check_urdf refused {}: {out}",
+        urdf.display()
+    );
+    out
 }
 
 /// With a camera, an IMU and a DVL log, `calibrate` takes the DVL's values from the three

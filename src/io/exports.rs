@@ -196,19 +196,52 @@ fn fmt_f(x: f64) -> String {
     if s == "-0.0" { "0.0".into() } else { s }
 }
 
+/// The sensor whose frame is the parent of the exports' transforms: the camera, or, for a DVL
+/// calibrated against an IMU without a camera, the IMU.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Parent {
+    /// The camera (`T_cam_dvl`, `t_cam = t_dvl + offset`).
+    #[default]
+    Camera,
+    /// The IMU (`T_imu_dvl`, `t_imu = t_dvl + offset`).
+    Imu,
+}
+
+impl Parent {
+    /// The sensor in words.
+    fn noun(self) -> &'static str {
+        match self {
+            Parent::Camera => "camera",
+            Parent::Imu => "IMU",
+        }
+    }
+
+    /// The subscript of its frame and clock (`T_cam_dvl`, `t_cam`).
+    fn sub(self) -> &'static str {
+        match self {
+            Parent::Camera => "cam",
+            Parent::Imu => "imu",
+        }
+    }
+}
+
 /// What the exports write: the DVL's calibration, the IMU's, or both, with the frames' names and
 /// what the exports say beside the DVL's numbers. A run of the DVL alone has `imu: None`; a run
-/// of the camera and an IMU alone has `dvl: None`.
+/// of the camera and an IMU alone has `dvl: None`; a DVL calibrated against an IMU without a
+/// camera has `parent: Parent::Imu`, its `T_imu_dvl` in `dvl` and no `imu`.
 #[derive(Clone, Copy, Debug)]
 pub struct Export<'a> {
-    /// The DVL's calibration (`T_cam_dvl`, its clock offset and velocity scale).
+    /// The DVL's calibration (`T_cam_dvl`, its clock offset and velocity scale; `T_imu_dvl`
+    /// and the IMU's clock when `parent` is the IMU).
     pub dvl: Option<&'a CalibrationParams>,
     /// The IMU calibrated against the camera (its frame named in it).
     pub imu: Option<&'a ImuExport>,
-    /// The camera's frame (the parent of every transform) and the DVL's.
+    /// The parent's frame (`names.camera`, whichever sensor `parent` is) and the DVL's.
     pub names: &'a FrameNames,
     /// What the DVL's numbers do not measure, and a failure's reasons.
     pub notes: &'a ExportNotes,
+    /// The sensor of the parent frame.
+    pub parent: Parent,
 }
 
 impl<'a> Export<'a> {
@@ -219,6 +252,20 @@ impl<'a> Export<'a> {
             imu: None,
             names,
             notes,
+            parent: Parent::Camera,
+        }
+    }
+
+    /// A DVL calibrated against an IMU (no camera): `c.t_cam_dvl` holds `T_imu_dvl` and its
+    /// clock offset `t_imu = t_dvl + offset`; `names.camera` is the IMU's frame.
+    pub fn dvl_in_imu(
+        c: &'a CalibrationParams,
+        names: &'a FrameNames,
+        notes: &'a ExportNotes,
+    ) -> Self {
+        Export {
+            parent: Parent::Imu,
+            ..Export::dvl(c, names, notes)
         }
     }
 
@@ -274,12 +321,14 @@ pub fn ros_static_transform(e: &Export) -> String {
     if let Some(c) = e.dvl {
         let _ = writeln!(
             s,
-            "# ROS 1 (tf2_ros): x y z qx qy qz qw parent child; the DVL frame in the camera frame"
+            "# ROS 1 (tf2_ros): x y z qx qy qz qw parent child; the DVL frame in the {} frame",
+            e.parent.noun()
         );
         tf_commands(&mut s, &c.t_cam_dvl, camera, &e.names.dvl);
         let _ = writeln!(
             s,
-            "# clock: t_cam = t_dvl + {} s; DVL velocity scale {}",
+            "# clock: t_{} = t_dvl + {} s; DVL velocity scale {}",
+            e.parent.sub(),
             fmt_f(c.time_offset_s),
             fmt_f(c.velocity_scale)
         );
@@ -497,12 +546,13 @@ pub fn urdf_robot(e: &Export) -> String {
     let child = match (e.dvl, e.imu) {
         (Some(c), _) => {
             let child = &e.names.dvl;
+            let (noun, sub) = (e.parent.noun(), e.parent.sub());
             let _ = writeln!(
                 s,
-                "<!-- dvlcal {version}: the DVL frame in the camera frame (T_cam_dvl); \
-                 {convention}\n     Clock: t_cam = t_dvl + {} s; DVL velocity scale {}.\n     \
+                "<!-- dvlcal {version}: the DVL frame in the {noun} frame (T_{sub}_dvl); \
+                 {convention}\n     Clock: t_{sub} = t_dvl + {} s; DVL velocity scale {}.\n     \
                  To add the DVL to a robot's URDF, copy the link {child} and the joint; {parent} \
-                 is the robot's camera link. -->",
+                 is the robot's {noun} link. -->",
                 fmt_f(c.time_offset_s),
                 fmt_f(c.velocity_scale)
             );
@@ -715,6 +765,7 @@ mod tests {
             imu: Some(&imu),
             names: &names,
             notes: &notes,
+            parent: Parent::Camera,
         };
         let cams = stereo();
         let text = kalibr_camchain_imucam(&e, &cams);

@@ -710,14 +710,7 @@ pub fn write_results(
     write_calib_yaml(out, &file)?;
     let calib = &run.outcome.params;
     if !(run.outcome.status.is_ok() || opts.force) {
-        for p in [&tf, &imucam, &urdf] {
-            match std::fs::remove_file(p) {
-                Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
-                    return Err(Error::io(p, e));
-                }
-                _ => {}
-            }
-        }
+        crate::files::remove_stale(&[&tf, &imucam, &urdf])?;
         return Ok(ResultPaths {
             result: out.to_path_buf(),
             tf: None,

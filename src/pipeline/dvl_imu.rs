@@ -9,8 +9,9 @@ use std::time::Instant;
 
 use nalgebra::Vector3;
 
-use super::calibration::{OutputOptions, flag, prepare_outputs};
+use super::calibration::{OutputOptions, ResultPaths, flag, prepare_outputs, sibling};
 use super::dataset::Dataset;
+use super::exports::state;
 use crate::calib::diagnostics::verdict_by_std;
 use crate::calib::imu::ImuOptions;
 use crate::calib::imu::dvl::{DvlImuEstimate, calibrate_dvl_imu};
@@ -22,6 +23,8 @@ use crate::io::calib_yaml::{
     rows,
 };
 use crate::io::dvl_imu_result::{DvlImuResultFile, write_dvl_imu_result_yaml};
+use crate::io::exports::{Export, ExportNotes, FrameNames, ros_static_transform, urdf_robot};
+use crate::io::write_atomic;
 
 /// The mode in words, as the summary and the result's notes state it.
 pub use super::dataset::DVL_IMU_MODE as MODE;
@@ -178,6 +181,11 @@ fn judge(est: &DvlImuEstimate, opts: &CalibOptions) -> [Verdict; 4] {
 }
 
 impl DvlImuRun {
+    /// Whether the calibration passed its checks (`status: ok`).
+    pub fn ok(&self) -> bool {
+        self.file.failure.is_empty()
+    }
+
     /// The summary `dvlcal calibrate` prints: the mode, the counts, each estimate with its std
     /// and verdict, and every warning.
     pub fn summary(&self) -> String {
@@ -243,15 +251,63 @@ impl DvlImuRun {
     }
 }
 
-/// Writes the DVL + IMU result YAML to `out` (its folder created, its `provenance` filled in),
-/// atomically.
+/// The exports' frame names: `--frames` (checked), else `imu` (the parent) and `dvl`.
+fn frame_names(opts: &OutputOptions) -> Result<FrameNames> {
+    match &opts.frames {
+        Some(f) => {
+            f.validate()?;
+            Ok(f.clone())
+        }
+        None => Ok(FrameNames {
+            camera: "imu".into(),
+            dvl: "dvl".into(),
+        }),
+    }
+}
+
+/// Writes the DVL + IMU result YAML to `out` (its folder created, its `provenance` filled in)
+/// and beside it, each atomically: `RESULT-tf.txt` (ROS static transforms of the DVL frame in
+/// the IMU frame) and `RESULT-urdf.xml` (the IMU link, the DVL link and a fixed joint). There
+/// is no Kalibr camchain-imucam file: it describes cameras, and this run has none; one left
+/// beside `out` by an earlier run is removed. A failed calibration writes the result alone
+/// (`status: failed`, its exports removed) unless `opts.force`.
 pub fn write_dvl_imu_results(
     out: &Path,
     run: &DvlImuRun,
     data: &Dataset,
     opts: &OutputOptions,
-) -> Result<()> {
+) -> Result<ResultPaths> {
+    let names = frame_names(opts)?;
+    let tf = sibling(out, "tf.txt");
+    let imucam = sibling(out, "camchain-imucam.yaml");
+    let urdf = sibling(out, "urdf.xml");
     let mut file = run.file.clone();
-    file.provenance = Some(prepare_outputs(out, &[], data, opts)?);
-    write_dvl_imu_result_yaml(out, &file)
+    file.provenance = Some(prepare_outputs(out, &[&tf, &imucam, &urdf], data, opts)?);
+    write_dvl_imu_result_yaml(out, &file)?;
+    crate::files::remove_stale(&[&imucam])?;
+    let mut paths = ResultPaths {
+        result: out.to_path_buf(),
+        tf: None,
+        camchain_imucam: None,
+        urdf: None,
+    };
+    if !(run.ok() || opts.force) {
+        crate::files::remove_stale(&[&tf, &urdf])?;
+        return Ok(paths);
+    }
+    let v = &run.verdicts;
+    let note = |v: &Verdict| ExportNotes::note(state(v), &v.reason);
+    let notes = ExportNotes {
+        failed: (!run.ok()).then(|| run.file.failure.clone()),
+        rotation: note(&v[0]),
+        lever_arm: note(&v[1]),
+        time_offset: note(&v[2]),
+        velocity_scale: note(&v[3]),
+    };
+    let export = Export::dvl_in_imu(&run.estimate.params, &names, &notes);
+    write_atomic(&tf, ros_static_transform(&export).as_bytes())?;
+    write_atomic(&urdf, urdf_robot(&export).as_bytes())?;
+    paths.tf = Some(tf);
+    paths.urdf = Some(urdf);
+    Ok(paths)
 }

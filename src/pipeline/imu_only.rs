@@ -17,7 +17,7 @@ use crate::io::calib_yaml::{
     ResultStatus,
 };
 use crate::io::exports::{
-    Export, ExportNotes, kalibr_camchain_imucam, ros_static_transform, urdf_robot,
+    Export, ExportNotes, Parent, kalibr_camchain_imucam, ros_static_transform, urdf_robot,
 };
 use crate::io::imu_result::{ImuResultFile, write_imu_result_yaml};
 use crate::io::write_atomic;
@@ -187,6 +187,7 @@ pub fn write_camera_imu_results(
         imu: Some(&imu),
         names: &names,
         notes: &notes,
+        parent: Parent::Camera,
     };
     write_atomic(&tf, ros_static_transform(&e).as_bytes())?;
     write_atomic(&urdf, urdf_robot(&e).as_bytes())?;
@@ -211,6 +212,13 @@ pub fn wrote_words(paths: &ResultPaths) -> String {
             tf.display(),
             urdf.display(),
             imucam.display()
+        ),
+        // DVL + IMU: no camera, so no Kalibr file.
+        (Some(tf), Some(urdf), None) => format!(
+            "wrote {}, {} and {}",
+            paths.result.display(),
+            tf.display(),
+            urdf.display()
         ),
         _ => format!(
             "wrote {} (status: failed; no ROS or Kalibr exports: --force writes them)",

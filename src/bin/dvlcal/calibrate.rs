@@ -279,9 +279,12 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
     }
     if data.poses.is_empty() && data.vision.is_none() && data.imu.is_some() {
         let run = dvl_imu::calibrate_dvl_imu_dataset(&data, &opts)?;
-        dvl_imu::write_dvl_imu_results(&a.out, &run, &data, &output)?;
+        let paths = dvl_imu::write_dvl_imu_results(&a.out, &run, &data, &output)?;
         print!("{}", run.summary());
-        println!("wrote {}", a.out.display());
+        println!("{}", wrote_words(&paths));
+        if !run.ok() {
+            bail!("the calibration failed: {}", run.file.failure.join("; "));
+        }
         return Ok(());
     }
     if let Some(w) = data.give_sound_speed(a.dvl_sound_speed) {
