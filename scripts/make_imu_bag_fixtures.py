@@ -48,6 +48,7 @@ runs, not by the tests):
                      velocity report, header stamp = time_of_validity) and /imu/data
                      (sensor_msgs/Imu, header stamp = the CSV's ns, orientation unknown:
                      orientation_covariance[0] = -1); record times 2 ms after the stamps
+  dvl_imu.mcap       the same without the pose topic: a DVL and an IMU, no camera data
   cam_dvl_imu_truth/ the recording's imu.yaml (Kalibr noise), truth/imu.yaml and
                      truth/calibration.yaml, copied as the simulator wrote them
 """
@@ -348,7 +349,9 @@ def main():
     write_bare_mcap("two_imus.mcap", two(TS2, cdr_le))
     write_ros1(OUT / "bad_imu.bag", bad(TS1, ros1))
     write_bare_mcap("bad_imu.mcap", bad(TS2, cdr_le))
-    write_bare_mcap("cam_dvl_imu.mcap", cam_dvl_imu(args.dvlcal), compress=True)
+    recording = cam_dvl_imu(args.dvlcal)
+    write_bare_mcap("cam_dvl_imu.mcap", recording, compress=True)
+    write_bare_mcap("dvl_imu.mcap", [m for m in recording if m[0] != "/mocap/rig/pose"], compress=True)
 
     print(f"rosbags {version('rosbags')}: wrote {OUT}")
     total = 0

@@ -357,3 +357,84 @@ fn a_bags_imu_topic_is_calibrated_with_imu_noise() {
     let warnings = f.info.map(|i| i.warnings.join("\n")).unwrap_or_default();
     assert!(warnings.contains("--imu-noise"), "{warnings}");
 }
+
+/// The same recording without its pose topic (a bag of the A50 driver's reports and an Imu
+/// topic, no camera data): given as the dataset or with `--dvl`, the DVL is calibrated against
+/// the bag's IMU, `T_imu_dvl` (`T_cam_imu^-1 T_cam_dvl` of the truth), the clock offset on the
+/// IMU's clock and the scale each within 4 std of the simulator's truth, with the exports in the
+/// IMU's frame; an option only a camera run reads is refused (exit 2), also though the bag's
+/// lack of camera data shows only once it is open.
+#[test]
+fn a_bag_without_camera_data_calibrates_the_dvl_against_its_imu() {
+    use dvlcal::io::dvl_imu_result::read_dvl_imu_result_yaml;
+    let dir = Path::new("tests/fixtures/imu_bags");
+    let bag = dir.join("dvl_imu.mcap");
+    let noise = dir.join("cam_dvl_imu_truth/imu.yaml");
+    let imu = read_imu_truth(&dir.join("cam_dvl_imu_truth/truth/imu.yaml")).expect("truth");
+    let dvl = read_calib_yaml(&dir.join("cam_dvl_imu_truth/truth/calibration.yaml")).expect("t");
+    let dvl = dvl.to_params().expect("truth params");
+    let truth = imu.t_cam_imu.inverse() * dvl.t_cam_dvl;
+    let tmp = TmpDir::new("imu-cli-dvl-imu-bag");
+    for (name, how) in [("dataset", None), ("dvl", Some("--dvl"))] {
+        let result = tmp.path(&format!("{name}.yaml"));
+        let mut args = vec!["calibrate"];
+        args.extend(how);
+        args.extend([s(&bag), "--imu-noise", s(&noise), "--out", s(&result)]);
+        let out = dvlcal(&args);
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{name}: {stdout}{stderr}");
+        assert!(
+            stdout.contains("DVL + IMU: no camera data given"),
+            "{stdout}"
+        );
+        assert!(stderr.contains("3000 messages read"), "{stderr}");
+        let r = read_dvl_imu_result_yaml(&result).expect("result");
+        let est = from_rows(&r.t_imu_dvl);
+        let std = r.std.as_ref().expect("std");
+        let (rs, ls) = (
+            std.rotation_deg.expect("rot"),
+            std.lever_arm_m.expect("lever"),
+        );
+        let e_rot = so3::log(&(est.rot.transpose() * truth.rot)).map(f64::to_degrees);
+        for i in 0..3 {
+            assert!(
+                e_rot[i].abs() < 4.0 * rs[i],
+                "{name}: rotation {e_rot:?}, std {rs:?}"
+            );
+            let e = est.trans[i] - truth.trans[i];
+            assert!(
+                e.abs() < 4.0 * ls[i],
+                "{name}: lever {i}: {e} m, std {ls:?}"
+            );
+        }
+        let off = dvl.time_offset_s - imu.imu_time_offset_s;
+        let so = std.time_offset_s.expect("offset std");
+        assert!(
+            (r.time_offset_s - off).abs() < 4.0 * so,
+            "{name}: offset {}",
+            r.time_offset_s
+        );
+        let ss = std.velocity_scale.expect("scale std");
+        assert!((r.velocity_scale - dvl.velocity_scale).abs() < 4.0 * ss);
+        assert!(tmp.path(&format!("{name}-tf.txt")).exists());
+        assert!(tmp.path(&format!("{name}-urdf.xml")).exists());
+    }
+    let out = dvlcal(&[
+        "calibrate",
+        s(&bag),
+        "--imu-noise",
+        s(&noise),
+        "--out",
+        s(&tmp.path("r.yaml")),
+        "--loss",
+        "huber",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("--loss") && stderr.contains("DVL + IMU"),
+        "{stderr}"
+    );
+    assert!(!tmp.path("r.yaml").exists());
+}

@@ -8,6 +8,7 @@ use std::path::{Path, PathBuf};
 use crate::error::{Error, Result};
 use crate::io::bag::camera_info::camera_from_info;
 use crate::io::bag::frames::plan_frames;
+use crate::io::bag::is_bag;
 use crate::io::bag::open::OpenBag;
 use crate::io::bag::poses::read_bag_poses;
 use crate::io::calib_yaml::CalibrationFile;
@@ -61,9 +62,13 @@ pub fn dataset_files(dir: Option<&Path>, given: &DatasetOverrides) -> Result<Dat
                 ));
             }
         }
+        // DVL + IMU: the IMU from a file, or from the DVL's bag.
+        (None, None) if given.imu.is_some() || given.dvl.as_deref().is_some_and(is_bag) => {}
         (None, None) => {
             return Err(Error::Input(
-                "give --poses FILE, or --images DIR --target FILE [--camchain FILE]".into(),
+                "give --poses FILE, or --images DIR --target FILE [--camchain FILE]; or, to \
+                 calibrate the DVL against an IMU, --imu FILE --imu-noise FILE"
+                    .into(),
             ));
         }
     }
@@ -427,13 +432,37 @@ impl Dataset {
                 (read_imu_csv(&imu, None)?.epoch, Vec::new(), None, imu)
             }
             (None, None) => {
-                let Some(bag) = &files.bag else {
+                let dvl_bag = files.dvl.as_ref().filter(|p| is_bag(p));
+                let Some(bag) = files.bag.as_ref().or(dvl_bag) else {
                     return Err(Error::dataset(&files.root, "no camera data"));
                 };
                 let ob = OpenBag::open(bag, &files.bag_options)?;
                 notes.extend(ob.roles.notes.iter().cloned());
-                // A pose topic named by the user wins over the bag's images.
-                if ob.roles.images.is_empty() || files.bag_options.pose_topic.is_some() {
+                let camera_topic = files.bag.is_some()
+                    && (!ob.roles.images.is_empty()
+                        || ob.roles.pose.is_some()
+                        || files.bag_options.pose_topic.is_some());
+                if !camera_topic {
+                    // DVL + IMU from a bag without camera data: the epoch is the IMU's.
+                    let epoch = match &files.imu {
+                        Some(p) => Some(read_imu_csv(p, None)?.epoch),
+                        None => super::imu_bag::imu_epoch(&ob)?,
+                    };
+                    let Some(epoch) = epoch else {
+                        return Err(Error::dataset(
+                            bag,
+                            format!(
+                                "no camera data (no image or pose topic; topics: {}), and no \
+                                 sensor_msgs/Imu topic to calibrate the DVL against: give the \
+                                 camera's images or poses",
+                                ob.topic_list()
+                            ),
+                        ));
+                    };
+                    notes.push(DVL_IMU_MODE.to_owned());
+                    (epoch, Vec::new(), None, bag.clone())
+                } else if ob.roles.images.is_empty() || files.bag_options.pose_topic.is_some() {
+                    // A pose topic named by the user wins over the bag's images.
                     let p = read_bag_poses(&ob)?;
                     notes.push(format!("camera poses from {}", p.source));
                     notes.extend(p.warnings);

@@ -10,6 +10,16 @@ use crate::io::dataset::DatasetFiles;
 use crate::io::imu::{ImuLog, imu_log_of};
 use crate::time::Epoch;
 
+/// The epoch of the IMU topic of the bag `ob` (the whole second of its first usable sample),
+/// for a run without camera data whose times count from the IMU's; `None` without an IMU topic.
+pub fn imu_epoch(ob: &OpenBag) -> Result<Option<Epoch>> {
+    if ob.roles.imu.is_none() {
+        return Ok(None);
+    }
+    let (_, summary) = read_imu_from_bag(&ob.bag, &ob.options)?;
+    Ok(Some(summary.epoch))
+}
+
 /// The IMU stream of the dataset's bag, on `epoch`: `None` when no input is a bag or the bag
 /// has no (single) Imu topic; the reader's error inside when the topic gives no usable stream
 /// (the caller makes it a note). What the reading found (the topic, skipped, out-of-order and

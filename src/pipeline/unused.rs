@@ -127,6 +127,24 @@ const DVL_ONLY: [&str; 15] = [
 /// does not read.
 const READ_BY_DVL_IMU: [&str; 2] = ["--dvl-sigma", "--offset-range"];
 
+/// The options a DVL + IMU run (no camera data) would not use: those only a calibration against
+/// a camera reads. Checked before reading when the files show the mode, and after reading a bag
+/// that turned out to hold no camera data.
+pub fn dvl_imu_options(given: &[&str]) -> Result<()> {
+    match DVL_ONLY
+        .iter()
+        .filter(|f| !READ_BY_DVL_IMU.contains(f))
+        .find(|f| has(given, f))
+    {
+        Some(f) => refuse(format!(
+            "{f} applies to a calibration against a camera; there is no camera data here, so \
+             the DVL is calibrated against the IMU (DVL + IMU): drop {f}, or give the camera's \
+             images, poses or bag"
+        )),
+        None => Ok(()),
+    }
+}
+
 /// The options a dataset's inputs would not use: the bag options when no input is a bag
 /// (`--dvl-topic` when the DVL log is not one), the camchain and board beside a pose file,
 /// `--imu-noise` without an IMU stream, and the DVL's settings without a DVL log.
@@ -188,18 +206,8 @@ pub fn input_options(files: &DatasetFiles, given: &[&str]) -> Result<()> {
         ));
     }
     let no_camera = files.poses.is_none() && files.images.is_none() && files.bag.is_none();
-    if no_camera
-        && files.imu.is_some()
-        && let Some(f) = DVL_ONLY
-            .iter()
-            .filter(|f| !READ_BY_DVL_IMU.contains(f))
-            .find(|f| has(given, f))
-    {
-        return refuse(format!(
-            "{f} applies to a calibration against a camera; there is no camera data here, so \
-             the DVL is calibrated against the IMU (DVL + IMU): drop {f}, or give the camera's \
-             images, poses or bag"
-        ));
+    if no_camera && files.imu.is_some() {
+        dvl_imu_options(given)?;
     }
     if let Some(p) = &files.poses
         && let Some(f) = ["--camchain", "--target"].iter().find(|f| has(given, f))

@@ -278,10 +278,10 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
         return Ok(());
     }
     if data.poses.is_empty() && data.vision.is_none() && data.imu.is_some() {
+        unused::dvl_imu_options(&given)?; // a bag shows it holds no camera data once open
         let run = dvl_imu::calibrate_dvl_imu_dataset(&data, &opts)?;
         let paths = dvl_imu::write_dvl_imu_results(&a.out, &run, &data, &output)?;
-        print!("{}", run.summary());
-        println!("{}", wrote_words(&paths));
+        println!("{}{}", run.summary(), wrote_words(&paths));
         if !run.ok() {
             bail!("the calibration failed: {}", run.file.failure.join("; "));
         }

@@ -148,13 +148,19 @@ impl ImuLog {
     pub fn summary(&self) -> Vec<String> {
         let s = &self.stats;
         let mut out = vec![format!(
-            "{}: {} IMU samples at {:.1} Hz over {:.3} s ({} lines read), specific force {:.2} \
+            "{}: {} IMU samples at {:.1} Hz over {:.3} s ({} {} read), specific force {:.2} \
              m/s^2 (median norm), gyro 99th percentile {:.3} rad/s, {}",
             self.path.display(),
             self.samples.len(),
             s.rate_hz,
             s.span_s,
             s.rows,
+            // A bag's samples are its messages, counted as the bag's reader used them.
+            if crate::io::bag::is_bag(&self.path) {
+                "messages"
+            } else {
+                "lines"
+            },
             s.accel_median_norm,
             s.gyro_p99_radps,
             s.gyro_scale
