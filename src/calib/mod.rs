@@ -21,6 +21,7 @@
 //! [`calibrate`] runs the stages in this order, with the settings of [`options`] (whose messages
 //! name the settings as [`setting`] words them) on the samples of [`samples`].
 
+pub mod advice;
 pub mod align;
 pub mod analysis;
 pub mod clock_drift;

@@ -39,6 +39,7 @@ mod outputs;
 mod simulate;
 pub mod unused;
 mod vision;
+pub mod watch;
 
 pub use board::write_board_svg;
 pub use calibration::{

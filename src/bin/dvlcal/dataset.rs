@@ -47,7 +47,7 @@ pub struct DatasetArgs {
 }
 
 impl DatasetArgs {
-    fn overrides(&self, read: &DvlReadOptions) -> DatasetOverrides {
+    pub fn overrides(&self, read: &DvlReadOptions) -> DatasetOverrides {
         DatasetOverrides {
             images: self.images.clone(),
             camchain: self.camchain.clone(),

@@ -16,6 +16,7 @@ mod fit;
 mod record_dvl;
 mod simulate;
 mod tags;
+mod watch;
 
 use std::sync::OnceLock;
 
@@ -48,6 +49,9 @@ enum Command {
     CalibrateCameras(cameras::CalibrateCamerasArgs),
     /// Estimate the DVL's rotation, lever arm, clock offset and velocity scale.
     Calibrate(calibrate::CalibrateArgs),
+    /// Follow a dataset folder while it is recorded: update the calibration, say what motion is
+    /// still missing, and calibrate the finished recording as `calibrate` does.
+    Watch(watch::WatchArgs),
     /// Check calibrations by DVL dead reckoning against the camera (ATE, RPE), and
     /// cross-validate over several datasets.
     Evaluate(evaluate::EvaluateArgs),
@@ -148,6 +152,7 @@ fn main() {
         Command::RecordDvl(a) => record_dvl::run(a),
         Command::Board(a) => board::run(a),
         Command::Calibrate(a) => calibrate::run(a),
+        Command::Watch(a) => watch::run(a),
         Command::CalibrateCameras(a) => cameras::run(a),
         Command::Detect(a) => detect::run(a),
         Command::Tags(a) => tags::run(a),

@@ -1,0 +1,107 @@
+//! `dvlcal watch`: follows a dataset folder while it is written, printing each update (or one
+//! JSON object per line), then calibrates the finished recording exactly as `calibrate` does.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result, bail};
+use dvlcal::io::calib_yaml::read_calibration_guess;
+use dvlcal::pipeline::watch::{WatchOptions, Watcher};
+
+use crate::calibrate::{CalibrateArgs, options};
+
+#[derive(clap::Args)]
+pub struct WatchArgs {
+    /// One JSON object per line per update (`done`, `advice`, `parameters`, `counts`, ...).
+    #[arg(long)]
+    pub json: bool,
+    /// Seconds between updates.
+    #[arg(long, default_value = "2", value_name = "S")]
+    pub interval: f64,
+    /// End when no file has changed for this many seconds.
+    #[arg(long, default_value = "30", value_name = "S")]
+    pub until_idle: f64,
+    /// End as soon as every parameter meets its target.
+    #[arg(long)]
+    pub stop_when_done: bool,
+    #[command(flatten)]
+    pub calibrate: CalibrateArgs,
+}
+
+/// Runs `f` with the standard output going to the standard error, so that `--json` keeps the
+/// standard output for the updates alone while the final calibration prints its summary.
+fn on_stderr<T>(f: impl FnOnce() -> T) -> T {
+    use std::io::Write as _;
+    let _ = std::io::stdout().flush();
+    // SAFETY: duplicating and restoring the process's own standard descriptors.
+    let saved = unsafe { libc::dup(1) };
+    if saved < 0 || unsafe { libc::dup2(2, 1) } < 0 {
+        return f();
+    }
+    let out = f();
+    let _ = std::io::stdout().flush();
+    // SAFETY: as above; `saved` is the descriptor `dup` returned.
+    unsafe {
+        libc::dup2(saved, 1);
+        libc::close(saved);
+    }
+    out
+}
+
+pub fn run(a: WatchArgs) -> Result<()> {
+    for (v, name) in [(a.interval, "--interval"), (a.until_idle, "--until-idle")] {
+        if !(v.is_finite() && v > 0.0) {
+            bail!("{name} must be a positive number of seconds, got {v}");
+        }
+    }
+    let c = &a.calibrate;
+    let Some(dir) = c.dataset.as_deref() else {
+        bail!("dvlcal watch follows a dataset folder: give it (dvlcal watch DIR)");
+    };
+    let guess = c.init.as_deref().map(read_calibration_guess).transpose()?;
+    let read = c.dvl_input.read_options(c.strict);
+    let opts = WatchOptions {
+        calib: options(c.method, guess, c.estimate_offset, &c.estimator, c.biased)?,
+        vision: c.vision.options(),
+        overrides: c.files.overrides(&read),
+        read,
+        threads: c.vision.detect.threads,
+    };
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = Arc::clone(&stop);
+    ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst))
+        .context("installing the Ctrl-C handler")?;
+    let mut watcher = Watcher::new(dir)?;
+    let mut last_change = Instant::now();
+    while !stop.load(Ordering::SeqCst) {
+        let tick = Instant::now();
+        if watcher.changed()? {
+            last_change = tick;
+            let u = watcher.update(&opts)?;
+            if a.json {
+                println!("{}", serde_json::to_string(&u)?);
+            } else {
+                print!("{}", u.text());
+            }
+            if u.done && a.stop_when_done {
+                break;
+            }
+        } else if last_change.elapsed().as_secs_f64() >= a.until_idle {
+            break;
+        }
+        let wait = Duration::from_secs_f64(a.interval).saturating_sub(tick.elapsed());
+        // Sleep in short steps so that Ctrl-C ends the wait at once.
+        let until = Instant::now() + wait;
+        while Instant::now() < until && !stop.load(Ordering::SeqCst) {
+            std::thread::sleep(Duration::from_millis(50).min(until - Instant::now()));
+        }
+    }
+    drop(watcher);
+    let calibrate = || crate::calibrate::run(a.calibrate);
+    if a.json {
+        on_stderr(calibrate)
+    } else {
+        calibrate()
+    }
+}

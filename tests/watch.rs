@@ -1,0 +1,207 @@
+//! `dvlcal watch` on a recording fed into a folder at six times real speed, as a recorder
+//! writes it: the pose file and the DVL log grow line by line, each line written in two halves
+//! with a flush between, so that an update can see a line cut in two. The updates must arrive
+//! while the data arrive, ask for rotation in the calm first part of the recording, say done
+//! once it rotates, and end with the result `calibrate` gives on the finished folder; a
+//! recording that barely rotates must never say done and must keep asking for rotation.
+
+mod tmp_common;
+
+use std::io::{BufRead, BufReader, Write};
+use std::path::Path;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use dvlcal::io::calib_yaml::read_calib_yaml;
+use serde_json::Value;
+use tmp_common::{TmpDir, dvlcal_ok, s};
+
+const SPEED: f64 = 6.0;
+
+/// The time of a pose line (TUM) or a DVL report (`time_of_validity`, microseconds).
+fn line_time(name: &str, line: &str) -> Option<f64> {
+    if name == "poses.txt" {
+        return line.split_whitespace().next()?.parse().ok();
+    }
+    let v: Value = serde_json::from_str(line).ok()?;
+    Some(v.get("time_of_validity")?.as_f64()? * 1e-6)
+}
+
+/// Writes `src`'s pose file and DVL log into `dst` in time order at `SPEED` times real speed,
+/// each line in two halves with a flush between.
+fn feed(src: &Path, dst: &Path) {
+    let mut events = Vec::new();
+    for name in ["poses.txt", "dvl.jsonl"] {
+        let text = std::fs::read_to_string(src.join(name)).expect("recording");
+        for line in text.split_inclusive('\n') {
+            // A header line goes first.
+            let t = line_time(name, line).unwrap_or(f64::NEG_INFINITY);
+            events.push((t, name, line.to_owned()));
+        }
+    }
+    events.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let t0 = events
+        .iter()
+        .map(|e| e.0)
+        .find(|t| t.is_finite())
+        .unwrap_or(0.0);
+    let mut files: Vec<(&str, std::fs::File)> = ["poses.txt", "dvl.jsonl"]
+        .iter()
+        .map(|&n| (n, std::fs::File::create(dst.join(n)).expect("create")))
+        .collect();
+    let start = Instant::now();
+    for (t, name, line) in events {
+        let due = Duration::from_secs_f64((t.max(t0) - t0) / SPEED);
+        if let Some(wait) = due.checked_sub(start.elapsed()) {
+            std::thread::sleep(wait);
+        }
+        let f = &mut files.iter_mut().find(|(n, _)| *n == name).expect("file").1;
+        let (a, b) = line.split_at(line.len() / 2);
+        f.write_all(a.as_bytes()).expect("write");
+        f.flush().expect("flush");
+        f.write_all(b.as_bytes()).expect("write");
+    }
+}
+
+/// The updates of `dvlcal watch --json` on `dir` while `src` is fed into it, each with the time
+/// it arrived; and when the feed ended.
+fn watch_while_fed(src: &Path, dir: &Path, out: &Path) -> (Vec<(Instant, Value)>, Instant) {
+    std::fs::create_dir_all(dir).expect("folder");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_dvlcal"))
+        .args([
+            "watch",
+            s(dir),
+            "--json",
+            "--interval",
+            "0.5",
+            "--until-idle",
+            "3",
+            "--out",
+            s(out),
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run dvlcal watch");
+    let stdout = child.stdout.take().expect("stdout");
+    let reader = std::thread::spawn(move || {
+        BufReader::new(stdout)
+            .lines()
+            .map_while(|l| l.ok())
+            .map(|l| {
+                let v: Value = serde_json::from_str(&l)
+                    .unwrap_or_else(|e| panic!("not one JSON object per line: {l}: {e}"));
+                (Instant::now(), v)
+            })
+            .collect::<Vec<_>>()
+    });
+    feed(src, dir);
+    let fed = Instant::now();
+    let status = child.wait_with_output().expect("watch ends");
+    assert!(
+        status.status.success(),
+        "{}",
+        String::from_utf8_lossy(&status.stderr)
+    );
+    (reader.join().expect("reader"), fed)
+}
+
+fn advice(u: &Value) -> Vec<String> {
+    u["advice"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .filter_map(|a| a.as_str().map(String::from))
+        .collect()
+}
+
+fn simulate(dir: &Path, motion: &str) {
+    dvlcal_ok(&[
+        "simulate",
+        "--duration",
+        "60",
+        "--seed",
+        "3",
+        "--motion",
+        motion,
+        "--out",
+        s(dir),
+    ]);
+}
+
+/// Calm for the first half, then rotating: the updates come while the data come, ask for a
+/// rotation while the lever arm is not observed, then say done; the result written at the end
+/// is the one `calibrate` writes on the finished folder.
+#[test]
+fn watch_asks_for_rotation_then_says_done_and_ends_as_calibrate() {
+    let tmp = TmpDir::new("watch-strong");
+    let src = tmp.path("recording");
+    simulate(&src, "calm-then-rotate");
+    let (dir, out) = (tmp.path("live"), tmp.path("watch.yaml"));
+    let (updates, fed) = watch_while_fed(&src, &dir, &out);
+    let during = updates.iter().filter(|(t, _)| *t < fed).count();
+    assert!(during >= 3, "{during} updates while the data came");
+    for (_, u) in &updates {
+        for key in ["done", "advice", "parameters", "counts", "status"] {
+            assert!(u.get(key).is_some(), "no {key}: {u}");
+        }
+        for p in ["rotation", "lever_arm", "time_offset", "velocity_scale"] {
+            assert!(u["parameters"][p].get("verdict").is_some(), "{u}");
+        }
+    }
+    // The first update that calibrated, in the calm part: the lever arm is not observed, and
+    // the advice is to rotate.
+    let first = updates
+        .iter()
+        .map(|(_, u)| u)
+        .find(|u| u["parameters"]["lever_arm"]["std"].is_number())
+        .expect("an update that calibrated");
+    assert_eq!(first["done"], false, "{first}");
+    let a = advice(first);
+    assert!(
+        a.first().is_some_and(|a| a.starts_with("rotate about")),
+        "{first}"
+    );
+    // Then it says done, and stays done to the end.
+    let done_at = updates
+        .iter()
+        .position(|(_, u)| u["done"] == true)
+        .expect("an update that says done");
+    let first_at = updates.iter().position(|(_, u)| std::ptr::eq(u, first));
+    assert!(first_at.is_some_and(|f| f < done_at));
+    assert!(updates[done_at..].iter().all(|(_, u)| u["done"] == true));
+    assert!(advice(&updates[done_at].1).is_empty());
+    let last = &updates.last().expect("updates").1;
+    assert_eq!(last["counts"]["poses"], 601, "{last}");
+    // The end: the same result as calibrate on the finished folder.
+    let reference = tmp.path("calibrate.yaml");
+    dvlcal_ok(&["calibrate", s(&dir), "--out", s(&reference)]);
+    let (w, c) = (
+        read_calib_yaml(&out).expect("watch's result"),
+        read_calib_yaml(&reference).expect("calibrate's result"),
+    );
+    assert_eq!(w.t_cam_dvl, c.t_cam_dvl);
+    assert_eq!(w.time_offset_s, c.time_offset_s);
+    assert_eq!(w.velocity_scale, c.velocity_scale);
+    assert_eq!(format!("{:?}", w.std), format!("{:?}", c.std));
+    assert!(tmp.path("watch-tf.txt").exists());
+}
+
+/// A recording that barely rotates: never done, and it keeps asking for rotation.
+#[test]
+fn a_recording_that_barely_rotates_never_says_done() {
+    let tmp = TmpDir::new("watch-weak");
+    let src = tmp.path("recording");
+    simulate(&src, "weak-rotation");
+    let (dir, out) = (tmp.path("live"), tmp.path("watch.yaml"));
+    let (updates, _) = watch_while_fed(&src, &dir, &out);
+    assert!(updates.len() >= 3, "{} updates", updates.len());
+    assert!(updates.iter().all(|(_, u)| u["done"] == false));
+    let last = &updates.last().expect("updates").1;
+    assert!(
+        advice(last).iter().any(|a| a.starts_with("rotate about")),
+        "{last}"
+    );
+    assert_eq!(last["parameters"]["lever_arm"]["verdict"], "weak", "{last}");
+    assert!(out.exists());
+}
