@@ -398,12 +398,13 @@ fn the_program_is_thin_and_uses_the_public_interface() {
     }
     // The program parses arguments, calls the pipeline and prints: it was 2368 lines when it
     // still did the library's work. A new command adds its argument struct, not an estimator:
-    // about 100 lines per command (16 commands, `watch` the latest: its loop, the Ctrl-C flag
-    // and the standard output kept for its JSON while the final calibration prints), and a
+    // about 100 lines per command (16 commands, `watch` the latest: its loop, the Ctrl-C flag,
+    // its targets and the standard output kept for its JSON while the final calibration
+    // prints), and a
     // few per flag (`--clock-drift` the latest), and the flags given on the command line
     // handed to the library's checks of options a run would not use (`pipeline::unused`), with
     // the image-only bag options of `detect` and `calibrate-cameras`.
-    assert!(lines < 1975, "src/bin/dvlcal has {lines} lines");
+    assert!(lines < 1985, "src/bin/dvlcal has {lines} lines");
 }
 
 /// Every library file with its path relative to `src/` and its text.

@@ -205,3 +205,43 @@ fn a_recording_that_barely_rotates_never_says_done() {
     assert_eq!(last["parameters"]["lever_arm"]["verdict"], "weak", "{last}");
     assert!(out.exists());
 }
+
+/// `--target-std` sets the updates' targets: the barely rotating recording, already complete,
+/// is done against targets ten times looser than the verdict limits on the lever arm; targets
+/// that are not four positive numbers are refused, naming the option.
+#[test]
+fn targets_of_its_own_decide_done() {
+    let tmp = TmpDir::new("watch-targets");
+    let dir = tmp.path("recording");
+    simulate(&dir, "weak-rotation");
+    std::fs::remove_dir_all(dir.join("truth")).expect("truth");
+    let out = tmp.path("r.yaml");
+    let run = |targets: &str| {
+        Command::new(env!("CARGO_BIN_EXE_dvlcal"))
+            .args([
+                "watch",
+                s(&dir),
+                "--json",
+                "--interval",
+                "0.2",
+                "--until-idle",
+                "0.1",
+            ])
+            .args(["--target-std", targets, "--out", s(&out)])
+            .output()
+            .expect("run dvlcal watch")
+    };
+    let r = run("0.5,0.1,0.01,0.005");
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let text = String::from_utf8_lossy(&r.stdout);
+    let u: Value = serde_json::from_str(text.lines().next().expect("an update")).expect("JSON");
+    assert_eq!(u["done"], true, "{u}");
+    assert_eq!(u["parameters"]["lever_arm"]["target"], 0.1, "{u}");
+    let r = run("0.5,0.1");
+    assert!(!r.status.success());
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(
+        err.contains("--target-std") && err.contains("four positive numbers"),
+        "{err}"
+    );
+}

@@ -81,6 +81,29 @@ impl Default for WeakThresholds {
     }
 }
 
+impl WeakThresholds {
+    /// The limits from four values, rotation (deg), lever arm (m), clock offset (s) and velocity
+    /// scale, as `dvlcal watch --target-std` takes them; each must be a positive number.
+    pub fn from_values(v: &[f64], option: &'static str) -> crate::error::Result<WeakThresholds> {
+        match v {
+            [r, l, o, s] if v.iter().all(|x| x.is_finite() && *x > 0.0) => Ok(WeakThresholds {
+                rotation_deg: *r,
+                lever_arm_m: *l,
+                time_offset_s: *o,
+                velocity_scale: *s,
+            }),
+            _ => Err(crate::error::Error::option(
+                option,
+                format!(
+                    "takes four positive numbers, the std targets of the rotation (deg), lever \
+                     arm (m), clock offset (s) and velocity scale, as 0.5,0.01,0.01,0.005; got \
+                     {v:?}"
+                ),
+            )),
+        }
+    }
+}
+
 /// What a calibration must satisfy to be trusted; a result outside them is
 /// [`Status::Failed`].
 #[derive(Clone, Debug, PartialEq)]

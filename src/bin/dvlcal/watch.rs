@@ -6,6 +6,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
+use dvlcal::calib::options::WeakThresholds;
 use dvlcal::io::calib_yaml::read_calibration_guess;
 use dvlcal::pipeline::watch::{WatchOptions, Watcher};
 
@@ -25,6 +26,10 @@ pub struct WatchArgs {
     /// End as soon as every parameter meets its target.
     #[arg(long)]
     pub stop_when_done: bool,
+    /// The updates' std targets instead of the verdict limits: rotation (deg), lever arm (m),
+    /// clock offset (s), velocity scale (the final result keeps calibrate's limits).
+    #[arg(long, value_delimiter = ',', value_name = "DEG,M,S,SCALE")]
+    pub target_std: Option<Vec<f64>>,
     #[command(flatten)]
     pub calibrate: CalibrateArgs,
 }
@@ -61,13 +66,16 @@ pub fn run(a: WatchArgs) -> Result<()> {
     };
     let guess = c.init.as_deref().map(read_calibration_guess).transpose()?;
     let read = c.dvl_input.read_options(c.strict);
-    let opts = WatchOptions {
+    let mut opts = WatchOptions {
         calib: options(c.method, guess, c.estimate_offset, &c.estimator, c.biased)?,
         vision: c.vision.options(),
         overrides: c.files.overrides(&read),
         read,
         threads: c.vision.detect.threads,
     };
+    if let Some(v) = &a.target_std {
+        opts.calib.weak = WeakThresholds::from_values(v, "--target-std")?;
+    }
     let stop = Arc::new(AtomicBool::new(false));
     let flag = Arc::clone(&stop);
     ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst))
