@@ -245,3 +245,46 @@ fn targets_of_its_own_decide_done() {
         "{err}"
     );
 }
+
+/// Each image is detected once: with a [`DetectionCache`] the second solve of the same image
+/// files reads no image at all (the files are overwritten with bytes that do not decode, and
+/// the poses come out the same, to the bit), while a solve without it finds the images
+/// unreadable.
+#[test]
+fn images_are_detected_once_across_solves() {
+    use dvlcal::pipeline::{VisionOptions, poses_from_images};
+    use dvlcal::vision::detect::DetectionCache;
+    let tmp = TmpDir::new("watch-cache");
+    let src = Path::new("sample_data/stereo");
+    let dir = tmp.path("frames");
+    let mut names: Vec<_> = std::fs::read_dir(src.join("cam0"))
+        .expect("cam0")
+        .filter_map(|e| e.ok().map(|e| e.file_name()))
+        .collect();
+    names.sort();
+    names.truncate(20);
+    for cam in ["cam0", "cam1"] {
+        std::fs::create_dir_all(dir.join(cam)).expect("folder");
+        for n in &names {
+            std::fs::copy(src.join(cam).join(n), dir.join(cam).join(n)).expect("copy");
+        }
+    }
+    let (chain, target) = (src.join("camchain.yaml"), src.join("target.yaml"));
+    let cache = DetectionCache::default();
+    let opts = VisionOptions {
+        cache: Some(cache.clone()),
+        ..VisionOptions::default()
+    };
+    let first = poses_from_images(&dir, &chain, &target, &opts).expect("first solve");
+    assert_eq!(first.poses.len(), 20);
+    assert_eq!(cache.len(), 40);
+    for cam in ["cam0", "cam1"] {
+        for n in &names {
+            std::fs::write(dir.join(cam).join(n), b"not an image").expect("overwrite");
+        }
+    }
+    let again = poses_from_images(&dir, &chain, &target, &opts).expect("cached solve");
+    assert_eq!(format!("{:?}", again.poses), format!("{:?}", first.poses));
+    let fresh = poses_from_images(&dir, &chain, &target, &VisionOptions::default());
+    assert!(fresh.map_or(true, |r| r.poses.is_empty()));
+}

@@ -21,7 +21,7 @@ use crate::time::Epoch;
 use crate::types::PoseMeasurement;
 use crate::types::board::{Board, TagPrint};
 use crate::types::camera::Camchain;
-use crate::vision::detect::DetectorSettings;
+use crate::vision::detect::{DetectionCache, DetectorSettings};
 use crate::vision::focal::{FocalScale, focal_scales};
 use crate::vision::frames::{DetectStats, FrameResult, detect_source};
 use crate::vision::pnp::PnpOptions;
@@ -44,6 +44,9 @@ pub struct VisionOptions {
     pub pixel_sigma: Option<f64>,
     /// Show a progress bar on a terminal.
     pub progress: bool,
+    /// Detections of earlier runs over the same image files (`dvlcal watch`), used and added to
+    /// (`None`: every image is detected).
+    pub cache: Option<DetectionCache>,
 }
 
 impl Default for VisionOptions {
@@ -55,6 +58,7 @@ impl Default for VisionOptions {
             min_corners: 8,
             pixel_sigma: None,
             progress: false,
+            cache: None,
         }
     }
 }
@@ -290,6 +294,7 @@ pub fn detector_settings(board: &Board, opts: &VisionOptions) -> DetectorSetting
         threads: 1,
         board_ids: Some(board.tags.iter().map(|t| t.id).collect()),
         kalibr_print: board.print == TagPrint::Kalibr,
+        cache: opts.cache.clone(),
         ..DetectorSettings::default()
     }
 }

@@ -6,7 +6,8 @@
 //! The dataset folder is staged into a private folder on every update: a text file (a pose
 //! file, the DVL log, the IMU's CSV) up to its last complete line, so that a line a buffered
 //! writer has cut in two is left for the next update, and every other file (images, YAML) as a
-//! hard link (a copy where links are not possible). Files whose names start with `.` or end in
+//! hard link (a copy where links are not possible). Images are detected once: their detections
+//! are kept across updates ([`DetectionCache`]), so an update decodes only the new ones. Files whose names start with `.` or end in
 //! `.tmp` or `.part` are skipped: writers that rename their files into place write them under
 //! such names first.
 
@@ -27,6 +28,7 @@ use crate::error::{Error, Result};
 use crate::io::calib_yaml::Observability;
 use crate::io::dataset::DatasetOverrides;
 use crate::io::dvl::DvlReadOptions;
+use crate::vision::detect::DetectionCache;
 
 /// The extensions of the files staged up to their last complete line.
 const LINE_FILES: [&str; 6] = ["txt", "csv", "jsonl", "json", "log", "tum"];
@@ -102,6 +104,8 @@ pub struct Watcher {
     staging: PathBuf,
     last: Option<Vec<(PathBuf, u64, Option<SystemTime>)>>,
     updates: usize,
+    /// The images' detections, so that each image is detected once over all updates.
+    cache: DetectionCache,
 }
 
 fn skipped(name: &str) -> bool {
@@ -149,6 +153,7 @@ impl Watcher {
             staging,
             last: None,
             updates: 0,
+            cache: DetectionCache::default(),
         })
     }
 
@@ -234,8 +239,12 @@ impl Watcher {
             reason: None,
             update_s: 0.0,
         };
+        let vision = VisionOptions {
+            cache: Some(self.cache.clone()),
+            ..opts.vision.clone()
+        };
         let data = dataset_files_checked(Some(&self.staging), &opts.overrides)
-            .and_then(|files| Dataset::load(files, &opts.vision, &opts.read, &mut |_| {}));
+            .and_then(|files| Dataset::load(files, &vision, &opts.read, &mut |_| {}));
         let data = match data {
             Ok(d) => d,
             Err(e) => {

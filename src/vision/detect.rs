@@ -28,7 +28,10 @@
 //!   intersections of line fits (`vision::refine`): |bias| under 0.001 px and RMS 0.002 px
 //!   on the same tags. `tests/vision_detect.rs` and `tests/vision_render.rs` measure both.
 
+use std::collections::HashMap;
 use std::os::raw::c_int;
+use std::path::PathBuf;
+use std::sync::{Arc, Mutex};
 
 use apriltag_sys as sys;
 use nalgebra::Vector2;
@@ -42,6 +45,70 @@ use crate::vision::kalibr::{
     max_decimate, max3_decimate, quads, saddle_point, widen_border,
 };
 use crate::vision::refine::{quad_centre, refine_corners};
+
+/// Detections kept across runs over the same image files, for a folder solved again as it grows
+/// (`dvlcal watch`): per image file, camera and camera model, the tags found and the width of the
+/// image's sharpest edges. An image file must not change once written under its name (writers
+/// rename finished files into place). Clones share one store; two caches are equal when they
+/// are the same store.
+#[derive(Clone, Default)]
+pub struct DetectionCache(Arc<Mutex<CacheMap>>);
+
+type CacheKey = (PathBuf, usize, String);
+type CacheMap = HashMap<CacheKey, (Vec<TagDetection>, Option<f64>)>;
+
+impl DetectionCache {
+    /// The key of camera `cam`'s image `path` detected with `camera` (its model refines the
+    /// corners, so detections with another model are other entries).
+    fn key(path: &std::path::Path, cam: usize, camera: Option<&Camera>) -> CacheKey {
+        (path.to_path_buf(), cam, format!("{camera:?}"))
+    }
+
+    /// The detections kept for that image, if any.
+    pub fn get(
+        &self,
+        path: &std::path::Path,
+        cam: usize,
+        camera: Option<&Camera>,
+    ) -> Option<(Vec<TagDetection>, Option<f64>)> {
+        let map = self.0.lock().unwrap_or_else(|p| p.into_inner());
+        map.get(&Self::key(path, cam, camera)).cloned()
+    }
+
+    /// Keeps the detections of that image.
+    pub fn put(
+        &self,
+        path: &std::path::Path,
+        cam: usize,
+        camera: Option<&Camera>,
+        found: (Vec<TagDetection>, Option<f64>),
+    ) {
+        let mut map = self.0.lock().unwrap_or_else(|p| p.into_inner());
+        map.insert(Self::key(path, cam, camera), found);
+    }
+
+    /// How many images it holds.
+    pub fn len(&self) -> usize {
+        self.0.lock().unwrap_or_else(|p| p.into_inner()).len()
+    }
+
+    /// Whether it holds none.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+impl PartialEq for DetectionCache {
+    fn eq(&self, other: &Self) -> bool {
+        Arc::ptr_eq(&self.0, &other.0)
+    }
+}
+
+impl std::fmt::Debug for DetectionCache {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "DetectionCache({} images)", self.len())
+    }
+}
 
 /// Settings of the AprilTag detector. `Default` gives the library's defaults and at most one
 /// corrected bit.
@@ -86,6 +153,9 @@ pub struct DetectorSettings {
     /// the whole image only when that pass leaves ids of the board unfound (see
     /// `vision::kalibr`). Off by default: without it the order suits any board.
     pub kalibr_print: bool,
+    /// Detections of earlier runs over the same image files, used instead of decoding and
+    /// detecting again, and added to (`None`: every image is detected).
+    pub cache: Option<DetectionCache>,
 }
 
 impl Default for DetectorSettings {
@@ -102,6 +172,7 @@ impl Default for DetectorSettings {
             kalibr_layout: true,
             board_ids: None,
             kalibr_print: false,
+            cache: None,
         }
     }
 }

@@ -358,6 +358,18 @@ fn detect_images(
     let mut any = false;
     for (cam, name) in f.images.iter().enumerate() {
         let Some(name) = name else { continue };
+        let camera = cams.get(cam).copied().flatten();
+        let file = match name {
+            crate::io::images::ImageRef::File(p) => det.cache.as_ref().map(|c| (c, p)),
+            crate::io::images::ImageRef::Message { .. } => None,
+        };
+        if let Some((found, width)) = file.and_then(|(c, p)| c.get(p, cam, camera)) {
+            c.images += 1;
+            any = true;
+            widths[cam] = width;
+            dets[cam] = found;
+            continue;
+        }
         let Some(loaded) = load(cam) else { continue };
         let img = match loaded {
             Ok(i) => i,
@@ -391,7 +403,10 @@ fn detect_images(
         c.images += 1;
         any = true;
         widths[cam] = super::sharpness::edge_width_px(&img);
-        dets[cam] = detector.detect_with_camera(&img, cams.get(cam).copied().flatten());
+        dets[cam] = detector.detect_with_camera(&img, camera);
+        if let Some((cache, path)) = file {
+            cache.put(path, cam, camera, (dets[cam].clone(), widths[cam]));
+        }
     }
     (dets, any, widths)
 }

@@ -63,9 +63,7 @@ pub fn run(a: TagsArgs) -> Result<()> {
         refine_corners: !a.no_refine_corners,
         threads: dvlcal::parallel::capped_threads("--threads", a.threads).0,
         max_hamming: a.max_hamming,
-        kalibr_layout: true,
-        board_ids: None,
-        kalibr_print: false,
+        ..DetectorSettings::default()
     };
     let mut det = Detector::new(&settings)?;
     let stdout = std::io::stdout();
