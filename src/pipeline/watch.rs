@@ -247,15 +247,7 @@ impl Watcher {
             .and_then(|files| Dataset::load(files, &vision, &opts.read, &mut |_| {}));
         let data = match data {
             Ok(d) => d,
-            Err(e) => {
-                u.reason = Some(self.in_source_words(&e.to_string()));
-                u.advice.push(format!(
-                    "keep recording: the data so far cannot be calibrated ({})",
-                    u.reason.as_deref().unwrap_or_default()
-                ));
-                u.update_s = clock.elapsed().as_secs_f64();
-                return Ok(u);
-            }
+            Err(e) => return Ok(self.not_yet(u, &e, clock)),
         };
         u.counts.poses = data.poses.len();
         u.counts.dvl_reports = data.log.as_ref().map_or(0, |l| l.samples.len());
@@ -265,15 +257,7 @@ impl Watcher {
         };
         let run = match calibrate_dataset(&data, &opts.calib, opts.threads) {
             Ok(r) => r,
-            Err(e) => {
-                u.reason = Some(self.in_source_words(&e.to_string()));
-                u.advice.push(format!(
-                    "keep recording: the data so far cannot be calibrated ({})",
-                    u.reason.as_deref().unwrap_or_default()
-                ));
-                u.update_s = clock.elapsed().as_secs_f64();
-                return Ok(u);
-            }
+            Err(e) => return Ok(self.not_yet(u, &e, clock)),
         };
         let o = &run.outcome;
         u.counts.dvl_used = o.counts.dvl_used;
@@ -340,6 +324,18 @@ impl Watcher {
         }
         u.update_s = clock.elapsed().as_secs_f64();
         Ok(u)
+    }
+
+    /// `u` for data that cannot be calibrated yet: the reason `e` (in the source folder's
+    /// paths) and the advice to keep recording.
+    fn not_yet(&self, mut u: WatchUpdate, e: &Error, clock: Instant) -> WatchUpdate {
+        let reason = self.in_source_words(&e.to_string());
+        u.advice.push(format!(
+            "keep recording: the data so far cannot be calibrated ({reason})"
+        ));
+        u.reason = Some(reason);
+        u.update_s = clock.elapsed().as_secs_f64();
+        u
     }
 
     /// `text` with the staging folder's paths written as the source folder's.
