@@ -56,9 +56,9 @@ pub struct ParameterState {
     pub std: Option<f64>,
     /// The target it must meet (the verdict's limit).
     pub target: f64,
-    /// `ok`, `weak`, `prior` or `fixed`, as the result file says; `none` before the first
-    /// calibration.
-    pub verdict: String,
+    /// `ok`, `weak`, `prior` or `fixed`, as the result file's `observability` says; `null`
+    /// before the first calibration.
+    pub verdict: Option<Observability>,
 }
 
 /// The counts of data an update used.
@@ -229,7 +229,7 @@ impl Watcher {
                         ParameterState {
                             std: None,
                             target,
-                            verdict: "none".into(),
+                            verdict: None,
                         },
                     )
                 })
@@ -270,18 +270,12 @@ impl Watcher {
             &o.verdicts.velocity_scale,
         ];
         for (((name, _), g), v) in targets.iter().zip(groups).zip(verdicts) {
-            let verdict = match state(v) {
-                Observability::Ok => "ok",
-                Observability::Weak => "weak",
-                Observability::Prior => "prior",
-                Observability::Fixed => "fixed",
-            };
             u.parameters.insert(
                 name,
                 ParameterState {
                     std: Some(g.std),
                     target: g.target,
-                    verdict: verdict.into(),
+                    verdict: Some(state(v)),
                 },
             );
         }
@@ -407,7 +401,7 @@ impl WatchUpdate {
                 "#".repeat(filled),
                 ".".repeat(20 - filled),
                 p.target * scale,
-                p.verdict
+                p.verdict.map_or("-", Observability::words)
             );
         }
         for a in &self.advice {
