@@ -112,7 +112,7 @@ fn skipped(name: &str) -> bool {
     name.starts_with('.') || name.ends_with(".tmp") || name.ends_with(".part")
 }
 
-/// The files under `dir` (recursively, skipped names left out), sorted.
+/// The files under `dir` (recursively, skipped names left out), in no particular order.
 fn files_under(dir: &Path, out: &mut Vec<PathBuf>) -> Result<()> {
     let entries = std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?;
     for entry in entries {
@@ -128,7 +128,6 @@ fn files_under(dir: &Path, out: &mut Vec<PathBuf>) -> Result<()> {
             out.push(path);
         }
     }
-    out.sort();
     Ok(())
 }
 
@@ -161,6 +160,7 @@ impl Watcher {
     pub fn changed(&mut self) -> Result<bool> {
         let mut files = Vec::new();
         files_under(&self.source, &mut files)?;
+        files.sort();
         let sig: Vec<_> = files
             .into_iter()
             .map(|p| {
@@ -175,15 +175,14 @@ impl Watcher {
         Ok(changed)
     }
 
-    /// Copies the records complete so far into the staging folder (emptied first).
+    /// Copies the records complete so far of the files [`Watcher::changed`] last listed into
+    /// the staging folder (emptied first).
     fn stage(&self) -> Result<()> {
         if self.staging.exists() {
             std::fs::remove_dir_all(&self.staging).map_err(|e| Error::io(&self.staging, e))?;
         }
-        let mut files = Vec::new();
-        files_under(&self.source, &mut files)?;
-        for src in files {
-            let rel = src.strip_prefix(&self.source).unwrap_or(&src);
+        for (src, _, _) in self.last.iter().flatten() {
+            let rel = src.strip_prefix(&self.source).unwrap_or(src);
             let dst = self.staging.join(rel);
             if let Some(dir) = dst.parent() {
                 std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
@@ -193,17 +192,17 @@ impl Watcher {
                 .and_then(|e| e.to_str())
                 .is_some_and(|e| LINE_FILES.contains(&e.to_ascii_lowercase().as_str()));
             if by_line {
-                let bytes = std::fs::read(&src).map_err(|e| Error::io(&src, e))?;
+                let bytes = std::fs::read(src).map_err(|e| Error::io(src, e))?;
                 let end = bytes.iter().rposition(|&b| b == b'\n').map_or(0, |i| i + 1);
                 std::fs::write(&dst, &bytes[..end]).map_err(|e| Error::io(&dst, e))?;
-            } else if std::fs::hard_link(&src, &dst).is_err() {
-                std::fs::copy(&src, &dst).map_err(|e| Error::io(&src, e))?;
+            } else if std::fs::hard_link(src, &dst).is_err() {
+                std::fs::copy(src, &dst).map_err(|e| Error::io(src, e))?;
             }
         }
         Ok(())
     }
 
-    /// Stages what the folder holds now and calibrates it; a recording too short to calibrate
+    /// Stages what the folder held at the last [`Watcher::changed`] and calibrates it; a recording too short to calibrate
     /// gives an update with status `not yet` and the reason (never an error: the data may
     /// still come). An error is returned only when the folder cannot be read or staged.
     pub fn update(&mut self, opts: &WatchOptions) -> Result<WatchUpdate> {
