@@ -11,7 +11,7 @@ use nalgebra::Vector3;
 
 use super::calibration::{OutputOptions, ResultPaths, flag, prepare_outputs, sibling};
 use super::dataset::Dataset;
-use super::exports::state;
+use super::exports::notes_of;
 use crate::calib::diagnostics::verdict_by_std;
 use crate::calib::imu::ImuOptions;
 use crate::calib::imu::dvl::{DvlImuEstimate, calibrate_dvl_imu};
@@ -23,7 +23,7 @@ use crate::io::calib_yaml::{
     rows,
 };
 use crate::io::dvl_imu_result::{DvlImuResultFile, write_dvl_imu_result_yaml};
-use crate::io::exports::{Export, ExportNotes, FrameNames, ros_static_transform, urdf_robot};
+use crate::io::exports::{Export, FrameNames, ros_static_transform, urdf_robot};
 use crate::io::write_atomic;
 
 /// The mode in words, as the summary and the result's notes state it.
@@ -296,14 +296,10 @@ pub fn write_dvl_imu_results(
         return Ok(paths);
     }
     let v = &run.verdicts;
-    let note = |v: &Verdict| ExportNotes::note(state(v), &v.reason);
-    let notes = ExportNotes {
-        failed: (!run.ok()).then(|| run.file.failure.clone()),
-        rotation: note(&v[0]),
-        lever_arm: note(&v[1]),
-        time_offset: note(&v[2]),
-        velocity_scale: note(&v[3]),
-    };
+    let notes = notes_of(
+        [&v[0], &v[1], &v[2], &v[3]],
+        (!run.ok()).then(|| run.file.failure.clone()),
+    );
     let export = Export::dvl_in_imu(&run.estimate.params, &names, &notes);
     write_atomic(&tf, ros_static_transform(&export).as_bytes())?;
     write_atomic(&urdf, urdf_robot(&export).as_bytes())?;

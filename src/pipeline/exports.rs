@@ -20,15 +20,25 @@ pub(super) fn state(v: &Verdict) -> Observability {
 /// not determine well, with the verdict's reason, and the failure's reasons when it failed.
 pub(crate) fn export_notes(outcome: &CalibrationOutcome) -> ExportNotes {
     let v = &outcome.verdicts;
+    let failed = match &outcome.status {
+        Status::Ok => None,
+        Status::Failed(reasons) => Some(reasons.clone()),
+    };
+    notes_of(
+        [&v.rotation, &v.lever_arm, &v.time_offset, &v.velocity_scale],
+        failed,
+    )
+}
+
+/// The notes of the verdicts on the rotation, lever arm, clock offset and scale (in that
+/// order), and of a failure's reasons.
+pub(super) fn notes_of(v: [&Verdict; 4], failed: Option<Vec<String>>) -> ExportNotes {
     let note = |v: &Verdict| ExportNotes::note(state(v), &v.reason);
     ExportNotes {
-        failed: match &outcome.status {
-            Status::Ok => None,
-            Status::Failed(reasons) => Some(reasons.clone()),
-        },
-        rotation: note(&v.rotation),
-        lever_arm: note(&v.lever_arm),
-        time_offset: note(&v.time_offset),
-        velocity_scale: note(&v.velocity_scale),
+        failed,
+        rotation: note(v[0]),
+        lever_arm: note(v[1]),
+        time_offset: note(v[2]),
+        velocity_scale: note(v[3]),
     }
 }
