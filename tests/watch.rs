@@ -288,3 +288,119 @@ fn images_are_detected_once_across_solves() {
     let fresh = poses_from_images(&dir, &chain, &target, &VisionOptions::default());
     assert!(fresh.map_or(true, |r| r.poses.is_empty()));
 }
+
+/// Seconds of a stretch in [`a_long_recording_is_calibrated_in_stretches`].
+const STRETCH: f64 = 40.0;
+
+/// The value of `key` in a result file's `std` section (the largest of a vector's entries).
+fn result_std(v: &serde_yaml::Value, key: &str) -> f64 {
+    let x = &v["std"][key];
+    match x.as_sequence() {
+        Some(s) => s.iter().filter_map(|e| e.as_f64()).fold(0.0, f64::max),
+        None => x.as_f64().expect("std"),
+    }
+}
+
+/// A recording longer than two stretches is calibrated in stretches, each closed stretch once,
+/// and their results combined: the combined std and estimate are those of `calibrate` on the
+/// whole recording (to a tenth of a std), and a later update calibrates only the open stretch.
+#[test]
+fn a_long_recording_is_calibrated_in_stretches() {
+    use dvlcal::pipeline::watch::{WatchOptions, Watcher};
+    let tmp = TmpDir::new("watch-stretches");
+    let dir = tmp.path("rec");
+    dvlcal_ok(&[
+        "simulate",
+        "--duration",
+        "200",
+        "--seed",
+        "5",
+        "--time-offset",
+        "0.25",
+        "--out",
+        s(&dir),
+    ]);
+    let truth = tmp.path("truth");
+    std::fs::rename(dir.join("truth"), &truth).expect("truth out of the folder");
+    let opts = WatchOptions {
+        stretch_s: Some(STRETCH),
+        threads: Some(2),
+        ..WatchOptions::default()
+    };
+    let mut w = Watcher::new(&dir).expect("watcher");
+    assert!(w.changed().expect("listing"));
+    let first = w.update(&opts).expect("update");
+    assert_eq!(first.status, "ok", "{:?}", first.reason);
+    // (200 - 2) / 40: three closed stretches and the open one, solved at the first update.
+    assert_eq!(first.counts.stretches, 4);
+    assert_eq!(first.counts.stretches_failed, 0);
+    assert!(
+        (first.counts.solved_s - 200.0).abs() < 0.2,
+        "{:?}",
+        first.counts
+    );
+    let result = tmp.path("whole.yaml");
+    dvlcal_ok(&["calibrate", s(&dir), "--out", s(&result)]);
+    let whole: serde_yaml::Value =
+        serde_yaml::from_str(&std::fs::read_to_string(&result).expect("result")).expect("yaml");
+    let est = first.estimate.as_ref().expect("estimate");
+    let p = &first.parameters;
+    for (name, key) in [
+        ("rotation", "rotation_deg"),
+        ("lever_arm", "lever_arm_m"),
+        ("time_offset", "time_offset_s"),
+        ("velocity_scale", "velocity_scale"),
+    ] {
+        let (combined, one) = (p[name].std.expect("std"), result_std(&whole, key));
+        assert!(
+            (combined / one - 1.0).abs() < 0.15,
+            "{name}: std {combined} combined, {one} whole"
+        );
+    }
+    let num = |v: &serde_yaml::Value| v.as_f64().expect("number");
+    let lever_std = result_std(&whole, "lever_arm_m");
+    for k in 0..3 {
+        let d = est.lever_arm_cam_m[k] - num(&whole["lever_arm_cam_m"][k]);
+        assert!(d.abs() < lever_std, "lever arm {k}: {d} m apart");
+    }
+    let d_offset = est.time_offset_s - num(&whole["time_offset_s"]);
+    assert!(
+        d_offset.abs() < result_std(&whole, "time_offset_s"),
+        "{d_offset} s"
+    );
+    assert!((est.time_offset_s - 0.25).abs() < 4.0 * result_std(&whole, "time_offset_s"));
+    let d_scale = est.velocity_scale - num(&whole["velocity_scale"]);
+    assert!(
+        d_scale.abs() < result_std(&whole, "velocity_scale"),
+        "{d_scale}"
+    );
+    let q: Vec<f64> = (0..4)
+        .map(|k| num(&whole["quaternion_cam_dvl_xyzw"][k]))
+        .collect();
+    let dot: f64 = (0..4).map(|k| q[k] * est.quaternion_cam_dvl_xyzw[k]).sum();
+    let angle_deg = 2.0 * dot.abs().min(1.0).acos().to_degrees();
+    assert!(
+        angle_deg < result_std(&whole, "rotation_deg"),
+        "{angle_deg} deg apart"
+    );
+    // A later update calibrates the open stretch alone and reuses the closed ones.
+    let poses = dir.join("poses.txt");
+    let text = std::fs::read(&poses).expect("poses");
+    std::thread::sleep(Duration::from_millis(20));
+    std::fs::write(&poses, text).expect("rewrite");
+    assert!(w.changed().expect("listing"));
+    let second = w.update(&opts).expect("update");
+    assert!(
+        second.counts.solved_s <= 2.0 * STRETCH + 2.5,
+        "{:?}",
+        second.counts
+    );
+    assert_eq!(second.counts.stretches, 4);
+    for (name, state) in &second.parameters {
+        let (a, b) = (
+            state.std.expect("std"),
+            first.parameters[name].std.expect("std"),
+        );
+        assert!((a / b - 1.0).abs() < 1e-9, "{name}: {a} then {b}");
+    }
+}

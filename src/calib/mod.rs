@@ -28,6 +28,7 @@ pub mod clock_drift;
 pub mod closed_form;
 pub mod cosensor;
 pub mod diagnostics;
+pub mod fusion;
 pub mod given;
 pub mod halves;
 pub mod imu;

@@ -17,17 +17,23 @@ use std::time::{Instant, SystemTime};
 
 use serde::Serialize;
 
+use nalgebra::Vector3;
+
 use super::calibration::calibrate_dataset;
 use super::dataset::{Dataset, dataset_files_checked};
 use super::exports::state;
 use super::vision::VisionOptions;
 use crate::calib::CalibOptions;
 use crate::calib::advice::{Recording, advise, group_std};
-use crate::calib::outcome::Verdict;
+use crate::calib::fusion::{StretchEstimate, fuse};
+use crate::calib::outcome::{CalibrationOutcome, Status};
+use crate::calib::segments::calibrate_segments;
+use crate::calib::update::ParamMat;
 use crate::error::{Error, Result};
 use crate::io::calib_yaml::Observability;
 use crate::io::dataset::DatasetOverrides;
 use crate::io::dvl::DvlReadOptions;
+use crate::types::CalibrationParams;
 use crate::vision::detect::DetectionCache;
 
 /// The extensions of the files staged up to their last complete line.
@@ -46,7 +52,22 @@ pub struct WatchOptions {
     pub overrides: DatasetOverrides,
     /// Worker threads (`None`: all cores).
     pub threads: Option<usize>,
+    /// The length of the stretches a long recording is calibrated in, seconds (`None`:
+    /// [`STRETCH_S`]).
+    pub stretch_s: Option<f64>,
 }
+
+/// The default length of a stretch, seconds: an update calibrates the last one or two
+/// stretches, whatever the recording's length, and adds the earlier ones' results.
+pub const STRETCH_S: f64 = 60.0;
+
+/// Seconds of camera data past a stretch's end before the stretch is closed (its DVL reports
+/// may follow the poses by a clock offset and the writer's buffering).
+const CLOSE_AFTER_S: f64 = 2.0;
+
+/// Seconds of DVL reports taken beyond each end of a stretch (the calibration keeps those that
+/// fall inside the camera's span).
+const REPORTS_BEYOND_S: f64 = 1.0;
 
 /// One parameter group's state in an update.
 #[derive(Clone, Debug, Serialize, PartialEq)]
@@ -74,6 +95,39 @@ pub struct WatchCounts {
     pub dvl_without_pose: usize,
     /// Seconds of camera data.
     pub span_s: f64,
+    /// Stretches of the recording whose calibrations were combined (1: the recording was
+    /// calibrated whole).
+    pub stretches: usize,
+    /// Stretches left out because their calibration failed or could not be made.
+    pub stretches_failed: usize,
+    /// Seconds of camera data this update calibrated (the rest had been calibrated by earlier
+    /// updates).
+    pub solved_s: f64,
+}
+
+/// The estimate so far, in the result file's keys.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct WatchEstimate {
+    /// The rotation of `T_cam_dvl`, `[x, y, z, w]`.
+    pub quaternion_cam_dvl_xyzw: [f64; 4],
+    /// The DVL origin in camera coordinates, metres.
+    pub lever_arm_cam_m: [f64; 3],
+    /// `t_cam = t_dvl + time_offset_s`.
+    pub time_offset_s: f64,
+    /// The DVL's velocity scale.
+    pub velocity_scale: f64,
+}
+
+impl WatchEstimate {
+    fn of(p: &CalibrationParams) -> WatchEstimate {
+        let t = &p.t_cam_dvl;
+        WatchEstimate {
+            quaternion_cam_dvl_xyzw: t.quaternion_xyzw(),
+            lever_arm_cam_m: [t.trans.x, t.trans.y, t.trans.z],
+            time_offset_s: p.time_offset_s,
+            velocity_scale: p.velocity_scale,
+        }
+    }
 }
 
 /// What one update found: the JSON object `dvlcal watch --json` prints per update.
@@ -85,6 +139,8 @@ pub struct WatchUpdate {
     pub done: bool,
     /// What to do next, most useful first; empty when done.
     pub advice: Vec<String>,
+    /// The estimate so far (`null` before the first calibration).
+    pub estimate: Option<WatchEstimate>,
     /// `rotation` (deg), `lever_arm` (m), `time_offset` (s), `velocity_scale`.
     pub parameters: BTreeMap<&'static str, ParameterState>,
     /// The data used.
@@ -103,7 +159,13 @@ pub struct Watcher {
     source: PathBuf,
     staging: PathBuf,
     last: Option<Vec<(PathBuf, u64, Option<SystemTime>)>>,
+    /// The size and time each staged file had when it was staged.
+    staged: BTreeMap<PathBuf, (u64, Option<SystemTime>)>,
     updates: usize,
+    /// The closed stretches' calibrations, by index (each solved once).
+    stretches: BTreeMap<usize, StretchRun>,
+    /// The clock offset of the last update, to pick a stretch's DVL reports by.
+    offset_guess: f64,
     /// The images' detections, so that each image is detected once over all updates.
     cache: DetectionCache,
 }
@@ -151,7 +213,10 @@ impl Watcher {
             source: source.to_path_buf(),
             staging,
             last: None,
+            staged: BTreeMap::new(),
             updates: 0,
+            stretches: BTreeMap::new(),
+            offset_guess: 0.0,
             cache: DetectionCache::default(),
         })
     }
@@ -175,15 +240,32 @@ impl Watcher {
         Ok(changed)
     }
 
-    /// Copies the records complete so far of the files [`Watcher::changed`] last listed into
-    /// the staging folder (emptied first).
-    fn stage(&self) -> Result<()> {
-        if self.staging.exists() {
-            std::fs::remove_dir_all(&self.staging).map_err(|e| Error::io(&self.staging, e))?;
+    /// Brings the staging folder up to the files [`Watcher::changed`] last listed: a file new
+    /// or changed since it was staged is staged again (a text file up to its last complete
+    /// line, any other as a hard link), a file gone from the folder is removed.
+    fn stage(&mut self) -> Result<()> {
+        let listed: BTreeMap<&PathBuf, (u64, Option<SystemTime>)> = self
+            .last
+            .iter()
+            .flatten()
+            .map(|(p, len, time)| (p, (*len, *time)))
+            .collect();
+        let gone: Vec<PathBuf> = self
+            .staged
+            .keys()
+            .filter(|p| !listed.contains_key(p))
+            .cloned()
+            .collect();
+        for src in gone {
+            self.staged.remove(&src);
+            let dst = self.staging_path(&src);
+            std::fs::remove_file(&dst).map_err(|e| Error::io(&dst, e))?;
         }
-        for (src, _, _) in self.last.iter().flatten() {
-            let rel = src.strip_prefix(&self.source).unwrap_or(src);
-            let dst = self.staging.join(rel);
+        for (src, sig) in listed {
+            if self.staged.get(src) == Some(&sig) {
+                continue;
+            }
+            let dst = self.staging_path(src);
             if let Some(dir) = dst.parent() {
                 std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
             }
@@ -195,11 +277,23 @@ impl Watcher {
                 let bytes = std::fs::read(src).map_err(|e| Error::io(src, e))?;
                 let end = bytes.iter().rposition(|&b| b == b'\n').map_or(0, |i| i + 1);
                 std::fs::write(&dst, &bytes[..end]).map_err(|e| Error::io(&dst, e))?;
-            } else if std::fs::hard_link(src, &dst).is_err() {
-                std::fs::copy(src, &dst).map_err(|e| Error::io(src, e))?;
+            } else {
+                if dst.exists() {
+                    std::fs::remove_file(&dst).map_err(|e| Error::io(&dst, e))?;
+                }
+                if std::fs::hard_link(src, &dst).is_err() {
+                    std::fs::copy(src, &dst).map_err(|e| Error::io(src, e))?;
+                }
             }
+            self.staged.insert(src.clone(), sig);
         }
         Ok(())
+    }
+
+    /// Where the folder's file `src` is staged.
+    fn staging_path(&self, src: &Path) -> PathBuf {
+        self.staging
+            .join(src.strip_prefix(&self.source).unwrap_or(src))
     }
 
     /// Stages what the folder held at the last [`Watcher::changed`] and calibrates it; a recording too short to calibrate
@@ -220,6 +314,7 @@ impl Watcher {
             update: self.updates,
             done: false,
             advice: Vec::new(),
+            estimate: None,
             parameters: targets
                 .iter()
                 .map(|&(name, target)| {
@@ -254,48 +349,67 @@ impl Watcher {
             (Some(a), Some(b)) => b.t - a.t,
             _ => 0.0,
         };
-        let run = match calibrate_dataset(&data, &opts.calib, opts.threads) {
-            Ok(r) => r,
+        let solved = match self.stretches(&data, opts) {
+            Some(stretches) => self.solve_stretches(&data, opts, &stretches),
+            None => calibrate_dataset(&data, &opts.calib, opts.threads).map(|run| {
+                let o = run.outcome;
+                Solved {
+                    params: o.params,
+                    covariance: o.covariance,
+                    verdicts: states(&o),
+                    dvl_used: o.counts.dvl_used,
+                    dvl_samples: o.counts.dvl_samples,
+                    dvl_in_pose_gaps: o.counts.dvl_in_pose_gaps,
+                    residual_rms: o.residual_rms,
+                    failed: match &o.status {
+                        Status::Failed(reasons) => Some(reasons.join("; ")),
+                        Status::Ok => None,
+                    },
+                    stretches: 1,
+                    stretches_failed: 0,
+                    solved_s: u.counts.span_s,
+                }
+            }),
+        };
+        let s = match solved {
+            Ok(s) => s,
             Err(e) => return Ok(self.not_yet(u, &e, clock)),
         };
-        let o = &run.outcome;
-        u.counts.dvl_used = o.counts.dvl_used;
-        u.counts.dvl_without_pose = o.counts.dvl_in_pose_gaps;
-        let groups = group_std(&o.covariance, limits);
-        let verdicts: [&Verdict; 4] = [
-            &o.verdicts.rotation,
-            &o.verdicts.lever_arm,
-            &o.verdicts.time_offset,
-            &o.verdicts.velocity_scale,
-        ];
-        for (((name, _), g), v) in targets.iter().zip(groups).zip(verdicts) {
+        self.offset_guess = s.params.time_offset_s;
+        u.estimate = Some(WatchEstimate::of(&s.params));
+        u.counts.dvl_used = s.dvl_used;
+        u.counts.dvl_without_pose = s.dvl_in_pose_gaps;
+        u.counts.stretches = s.stretches;
+        u.counts.stretches_failed = s.stretches_failed;
+        u.counts.solved_s = s.solved_s;
+        let groups = group_std(&s.covariance, limits);
+        let mut all_ok = true;
+        for (((name, _), g), verdict) in targets.iter().zip(groups).zip(s.verdicts) {
+            all_ok &= matches!(verdict, Observability::Ok | Observability::Fixed);
             u.parameters.insert(
                 name,
                 ParameterState {
                     std: Some(g.std),
                     target: g.target,
-                    verdict: Some(state(v)),
+                    verdict: Some(verdict),
                 },
             );
         }
-        let failed = !o.status.is_ok();
+        let failed = s.failed.is_some();
         u.status = if failed { "failed" } else { "ok" }.into();
-        if let crate::calib::outcome::Status::Failed(reasons) = &o.status {
-            u.reason = Some(reasons.join("; "));
-        }
-        let all_ok = verdicts.iter().all(|v| v.ok);
+        u.reason = s.failed;
         u.done = all_ok && !failed;
         if !u.done {
             let rec = Recording {
                 dvl_rate_hz: if u.counts.span_s > 0.0 {
-                    o.counts.dvl_used as f64 / u.counts.span_s
+                    s.dvl_used as f64 / u.counts.span_s
                 } else {
                     1.0
                 },
-                dvl_sigma: (o.residual_rms.norm() / 3f64.sqrt()).max(1e-3),
+                dvl_sigma: (s.residual_rms.norm() / 3f64.sqrt()).max(1e-3),
                 speed_mps: rms_speed(&data),
             };
-            u.advice = advise(&o.params, &o.covariance, limits, &rec)
+            u.advice = advise(&s.params, &s.covariance, limits, &rec)
                 .iter()
                 .map(|a| a.sentence())
                 .collect();
@@ -306,8 +420,8 @@ impl Watcher {
                 ));
             }
         }
-        let dvl = o.counts.dvl_samples.max(1) as f64;
-        let blind = o.counts.dvl_in_pose_gaps as f64 / dvl;
+        let dvl = s.dvl_samples.max(1) as f64;
+        let blind = s.dvl_in_pose_gaps as f64 / dvl;
         if blind > 0.2 {
             u.advice.push(format!(
                 "the camera had no pose for {:.0} % of the DVL's reports (the board out of \
@@ -337,6 +451,223 @@ impl Watcher {
             &self.staging.display().to_string(),
             &self.source.display().to_string(),
         )
+    }
+}
+
+/// What an update's calibration gave: the estimate (of the whole recording, or its stretches
+/// combined), the verdicts and the counts.
+struct Solved {
+    params: CalibrationParams,
+    covariance: ParamMat,
+    /// Rotation, lever arm, clock offset, velocity scale.
+    verdicts: [Observability; 4],
+    dvl_used: usize,
+    dvl_samples: usize,
+    dvl_in_pose_gaps: usize,
+    residual_rms: Vector3<f64>,
+    /// Why the calibration failed, when it did.
+    failed: Option<String>,
+    stretches: usize,
+    stretches_failed: usize,
+    solved_s: f64,
+}
+
+/// One stretch's calibration (kept across updates once the stretch is closed).
+#[derive(Clone, Debug)]
+struct StretchRun {
+    /// The estimate, when the calibration succeeded and passed its checks.
+    estimate: Option<StretchEstimate>,
+    verdicts: [Observability; 4],
+    dvl_used: usize,
+    dvl_samples: usize,
+    dvl_in_pose_gaps: usize,
+    residual_rms: Vector3<f64>,
+    /// Why it failed, when it did.
+    failed: Option<String>,
+}
+
+/// The verdicts of `o` as the result file states them.
+fn states(o: &CalibrationOutcome) -> [Observability; 4] {
+    [
+        state(&o.verdicts.rotation),
+        state(&o.verdicts.lever_arm),
+        state(&o.verdicts.time_offset),
+        state(&o.verdicts.velocity_scale),
+    ]
+}
+
+impl StretchRun {
+    fn of(run: Result<CalibrationOutcome>) -> StretchRun {
+        match run {
+            Ok(o) => {
+                let failed = match &o.status {
+                    Status::Failed(reasons) => Some(reasons.join("; ")),
+                    Status::Ok => None,
+                };
+                StretchRun {
+                    estimate: failed.is_none().then_some(StretchEstimate {
+                        params: o.params,
+                        covariance: o.covariance,
+                        priors: o.priors,
+                    }),
+                    verdicts: states(&o),
+                    dvl_used: o.counts.dvl_used,
+                    dvl_samples: o.counts.dvl_samples,
+                    dvl_in_pose_gaps: o.counts.dvl_in_pose_gaps,
+                    residual_rms: o.residual_rms,
+                    failed,
+                }
+            }
+            Err(e) => StretchRun {
+                estimate: None,
+                verdicts: [Observability::Weak; 4],
+                dvl_used: 0,
+                dvl_samples: 0,
+                dvl_in_pose_gaps: 0,
+                residual_rms: Vector3::zeros(),
+                failed: Some(e.to_string()),
+            },
+        }
+    }
+}
+
+/// The closed stretches `[start, end]` (seconds on the camera clock) and the open one, when
+/// `data` is long enough to be calibrated in stretches (two stretches and the closing margin)
+/// and has one clock on each side; `None` when it is to be calibrated whole.
+type Stretches = (Vec<(f64, f64)>, (f64, f64));
+
+impl Watcher {
+    fn stretches(&self, data: &Dataset, opts: &WatchOptions) -> Option<Stretches> {
+        let len = opts.stretch_s.unwrap_or(STRETCH_S);
+        let one_clock = data.camera_segments.len() <= 1
+            && data
+                .log
+                .as_ref()
+                .is_some_and(|l| l.clock_segments.len() == 1)
+            && !opts.calib.clock_drift;
+        let (first, last) = (data.poses.first()?.t, data.poses.last()?.t);
+        let n = ((last - first - CLOSE_AFTER_S) / len).floor();
+        if !(one_clock && len.is_finite() && len > 0.0 && n >= 2.0) {
+            return None;
+        }
+        let n = n as usize;
+        let closed = (0..n - 1)
+            .map(|j| (first + j as f64 * len, first + (j + 1) as f64 * len))
+            .collect();
+        Some((closed, (first + (n - 1) as f64 * len, last)))
+    }
+
+    /// Calibrates the stretch `[a, b]` of `data`: its poses, and the DVL reports whose time
+    /// on the camera clock (by the last offset found) is within [`REPORTS_BEYOND_S`] of it.
+    fn solve_stretch(&self, data: &Dataset, opts: &WatchOptions, (a, b): (f64, f64)) -> StretchRun {
+        let run = data.dvl().and_then(|log| {
+            let poses: Vec<_> = data
+                .poses
+                .iter()
+                .filter(|p| p.t >= a && p.t <= b)
+                .cloned()
+                .collect();
+            let guess = self.offset_guess;
+            let samples: Vec<_> = log
+                .samples
+                .iter()
+                .filter(|s| (a - REPORTS_BEYOND_S..=b + REPORTS_BEYOND_S).contains(&(s.t + guess)))
+                .cloned()
+                .collect();
+            let first = data.poses.first().map_or(a, |p| p.t);
+            let name = format!(
+                "{} from {:.0} s to {:.0} s",
+                log.stats.path.display(),
+                a - first,
+                b - first
+            );
+            let pool = crate::parallel::worker_pool(opts.threads)?;
+            pool.install(|| calibrate_segments(&poses, &[&samples], &[name], &opts.calib))
+                .map(|(o, _)| o)
+        });
+        StretchRun::of(run)
+    }
+
+    /// Calibrates the open stretch (and the closed ones not calibrated yet) and combines them
+    /// ([`crate::calib::fusion`]).
+    fn solve_stretches(
+        &mut self,
+        data: &Dataset,
+        opts: &WatchOptions,
+        (closed, open): &Stretches,
+    ) -> Result<Solved> {
+        let mut solved_s = 0.0;
+        for (j, &span) in closed.iter().enumerate() {
+            if !self.stretches.contains_key(&j) {
+                let run = self.solve_stretch(data, opts, span);
+                self.stretches.insert(j, run);
+                solved_s += span.1 - span.0;
+            }
+        }
+        let latest = self.solve_stretch(data, opts, *open);
+        solved_s += open.1 - open.0;
+        let runs: Vec<&StretchRun> = self
+            .stretches
+            .range(..closed.len())
+            .map(|(_, r)| r)
+            .chain([&latest])
+            .collect();
+        let estimates: Vec<StretchEstimate> =
+            runs.iter().filter_map(|r| r.estimate.clone()).collect();
+        let Some(reference) = estimates.last() else {
+            return Err(Error::Input(format!(
+                "no stretch of the recording could be calibrated; the latest: {}",
+                latest.failed.as_deref().unwrap_or("?")
+            )));
+        };
+        let base = crate::calib::prior::Priors {
+            held_lever_axes: None,
+            ..reference.priors
+        };
+        let fused = fuse(&estimates, reference, &base);
+        let ok: Vec<&&StretchRun> = runs.iter().filter(|r| r.estimate.is_some()).collect();
+        let (params, covariance) = match &fused {
+            Some(f) => (f.params, f.covariance),
+            None => (reference.params, reference.covariance),
+        };
+        let limits = &opts.calib.weak;
+        let groups = group_std(&covariance, limits);
+        let reference_run = ok.last().map_or(&latest, |r| **r);
+        let verdicts = std::array::from_fn(|k| {
+            let held = reference_run.verdicts[k] == Observability::Fixed;
+            let by_prior = ok.iter().all(|r| r.verdicts[k] == Observability::Prior);
+            if held {
+                Observability::Fixed
+            } else if groups[k].met() {
+                Observability::Ok
+            } else if by_prior {
+                Observability::Prior
+            } else {
+                Observability::Weak
+            }
+        });
+        let failed = match (&latest.failed, &fused) {
+            (Some(why), _) => Some(format!("the last {:.0} s: {why}", open.1 - open.0)),
+            (None, None) => Some(
+                "the stretches' calibrations could not be combined (a covariance that cannot be \
+                 inverted)"
+                    .to_owned(),
+            ),
+            (None, Some(_)) => None,
+        };
+        Ok(Solved {
+            params,
+            covariance,
+            verdicts,
+            dvl_used: ok.iter().map(|r| r.dvl_used).sum(),
+            dvl_samples: runs.iter().map(|r| r.dvl_samples).sum(),
+            dvl_in_pose_gaps: runs.iter().map(|r| r.dvl_in_pose_gaps).sum(),
+            residual_rms: reference_run.residual_rms,
+            failed,
+            stretches: estimates.len(),
+            stretches_failed: runs.len() - estimates.len(),
+            solved_s,
+        })
     }
 }
 

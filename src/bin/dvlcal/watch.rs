@@ -72,6 +72,7 @@ pub fn run(a: WatchArgs) -> Result<()> {
         overrides: c.files.overrides(&read),
         read,
         threads: c.vision.detect.threads,
+        stretch_s: None,
     };
     if let Some(v) = &a.target_std {
         opts.calib.weak = WeakThresholds::from_values(v, "--target-std")?;
@@ -85,8 +86,9 @@ pub fn run(a: WatchArgs) -> Result<()> {
     while !stop.load(Ordering::SeqCst) {
         let tick = Instant::now();
         if watcher.changed()? {
-            last_change = tick;
             let u = watcher.update(&opts)?;
+            // Idle time counts from the end of the update: a long update is not idleness.
+            last_change = Instant::now();
             if a.json {
                 println!("{}", serde_json::to_string(&u)?);
             } else {
