@@ -325,6 +325,25 @@ pub fn has_images(dir: &Path) -> bool {
     dir.join("cam0").is_dir() || dir.join("mav0").join("cam0").is_dir()
 }
 
+/// The files in `dir` (not in its subfolders) that [`discover`] would take for a DVL log, by
+/// their content as it does (a bag is not counted: it may hold only images); files it cannot
+/// read are left out, as it leaves them.
+pub fn dvl_logs_in(dir: &Path) -> Result<Vec<PathBuf>> {
+    let mut logs: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map_err(|e| Error::io(dir, e))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.is_file() && !is_yaml(p))
+        .filter(|p| {
+            !p.file_name()
+                .and_then(|n| n.to_str())
+                .is_some_and(|n| n.starts_with('.'))
+        })
+        .filter(|p| matches!(data_role(p), Ok(Ok(Role::Dvl))))
+        .collect();
+    logs.sort();
+    Ok(logs)
+}
+
 /// Finds the dataset's parts in `dir`; `given` parts are taken as they are.
 ///
 /// Errors: `dir` is not a folder; two files compete for one role (both named); images and a

@@ -35,6 +35,7 @@ mod exports;
 mod imu;
 mod imu_bag;
 pub mod imu_only;
+pub mod live_dvl;
 mod outputs;
 mod simulate;
 pub mod unused;

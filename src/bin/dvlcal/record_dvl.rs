@@ -47,21 +47,8 @@ pub fn run(args: RecordDvlArgs) -> anyhow::Result<()> {
         eprintln!("record-dvl: {m}")
     })?;
     if stats.lines == 0 {
-        anyhow::bail!(
-            "nothing was recorded from {} ({} connections): is the DVL at that address and port \
-             (the A50 serves its JSON stream on port 16171)?",
-            args.tcp,
-            stats.connections
-        );
+        anyhow::bail!("{}", stats.nothing_recorded(&args.tcp));
     }
-    eprintln!(
-        "record-dvl: {} lines ({} bytes) written to {}; {} connections, {} dropped, {} partial lines lost",
-        stats.lines,
-        stats.bytes,
-        args.out.display(),
-        stats.connections,
-        stats.dropped_connections,
-        stats.partial_lines_dropped
-    );
+    eprintln!("record-dvl: {}", stats.summary(&args.out));
     Ok(())
 }

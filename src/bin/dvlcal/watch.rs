@@ -8,6 +8,7 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result, bail};
 use dvlcal::calib::options::WeakThresholds;
 use dvlcal::io::calib_yaml::read_calibration_guess;
+use dvlcal::pipeline::live_dvl::LiveDvl;
 use dvlcal::pipeline::watch::{WatchOptions, Watcher};
 
 use crate::calibrate::{CalibrateArgs, options};
@@ -30,6 +31,10 @@ pub struct WatchArgs {
     /// clock offset (s), velocity scale (the final result keeps calibrate's limits).
     #[arg(long, value_delimiter = ',', value_name = "DEG,M,S,SCALE")]
     pub target_std: Option<Vec<f64>>,
+    /// A live DVL, HOST:PORT (the A50: port 16171), recorded into DIR/dvl.jsonl as record-dvl
+    /// records it; its stream keeps the folder changing: end with Ctrl-C or --stop-when-done.
+    #[arg(long, value_name = "HOST:PORT", conflicts_with = "dvl")]
+    pub dvl_tcp: Option<String>,
     #[command(flatten)]
     pub calibrate: CalibrateArgs,
 }
@@ -82,6 +87,12 @@ pub fn run(a: WatchArgs) -> Result<()> {
     ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst))
         .context("installing the Ctrl-C handler")?;
     let mut watcher = Watcher::new(dir)?;
+    let live = match &a.dvl_tcp {
+        Some(t) => Some(LiveDvl::start(t, dir, Default::default(), |m| {
+            eprintln!("watch: {m}")
+        })?),
+        None => None,
+    };
     let mut last_change = Instant::now();
     while !stop.load(Ordering::SeqCst) {
         let tick = Instant::now();
@@ -108,6 +119,9 @@ pub fn run(a: WatchArgs) -> Result<()> {
         }
     }
     drop(watcher);
+    if let Some(live) = live {
+        eprintln!("watch: {}", live.stop()?);
+    }
     let calibrate = || crate::calibrate::run(a.calibrate);
     if a.json {
         on_stderr(calibrate)

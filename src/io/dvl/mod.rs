@@ -42,7 +42,7 @@ pub use log::{
     text_lines,
 };
 pub use polled::PolledCapture;
-pub use record::{RecordOptions, RecordStats, add_host_time, record_tcp};
+pub use record::{RecordOptions, RecordStats, add_host_time, check_address, record_tcp};
 pub use report::{Parsed, Reject, VelocityReport};
 pub use serial::parse_line as parse_serial_line;
 

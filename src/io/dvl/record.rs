@@ -48,6 +48,49 @@ pub struct RecordStats {
     pub partial_lines_dropped: usize,
 }
 
+impl RecordStats {
+    /// What the recording wrote to `out`, in one line: lines, bytes, connections made and
+    /// dropped, partial lines lost.
+    pub fn summary(&self, out: &Path) -> String {
+        format!(
+            "{} lines ({} bytes) written to {}; {} connections, {} dropped, {} partial lines lost",
+            self.lines,
+            self.bytes,
+            out.display(),
+            self.connections,
+            self.dropped_connections,
+            self.partial_lines_dropped
+        )
+    }
+
+    /// Why a recording from `addr` that wrote no line holds nothing: where the DVL was looked
+    /// for.
+    pub fn nothing_recorded(&self, addr: &str) -> String {
+        format!(
+            "nothing was recorded from {addr} ({} connections): is the DVL at that address and \
+             port (the A50 serves its JSON stream on port 16171)?",
+            self.connections
+        )
+    }
+}
+
+/// Checks that `addr` is a `host:port` address that resolves, so that a mistyped address is
+/// an error at once rather than a recording that retries forever; `option` names it in the
+/// error.
+pub fn check_address(addr: &str, option: &'static str) -> Result<()> {
+    match addr.to_socket_addrs().map(|a| a.count()) {
+        Ok(n) if n > 0 => Ok(()),
+        Ok(_) => Err(Error::option(
+            option,
+            format!("'{addr}' resolves to no address"),
+        )),
+        Err(e) => Err(Error::option(
+            option,
+            format!("'{addr}' is not a HOST:PORT address that resolves: {e}"),
+        )),
+    }
+}
+
 /// Longest line kept; a longer run of bytes without a line end is dropped.
 const MAX_LINE: usize = 1 << 20;
 
@@ -83,21 +126,7 @@ pub fn record_tcp(
     note: &mut dyn FnMut(&str),
 ) -> Result<RecordStats> {
     // A malformed or unresolvable address is an error now, not a retry loop.
-    match addr.to_socket_addrs().map(|a| a.count()) {
-        Ok(n) if n > 0 => {}
-        Ok(_) => {
-            return Err(Error::option(
-                "--tcp",
-                format!("'{addr}' resolves to no address"),
-            ));
-        }
-        Err(e) => {
-            return Err(Error::option(
-                "--tcp",
-                format!("'{addr}' is not a HOST:PORT address that resolves: {e}"),
-            ));
-        }
-    }
+    check_address(addr, "--tcp")?;
     let mut file: File = OpenOptions::new()
         .create(true)
         .read(true)
