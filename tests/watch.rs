@@ -66,6 +66,17 @@ fn feed(src: &Path, dst: &Path) {
 /// The updates of `dvlcal watch --json` on `dir` while `src` is fed into it, each with the time
 /// it arrived; and when the feed ended.
 fn watch_while_fed(src: &Path, dir: &Path, out: &Path) -> (Vec<(Instant, Value)>, Instant) {
+    let (updates, fed, _) = watch_while(dir, out, || feed(src, dir));
+    (updates, fed)
+}
+
+/// The updates of `dvlcal watch --json` on `dir` while `feeder` writes into it, each with the
+/// time it arrived; when the feed ended; and what the watch said on its standard error.
+fn watch_while(
+    dir: &Path,
+    out: &Path,
+    feeder: impl FnOnce(),
+) -> (Vec<(Instant, Value)>, Instant, String) {
     std::fs::create_dir_all(dir).expect("folder");
     let mut child = Command::new(env!("CARGO_BIN_EXE_dvlcal"))
         .args([
@@ -95,15 +106,12 @@ fn watch_while_fed(src: &Path, dir: &Path, out: &Path) -> (Vec<(Instant, Value)>
             })
             .collect::<Vec<_>>()
     });
-    feed(src, dir);
+    feeder();
     let fed = Instant::now();
     let status = child.wait_with_output().expect("watch ends");
-    assert!(
-        status.status.success(),
-        "{}",
-        String::from_utf8_lossy(&status.stderr)
-    );
-    (reader.join().expect("reader"), fed)
+    let stderr = String::from_utf8_lossy(&status.stderr).into_owned();
+    assert!(status.status.success(), "{stderr}");
+    (reader.join().expect("reader"), fed, stderr)
 }
 
 fn advice(u: &Value) -> Vec<String> {
@@ -403,4 +411,107 @@ fn a_long_recording_is_calibrated_in_stretches() {
         );
         assert!((a / b - 1.0).abs() < 1e-9, "{name}: {a} then {b}");
     }
+}
+
+/// Writes `sample_data/stereo` into `dst` at `SPEED` times real speed: the camera model and the
+/// board first, then each image written under `NAME.part` in two halves (with a pause between)
+/// and renamed into place, and the DVL log's lines each in two halves.
+fn feed_stereo(src: &Path, dst: &Path) {
+    for f in ["camchain.yaml", "target.yaml"] {
+        std::fs::copy(src.join(f), dst.join(f)).expect("copy");
+    }
+    let mut events: Vec<(f64, Option<String>, String)> = Vec::new();
+    for e in std::fs::read_dir(src.join("cam0")).expect("cam0") {
+        let name = e.expect("entry").file_name().to_string_lossy().into_owned();
+        let ns: f64 = name.trim_end_matches(".jpg").parse().expect("time name");
+        events.push((ns * 1e-9, Some(name), String::new()));
+    }
+    let text = std::fs::read_to_string(src.join("dvl.jsonl")).expect("log");
+    for line in text.split_inclusive('\n') {
+        let t = line_time("dvl.jsonl", line).expect("report time");
+        events.push((t, None, line.to_owned()));
+    }
+    events.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let t0 = events[0].0;
+    for cam in ["cam0", "cam1"] {
+        std::fs::create_dir_all(dst.join(cam)).expect("folder");
+    }
+    let mut log = std::fs::File::create(dst.join("dvl.jsonl")).expect("log");
+    let start = Instant::now();
+    for (t, image, line) in events {
+        let due = Duration::from_secs_f64((t - t0) / SPEED);
+        if let Some(wait) = due.checked_sub(start.elapsed()) {
+            std::thread::sleep(wait);
+        }
+        match image {
+            Some(name) => {
+                for cam in ["cam0", "cam1"] {
+                    let bytes = std::fs::read(src.join(cam).join(&name)).expect("image");
+                    let part = dst.join(cam).join(format!("{name}.part"));
+                    let mut f = std::fs::File::create(&part).expect("part");
+                    let (a, b) = bytes.split_at(bytes.len() / 2);
+                    f.write_all(a).expect("write");
+                    f.flush().expect("flush");
+                    std::thread::sleep(Duration::from_millis(2));
+                    f.write_all(b).expect("write");
+                    drop(f);
+                    std::fs::rename(&part, dst.join(cam).join(&name)).expect("rename");
+                }
+            }
+            None => {
+                let (a, b) = line.split_at(line.len() / 2);
+                log.write_all(a.as_bytes()).expect("write");
+                log.flush().expect("flush");
+                log.write_all(b.as_bytes()).expect("write");
+                log.flush().expect("flush");
+            }
+        }
+    }
+}
+
+/// Stereo images renamed into place as a recorder writes them, beside a growing DVL log: the
+/// updates come while the images come, never see a half-written image, and the end is the
+/// result `calibrate` gives on the finished folder, made without detecting the images again.
+#[test]
+fn images_renamed_into_place_are_followed_and_end_as_calibrate() {
+    let tmp = TmpDir::new("watch-images");
+    let (dir, out) = (tmp.path("live"), tmp.path("watch.yaml"));
+    let src = Path::new("sample_data/stereo");
+    let (updates, fed, stderr) = watch_while(&dir, &out, || {
+        std::fs::create_dir_all(&dir).expect("folder");
+        feed_stereo(src, &dir)
+    });
+    let during = updates.iter().filter(|(t, _)| *t < fed).count();
+    assert!(during >= 2, "{during} updates while the images came");
+    let poses: Vec<u64> = updates
+        .iter()
+        .map(|(_, u)| u["counts"]["poses"].as_u64().expect("count"))
+        .collect();
+    assert!(poses.windows(2).all(|w| w[0] <= w[1]), "{poses:?}");
+    assert!(poses.iter().any(|&n| n > 0 && n < 251), "{poses:?}");
+    for (_, u) in &updates {
+        let reason = u["reason"].as_str().unwrap_or_default();
+        assert!(!reason.contains(".part"), "{u}");
+    }
+    let last = &updates.last().expect("updates").1;
+    assert_eq!(last["status"], "ok", "{last}");
+    assert_eq!(last["counts"]["dvl_reports"], 250, "{last}");
+    assert!(stderr.contains("reuses the tags of 502 images"), "{stderr}");
+    let reference = tmp.path("calibrate.yaml");
+    dvlcal_ok(&["calibrate", s(&dir), "--out", s(&reference)]);
+    let (w, c) = (
+        read_calib_yaml(&out).expect("watch's result"),
+        read_calib_yaml(&reference).expect("calibrate's result"),
+    );
+    let whole: serde_yaml::Value =
+        serde_yaml::from_str(&std::fs::read_to_string(&reference).expect("result")).expect("yaml");
+    assert_eq!(
+        last["counts"]["poses"].as_u64(),
+        whole["info"]["poses"].as_u64(),
+        "{last}"
+    );
+    assert_eq!(w.t_cam_dvl, c.t_cam_dvl);
+    assert_eq!(w.time_offset_s, c.time_offset_s);
+    assert_eq!(w.velocity_scale, c.velocity_scale);
+    assert_eq!(format!("{:?}", w.std), format!("{:?}", c.std));
 }

@@ -13,7 +13,8 @@
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::time::{Instant, SystemTime};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant, SystemTime};
 
 use serde::Serialize;
 
@@ -279,6 +280,8 @@ impl Watcher {
                 std::fs::write(&dst, &bytes[..end]).map_err(|e| Error::io(&dst, e))?;
             } else {
                 if dst.exists() {
+                    // Replaced under its name: its detections are those of the old image.
+                    self.cache.forget(&dst);
                     std::fs::remove_file(&dst).map_err(|e| Error::io(&dst, e))?;
                 }
                 if std::fs::hard_link(src, &dst).is_err() {
@@ -288,6 +291,13 @@ impl Watcher {
             self.staged.insert(src.clone(), sig);
         }
         Ok(())
+    }
+
+    /// The detections of the images seen so far, keyed by their files in the followed folder:
+    /// for a calibration of the folder itself, which then detects only the images the updates
+    /// have not seen.
+    pub fn detections(&self) -> DetectionCache {
+        self.cache.rebased(&self.staging, &self.source)
     }
 
     /// Where the folder's file `src` is staged.
@@ -451,6 +461,53 @@ impl Watcher {
             &self.staging.display().to_string(),
             &self.source.display().to_string(),
         )
+    }
+}
+
+/// When [`Watcher::follow`] updates and when it ends.
+#[derive(Clone, Copy, Debug)]
+pub struct Pace {
+    /// Time between updates (an update that takes longer is followed by the next at once).
+    pub interval: Duration,
+    /// End when no file has changed for this long after an update.
+    pub until_idle: Duration,
+    /// End once an update says done.
+    pub stop_when_done: bool,
+}
+
+impl Watcher {
+    /// Follows the folder: every `pace.interval`, when a file changed, an update, given to
+    /// `each`; until the folder stays unchanged for `pace.until_idle`, `stop` is set, or (with
+    /// `pace.stop_when_done`) an update says done.
+    pub fn follow(
+        &mut self,
+        opts: &WatchOptions,
+        pace: &Pace,
+        stop: &AtomicBool,
+        each: &mut dyn FnMut(&WatchUpdate) -> std::result::Result<(), serde_json::Error>,
+    ) -> Result<()> {
+        let mut last_change = Instant::now();
+        while !stop.load(Ordering::SeqCst) {
+            let tick = Instant::now();
+            if self.changed()? {
+                let u = self.update(opts)?;
+                // Idle time counts from the end of the update: a long update is not idleness.
+                last_change = Instant::now();
+                each(&u).map_err(|e| Error::Input(format!("writing an update: {e}")))?;
+                if u.done && pace.stop_when_done {
+                    break;
+                }
+            } else if last_change.elapsed() >= pace.until_idle {
+                break;
+            }
+            // Sleep in short steps so that a stop ends the wait at once.
+            let until = tick + pace.interval;
+            while Instant::now() < until && !stop.load(Ordering::SeqCst) {
+                let left = until.saturating_duration_since(Instant::now());
+                std::thread::sleep(Duration::from_millis(50).min(left));
+            }
+        }
+        Ok(())
     }
 }
 

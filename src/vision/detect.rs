@@ -96,6 +96,26 @@ impl DetectionCache {
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
+
+    /// Drops what it holds of the image `path` (a file replaced under its name).
+    pub fn forget(&self, path: &std::path::Path) {
+        let mut map = self.0.lock().unwrap_or_else(|p| p.into_inner());
+        map.retain(|(p, _, _), _| p != path);
+    }
+
+    /// A new cache with the entries of the images under `from`, keyed as the same files under
+    /// `to` (the detections of a staged copy of a folder, for the folder itself).
+    pub fn rebased(&self, from: &std::path::Path, to: &std::path::Path) -> DetectionCache {
+        let map = self.0.lock().unwrap_or_else(|p| p.into_inner());
+        let moved = map
+            .iter()
+            .filter_map(|((p, cam, model), found)| {
+                let rel = p.strip_prefix(from).ok()?;
+                Some(((to.join(rel), *cam, model.clone()), found.clone()))
+            })
+            .collect();
+        DetectionCache(Arc::new(Mutex::new(moved)))
+    }
 }
 
 impl PartialEq for DetectionCache {

@@ -16,11 +16,13 @@ use dvlcal::io::exports::FrameNames;
 use dvlcal::io::provenance::this_command_line;
 use dvlcal::pipeline::dvl_imu;
 use dvlcal::pipeline::{
-    CameraOutputs, OutputOptions, SEPARATE_CAMERA_RECORDING, calibrate_camera_imu_dataset,
-    calibrate_dataset, calibration_context, check_result_outputs, unused, write_camera_imu_results,
-    write_failure_report, write_report, write_results, wrote_words,
+    CameraOutputs, OutputOptions, SEPARATE_CAMERA_RECORDING, VisionOptions,
+    calibrate_camera_imu_dataset, calibrate_dataset, calibration_context, check_result_outputs,
+    unused, write_camera_imu_results, write_failure_report, write_report, write_results,
+    wrote_words,
 };
 use dvlcal::types::CalibrationParams;
+use dvlcal::vision::detect::DetectionCache;
 
 #[derive(Clone, Copy, ValueEnum)]
 pub enum MethodArg {
@@ -224,7 +226,8 @@ fn flagged(e: Error) -> Error {
     }
 }
 
-pub fn run(a: CalibrateArgs) -> Result<()> {
+/// `cache`: detections of the images already made (`dvlcal watch`'s).
+pub fn run(a: CalibrateArgs, cache: Option<DetectionCache>) -> Result<()> {
     let given = crate::given();
     let method = a
         .method
@@ -249,7 +252,11 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
     // Without a camchain the cameras are calibrated first; where their camchain (and report)
     // will go is checked before the long run.
     let cameras_out = CameraOutputs::plan(&a.out, a.report.as_deref(), &files)?;
-    let mut data = read_files(files, &a.vision.options(), &read)?;
+    let vision = VisionOptions {
+        cache,
+        ..a.vision.options()
+    };
+    let mut data = read_files(files, &vision, &read)?;
     unused::data_options(&data, &given)?;
     if let (Some(cams), Some(to)) = (&data.cameras, &cameras_out) {
         let command = this_command_line();

@@ -151,7 +151,7 @@ fn main() {
         Command::BagInfo(a) => bag::run(a),
         Command::RecordDvl(a) => record_dvl::run(a),
         Command::Board(a) => board::run(a),
-        Command::Calibrate(a) => calibrate::run(a),
+        Command::Calibrate(a) => calibrate::run(a, None),
         Command::Watch(a) => watch::run(a),
         Command::CalibrateCameras(a) => cameras::run(a),
         Command::Detect(a) => detect::run(a),

@@ -3,13 +3,13 @@
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
 use dvlcal::calib::options::WeakThresholds;
 use dvlcal::io::calib_yaml::read_calibration_guess;
 use dvlcal::pipeline::live_dvl::LiveDvl;
-use dvlcal::pipeline::watch::{WatchOptions, Watcher};
+use dvlcal::pipeline::watch::{Pace, WatchOptions, Watcher};
 
 use crate::calibrate::{CalibrateArgs, options};
 
@@ -93,36 +93,31 @@ pub fn run(a: WatchArgs) -> Result<()> {
         })?),
         None => None,
     };
-    let mut last_change = Instant::now();
-    while !stop.load(Ordering::SeqCst) {
-        let tick = Instant::now();
-        if watcher.changed()? {
-            let u = watcher.update(&opts)?;
-            // Idle time counts from the end of the update: a long update is not idleness.
-            last_change = Instant::now();
-            if a.json {
-                println!("{}", serde_json::to_string(&u)?);
-            } else {
-                print!("{}", u.text());
-            }
-            if u.done && a.stop_when_done {
-                break;
-            }
-        } else if last_change.elapsed().as_secs_f64() >= a.until_idle {
-            break;
+    let pace = Pace {
+        interval: Duration::from_secs_f64(a.interval),
+        until_idle: Duration::from_secs_f64(a.until_idle),
+        stop_when_done: a.stop_when_done,
+    };
+    watcher.follow(&opts, &pace, &stop, &mut |u| {
+        if a.json {
+            println!("{}", serde_json::to_string(u)?);
+        } else {
+            print!("{}", u.text());
         }
-        let wait = Duration::from_secs_f64(a.interval).saturating_sub(tick.elapsed());
-        // Sleep in short steps so that Ctrl-C ends the wait at once.
-        let until = Instant::now() + wait;
-        while Instant::now() < until && !stop.load(Ordering::SeqCst) {
-            std::thread::sleep(Duration::from_millis(50).min(until - Instant::now()));
-        }
+        Ok(())
+    })?;
+    let seen = watcher.detections();
+    if !seen.is_empty() {
+        eprintln!(
+            "watch: the final calibration reuses the tags of {} images",
+            seen.len()
+        );
     }
     drop(watcher);
     if let Some(live) = live {
         eprintln!("watch: {}", live.stop()?);
     }
-    let calibrate = || crate::calibrate::run(a.calibrate);
+    let calibrate = || crate::calibrate::run(a.calibrate, Some(seen));
     if a.json {
         on_stderr(calibrate)
     } else {
