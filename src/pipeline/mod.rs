@@ -41,6 +41,7 @@ mod simulate;
 pub mod unused;
 mod vision;
 pub mod watch;
+mod watch_bag;
 
 pub use board::write_board_svg;
 pub use calibration::{

@@ -225,7 +225,10 @@ fn solve_poses(
     opts: &VisionOptions,
 ) -> Result<VisionRun> {
     let (target, board) = target;
-    let det = detector_settings(board, opts);
+    let mut det = detector_settings(board, opts);
+    if let FrameSource::Bag { path, .. } = src {
+        det.cache_bag = Some(path.to_path_buf());
+    }
     let pnp = PnpOptions {
         min_corners: opts.min_corners,
         sigma_px: opts.pixel_sigma,

@@ -10,6 +10,9 @@
 //! are kept across updates ([`DetectionCache`]), so an update decodes only the new ones. Files whose names start with `.` or end in
 //! `.tmp` or `.part` are skipped: writers that rename their files into place write them under
 //! such names first.
+//!
+//! A bag (`NAME.bag.active`, a bare `.mcap`, a ROS 2 bag folder being recorded) is not staged
+//! but read in place, to the length it had when the update began ([`super::watch_bag`]).
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -24,6 +27,7 @@ use super::calibration::calibrate_dataset;
 use super::dataset::{Dataset, dataset_files_checked};
 use super::exports::state;
 use super::vision::VisionOptions;
+use super::watch_bag::FollowedBag;
 use crate::calib::CalibOptions;
 use crate::calib::advice::{Recording, advise, group_std};
 use crate::calib::fusion::{StretchEstimate, fuse};
@@ -155,9 +159,11 @@ pub struct WatchUpdate {
     pub update_s: f64,
 }
 
-/// A folder followed while it is written.
+/// A folder, or a bag, followed while it is written.
 pub struct Watcher {
     source: PathBuf,
+    /// The bag followed, when the source is one (nothing is staged then).
+    bag: Option<FollowedBag>,
     staging: PathBuf,
     last: Option<Vec<(PathBuf, u64, Option<SystemTime>)>>,
     /// The size and time each staged file had when it was staged.
@@ -195,12 +201,16 @@ fn files_under(dir: &Path, out: &mut Vec<PathBuf>) -> Result<()> {
 }
 
 impl Watcher {
-    /// Follows the dataset folder `source`, staging into a new private folder.
+    /// Follows the dataset folder `source`, staging into a new private folder; or the bag
+    /// `source` (a bag file, there or still to come by its name, or a ROS 2 bag folder or
+    /// recording folder: [`FollowedBag`]), read in place.
     pub fn new(source: &Path) -> Result<Watcher> {
-        if !source.is_dir() {
+        let bag = FollowedBag::of(source);
+        if bag.is_none() && !source.is_dir() {
             return Err(Error::dataset(
                 source,
-                "dvlcal watch follows a dataset folder while it is written; this is not a folder",
+                "dvlcal watch follows a dataset folder or a bag (.bag, .bag.active, .mcap, \
+                 .db3, a ROS 2 bag folder) while it is written; this is neither",
             ));
         }
         let staging = std::env::temp_dir().join(format!(
@@ -212,6 +222,7 @@ impl Watcher {
         ));
         Ok(Watcher {
             source: source.to_path_buf(),
+            bag,
             staging,
             last: None,
             staged: BTreeMap::new(),
@@ -222,8 +233,12 @@ impl Watcher {
         })
     }
 
-    /// Whether the folder's files changed (in number, size or time) since the last call.
+    /// Whether the folder's files (or the bag's) changed (in number, size or time) since the
+    /// last call.
     pub fn changed(&mut self) -> Result<bool> {
+        if let Some(bag) = &mut self.bag {
+            return Ok(bag.changed(&mut self.cache));
+        }
         let mut files = Vec::new();
         files_under(&self.source, &mut files)?;
         files.sort();
@@ -297,7 +312,24 @@ impl Watcher {
     /// for a calibration of the folder itself, which then detects only the images the updates
     /// have not seen.
     pub fn detections(&self) -> DetectionCache {
+        if self.bag.is_some() {
+            // Keyed by the bag as it is read now: the bag the final calibration reads.
+            return self.cache.clone();
+        }
         self.cache.rebased(&self.staging, &self.source)
+    }
+
+    /// The bag the final calibration is to read instead of the path followed, with the words
+    /// that say why (`NAME.bag.active` renamed `NAME.bag`, a recording folder's storage file
+    /// read alone); `None` when it reads the path followed.
+    pub fn final_dataset(&self) -> Option<(PathBuf, String)> {
+        self.bag.as_ref()?.final_dataset()
+    }
+
+    /// Why the followed recording is over, once it is seen to be (a bag renamed at its end,
+    /// a ROS 2 bag's `metadata.yaml` written).
+    pub fn ended(&self) -> Option<&str> {
+        self.bag.as_ref()?.ended()
     }
 
     /// Where the folder's file `src` is staged.
@@ -312,43 +344,18 @@ impl Watcher {
     pub fn update(&mut self, opts: &WatchOptions) -> Result<WatchUpdate> {
         let clock = Instant::now();
         self.updates += 1;
-        self.stage()?;
+        if self.bag.is_none() {
+            self.stage()?;
+        }
+        let mut u = self.blank_update(opts);
         let limits = &opts.calib.weak;
-        let targets = [
-            ("rotation", limits.rotation_deg),
-            ("lever_arm", limits.lever_arm_m),
-            ("time_offset", limits.time_offset_s),
-            ("velocity_scale", limits.velocity_scale),
-        ];
-        let mut u = WatchUpdate {
-            update: self.updates,
-            done: false,
-            advice: Vec::new(),
-            estimate: None,
-            parameters: targets
-                .iter()
-                .map(|&(name, target)| {
-                    (
-                        name,
-                        ParameterState {
-                            std: None,
-                            target,
-                            verdict: None,
-                        },
-                    )
-                })
-                .collect(),
-            counts: WatchCounts::default(),
-            status: "not yet".into(),
-            reason: None,
-            update_s: 0.0,
-        };
-        let vision = VisionOptions {
-            cache: Some(self.cache.clone()),
-            ..opts.vision.clone()
-        };
-        let data = dataset_files_checked(Some(&self.staging), &opts.overrides)
-            .and_then(|files| Dataset::load(files, &vision, &opts.read, &mut |_| {}));
+        let targets = targets(limits);
+        let mut data = self.load(opts);
+        // A bag renamed while it was read (`NAME.bag.active` at its end): read it again under
+        // its new name.
+        if data.is_err() && self.bag.as_mut().is_some_and(|b| b.moved(&mut self.cache)) {
+            data = self.load(opts);
+        }
         let data = match data {
             Ok(d) => d,
             Err(e) => return Ok(self.not_yet(u, &e, clock)),
@@ -443,10 +450,60 @@ impl Watcher {
         Ok(u)
     }
 
+    /// The data as they are now: the staging folder, or the bag read in place, its files'
+    /// lengths fixed while it is read.
+    fn load(&self, opts: &WatchOptions) -> Result<Dataset> {
+        let (root, fixed) = match &self.bag {
+            Some(bag) => {
+                let (path, fixed) = bag.snapshot().map_err(Error::Input)?;
+                (path, Some(fixed))
+            }
+            None => (self.staging.clone(), None),
+        };
+        let vision = VisionOptions {
+            cache: Some(self.cache.clone()),
+            ..opts.vision.clone()
+        };
+        let data = dataset_files_checked(Some(&root), &opts.overrides)
+            .and_then(|files| Dataset::load(files, &vision, &opts.read, &mut |_| {}));
+        drop(fixed);
+        data
+    }
+
+    /// The update before anything is read: `not yet`, no estimate, the targets of `opts`.
+    fn blank_update(&self, opts: &WatchOptions) -> WatchUpdate {
+        WatchUpdate {
+            update: self.updates,
+            done: false,
+            advice: Vec::new(),
+            estimate: None,
+            parameters: targets(&opts.calib.weak)
+                .iter()
+                .map(|&(name, target)| {
+                    (
+                        name,
+                        ParameterState {
+                            std: None,
+                            target,
+                            verdict: None,
+                        },
+                    )
+                })
+                .collect(),
+            counts: WatchCounts::default(),
+            status: "not yet".into(),
+            reason: None,
+            update_s: 0.0,
+        }
+    }
+
     /// `u` for data that cannot be calibrated yet: the reason `e` (in the source folder's
     /// paths) and the advice to keep recording.
     fn not_yet(&self, mut u: WatchUpdate, e: &Error, clock: Instant) -> WatchUpdate {
-        let reason = self.in_source_words(&e.to_string());
+        let mut reason = self.in_source_words(&e.to_string());
+        if let Some(hint) = self.bag.as_ref().and_then(|b| b.hint(&reason)) {
+            reason = format!("{reason}: {hint}");
+        }
         u.advice.push(format!(
             "keep recording: the data so far cannot be calibrated ({reason})"
         ));
@@ -464,6 +521,16 @@ impl Watcher {
     }
 }
 
+/// The parameter groups' names and targets (the verdict limits `limits`), in update order.
+fn targets(limits: &crate::calib::options::WeakThresholds) -> [(&'static str, f64); 4] {
+    [
+        ("rotation", limits.rotation_deg),
+        ("lever_arm", limits.lever_arm_m),
+        ("time_offset", limits.time_offset_s),
+        ("velocity_scale", limits.velocity_scale),
+    ]
+}
+
 /// When [`Watcher::follow`] updates and when it ends.
 #[derive(Clone, Copy, Debug)]
 pub struct Pace {
@@ -477,8 +544,9 @@ pub struct Pace {
 
 impl Watcher {
     /// Follows the folder: every `pace.interval`, when a file changed, an update, given to
-    /// `each`; until the folder stays unchanged for `pace.until_idle`, `stop` is set, or (with
-    /// `pace.stop_when_done`) an update says done.
+    /// `each`; until the folder stays unchanged for `pace.until_idle`, `stop` is set, (with
+    /// `pace.stop_when_done`) an update says done, or a followed bag's recording is seen to
+    /// end ([`Watcher::ended`]: after one last update of the finished bag).
     pub fn follow(
         &mut self,
         opts: &WatchOptions,
@@ -494,7 +562,7 @@ impl Watcher {
                 // Idle time counts from the end of the update: a long update is not idleness.
                 last_change = Instant::now();
                 each(&u).map_err(|e| Error::Input(format!("writing an update: {e}")))?;
-                if u.done && pace.stop_when_done {
+                if (u.done && pace.stop_when_done) || self.ended().is_some() {
                     break;
                 }
             } else if last_change.elapsed() >= pace.until_idle {

@@ -87,6 +87,15 @@ impl DetectionCache {
         map.insert(Self::key(path, cam, camera), found);
     }
 
+    /// The name image message `index` (1-based, in record order) of `topic` in `bag` is kept
+    /// under: a path inside the bag's, so that [`DetectionCache::rebased`] moves it with the
+    /// bag (a recording renamed at its end). A bag being recorded only grows, so a message
+    /// keeps its topic and number.
+    pub fn message_key(bag: &std::path::Path, topic: &str, index: u64) -> PathBuf {
+        bag.join(topic.trim_start_matches('/'))
+            .join(format!("#{index}"))
+    }
+
     /// How many images it holds.
     pub fn len(&self) -> usize {
         self.0.lock().unwrap_or_else(|p| p.into_inner()).len()
@@ -176,6 +185,10 @@ pub struct DetectorSettings {
     /// Detections of earlier runs over the same image files, used instead of decoding and
     /// detecting again, and added to (`None`: every image is detected).
     pub cache: Option<DetectionCache>,
+    /// The bag the frames' image messages come from, when they come from one: its messages'
+    /// detections are kept in `cache` under [`DetectionCache::message_key`] (`None`: image
+    /// messages are always detected).
+    pub cache_bag: Option<PathBuf>,
 }
 
 impl Default for DetectorSettings {
@@ -193,6 +206,7 @@ impl Default for DetectorSettings {
             board_ids: None,
             kalibr_print: false,
             cache: None,
+            cache_bag: None,
         }
     }
 }

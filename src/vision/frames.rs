@@ -21,7 +21,7 @@ use crate::io::frames::{FrameImages, FrameSource, decode};
 use crate::io::images::StereoFrame;
 use crate::types::board::Board;
 use crate::types::camera::{Camchain, Camera};
-use crate::vision::detect::{Detector, DetectorSettings, TagDetection};
+use crate::vision::detect::{DetectionCache, Detector, DetectorSettings, TagDetection};
 use crate::vision::pnp::{FramePose, PnpOptions, PoseOutcome, solve_stereo};
 
 /// The image of camera `c` of a frame (`None`: the frame has none), decoded on demand.
@@ -359,11 +359,15 @@ fn detect_images(
     for (cam, name) in f.images.iter().enumerate() {
         let Some(name) = name else { continue };
         let camera = cams.get(cam).copied().flatten();
-        let file = match name {
-            crate::io::images::ImageRef::File(p) => det.cache.as_ref().map(|c| (c, p)),
-            crate::io::images::ImageRef::Message { .. } => None,
+        let key = match name {
+            crate::io::images::ImageRef::File(p) => Some(p.clone()),
+            crate::io::images::ImageRef::Message { topic, index } => det
+                .cache_bag
+                .as_deref()
+                .map(|b| DetectionCache::message_key(b, topic, *index)),
         };
-        if let Some((found, width)) = file.and_then(|(c, p)| c.get(p, cam, camera)) {
+        let file = det.cache.as_ref().zip(key);
+        if let Some((found, width)) = file.as_ref().and_then(|(c, p)| c.get(p, cam, camera)) {
             c.images += 1;
             any = true;
             widths[cam] = width;
@@ -404,7 +408,7 @@ fn detect_images(
         any = true;
         widths[cam] = super::sharpness::edge_width_px(&img);
         dets[cam] = detector.detect_with_camera(&img, camera);
-        if let Some((cache, path)) = file {
+        if let Some((cache, path)) = &file {
             cache.put(path, cam, camera, (dets[cam].clone(), widths[cam]));
         }
     }

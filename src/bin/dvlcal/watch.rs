@@ -1,5 +1,5 @@
-//! `dvlcal watch`: follows a dataset folder while it is written, printing each update (or one
-//! JSON object per line), then calibrates the finished recording exactly as `calibrate` does.
+//! `dvlcal watch`: follows a dataset folder or a bag while it is written, printing each update
+//! (or one JSON object per line), then calibrates the finished recording as `calibrate` does.
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -59,7 +59,7 @@ fn on_stderr<T>(f: impl FnOnce() -> T) -> T {
     out
 }
 
-pub fn run(a: WatchArgs) -> Result<()> {
+pub fn run(mut a: WatchArgs) -> Result<()> {
     for (v, name) in [(a.interval, "--interval"), (a.until_idle, "--until-idle")] {
         if !(v.is_finite() && v > 0.0) {
             bail!("{name} must be a positive number of seconds, got {v}");
@@ -67,7 +67,7 @@ pub fn run(a: WatchArgs) -> Result<()> {
     }
     let c = &a.calibrate;
     let Some(dir) = c.dataset.as_deref() else {
-        bail!("dvlcal watch follows a dataset folder: give it (dvlcal watch DIR)");
+        bail!("dvlcal watch follows a dataset folder or a bag: give it (dvlcal watch DIR|BAG)");
     };
     let guess = c.init.as_deref().map(read_calibration_guess).transpose()?;
     let read = c.dvl_input.read_options(c.strict);
@@ -106,6 +106,10 @@ pub fn run(a: WatchArgs) -> Result<()> {
         }
         Ok(())
     })?;
+    if let Some((bag, why)) = watcher.final_dataset() {
+        eprintln!("watch: {why}");
+        a.calibrate.dataset = Some(bag);
+    }
     let seen = watcher.detections();
     if !seen.is_empty() {
         eprintln!(

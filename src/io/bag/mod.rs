@@ -14,6 +14,7 @@
 pub mod camera_info;
 pub mod cdr;
 pub mod frames;
+pub mod growing;
 pub mod image;
 pub mod imu;
 pub mod info;

@@ -243,11 +243,13 @@ fn find(hay: &[u8], needle: &[u8]) -> Option<usize> {
     hay.windows(needle.len()).position(|w| w == needle)
 }
 
-/// Reads up to `len` bytes at `offset` (fewer when the file ends first).
-fn read_at(file: &mut File, offset: u64, len: usize) -> std::io::Result<Vec<u8>> {
+/// Reads up to `len` bytes at `offset`, never past byte `end` (fewer when the file or `end`
+/// comes first: `end` is the length the bag is read to, [`super::growing`]).
+fn read_at(file: &mut File, offset: u64, len: usize, end: u64) -> std::io::Result<Vec<u8>> {
     file.seek(SeekFrom::Start(offset))?;
     let mut v = Vec::new();
-    file.take(len as u64).read_to_end(&mut v)?;
+    let len = (len as u64).min(end.saturating_sub(offset));
+    file.take(len).read_to_end(&mut v)?;
     Ok(v)
 }
 
@@ -259,8 +261,9 @@ impl Ros1Bag {
     pub fn open(path: &Path) -> Result<Ros1Bag> {
         let io_err = |e: std::io::Error| Error::Input(format!("{}: {e}", path.display()));
         let mut file = File::open(path).map_err(io_err)?;
-        let file_len = file.metadata().map_err(io_err)?.len();
-        let magic = read_at(&mut file, 0, MAGIC.len()).map_err(io_err)?;
+        // A bag still being recorded is read to the length fixed for this read, if any.
+        let file_len = super::growing::readable_len(path, file.metadata().map_err(io_err)?.len());
+        let magic = read_at(&mut file, 0, MAGIC.len(), file_len).map_err(io_err)?;
         if magic != MAGIC {
             return Err(Error::Input(format!(
                 "{}: not a ROS 1 bag (it does not start with \"#ROSBAG V2.0\")",
@@ -283,7 +286,7 @@ impl Ros1Bag {
         let mut p = MAGIC.len() as u64;
         while p < file_len {
             // A record header is small: read it with its length words.
-            let head_buf = read_at(&mut file, p, 4 + MAX_HEADER + 4).map_err(io_err)?;
+            let head_buf = read_at(&mut file, p, 4 + MAX_HEADER + 4, file_len).map_err(io_err)?;
             let Some(f) = record_at(&head_buf, 0) else {
                 match bag.resync_file(&mut file, p, &ANY_OP)? {
                     Some(q) => {
@@ -368,7 +371,7 @@ impl Ros1Bag {
                         u32::from(bag.add_connection(&f.head, &mut file, data, f.data_len, cut)?);
                 }
                 OP_CHUNK_INFO if !cut => {
-                    let d = read_at(&mut file, data, f.data_len).map_err(io_err)?;
+                    let d = read_at(&mut file, data, f.data_len, file_len).map_err(io_err)?;
                     if let Some(pos) = f.head.u64("chunk_pos") {
                         let counts = bag.index_counts.entry(pos).or_default();
                         for e in d.chunks_exact(8) {
@@ -445,7 +448,7 @@ impl Ros1Bag {
         const WINDOW: usize = 1 << 20;
         let mut at = p + 1;
         while at < self.file_len {
-            let buf = read_at(file, at, WINDOW + MAX_HEADER)
+            let buf = read_at(file, at, WINDOW + MAX_HEADER, self.file_len)
                 .map_err(|e| Error::Input(format!("{}: {e}", self.path.display())))?;
             if let Some(k) = resync(&buf, 0, ops, true) {
                 return Ok(Some(at + k as u64));
@@ -470,7 +473,7 @@ impl Ros1Bag {
         let msg_type = if cut || len > MAX_HEADER {
             String::new()
         } else {
-            let d = read_at(file, data, len)
+            let d = read_at(file, data, len, self.file_len)
                 .map_err(|e| Error::Input(format!("{}: {e}", self.path.display())))?;
             connection_type(&d)
         };
@@ -594,7 +597,7 @@ impl Ros1Bag {
             .map_err(|e| Error::Input(format!("{}: {e}", self.path.display())))?;
         let mut whole = 0usize;
         for c in &self.chunks {
-            let raw = read_at(&mut file, c.data, c.len)
+            let raw = read_at(&mut file, c.data, c.len, self.file_len)
                 .map_err(|e| Error::Input(format!("{}: {e}", self.path.display())))?;
             let data = match decompress(c, &raw) {
                 Ok(d) => d,

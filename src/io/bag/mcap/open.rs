@@ -19,9 +19,13 @@ use crate::io::bag::types::{MCAP_MAGIC, Storage};
 /// or reads the whole data section when there is no usable summary.
 pub(super) fn open_file(path: &Path, problems: &mut Vec<String>) -> Result<(McapFile, FileInfo)> {
     let bad = |msg: String| Error::Input(format!("{}: {msg}", path.display()));
-    let len = std::fs::metadata(path)
-        .map_err(|e| Error::io(path, e))?
-        .len();
+    // A file still being recorded is read to the length fixed for this read, if any.
+    let len = crate::io::bag::growing::readable_len(
+        path,
+        std::fs::metadata(path)
+            .map_err(|e| Error::io(path, e))?
+            .len(),
+    );
     let mut r = Reader::open(path)?;
     let magic_len = MCAP_MAGIC.len() as u64;
     if len < magic_len {
