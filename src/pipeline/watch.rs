@@ -326,6 +326,24 @@ impl Watcher {
         self.bag.as_ref()?.final_dataset()
     }
 
+    /// What the final calibration takes, once the watch is over: the bag to read instead of
+    /// the path followed ([`Watcher::final_dataset`]), the detections of the images seen
+    /// ([`Watcher::detections`]), and what to tell the user of them.
+    pub fn finish(&self) -> (Option<PathBuf>, DetectionCache, Vec<String>) {
+        let (bag, mut notes): (Option<PathBuf>, Vec<String>) = match self.final_dataset() {
+            Some((bag, why)) => (Some(bag), vec![why]),
+            None => (None, Vec::new()),
+        };
+        let seen = self.detections();
+        if !seen.is_empty() {
+            notes.push(format!(
+                "the final calibration reuses the tags of {} images",
+                seen.len()
+            ));
+        }
+        (bag, seen, notes)
+    }
+
     /// Why the followed recording is over, once it is seen to be (a bag renamed at its end,
     /// a ROS 2 bag's `metadata.yaml` written).
     pub fn ended(&self) -> Option<&str> {

@@ -106,17 +106,9 @@ pub fn run(mut a: WatchArgs) -> Result<()> {
         }
         Ok(())
     })?;
-    if let Some((bag, why)) = watcher.final_dataset() {
-        eprintln!("watch: {why}");
-        a.calibrate.dataset = Some(bag);
-    }
-    let seen = watcher.detections();
-    if !seen.is_empty() {
-        eprintln!(
-            "watch: the final calibration reuses the tags of {} images",
-            seen.len()
-        );
-    }
+    let (bag, seen, notes) = watcher.finish();
+    notes.iter().for_each(|n| eprintln!("watch: {n}"));
+    a.calibrate.dataset = bag.or(a.calibrate.dataset);
     drop(watcher);
     if let Some(live) = live {
         eprintln!("watch: {}", live.stop()?);
