@@ -239,9 +239,21 @@ fn calibrate_without_a_camera_writes_the_dvl_relative_to_the_imu() {
     // A Kalibr file an earlier camera run left beside the result: it cannot be this run's.
     let stale = tmp.path("out-camchain-imucam.yaml");
     std::fs::write(&stale, "cam0: {}\n").expect("stale export");
-    let stdout = dvlcal_ok(&["calibrate", s(&ds), "--out", s(&out)]);
+    let report = tmp.path("out.html");
+    let stdout = dvlcal_ok(&[
+        "calibrate",
+        s(&ds),
+        "--out",
+        s(&out),
+        "--report",
+        s(&report),
+    ]);
     assert!(
         stdout.contains("DVL + IMU: no camera data given"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains(&format!("report {}", report.display())),
         "{stdout}"
     );
     let r = read_dvl_imu_result_yaml(&out).expect("result");
@@ -281,6 +293,25 @@ fn calibrate_without_a_camera_writes_the_dvl_relative_to_the_imu() {
     let obs = r.observability.as_ref().expect("verdicts");
     assert_eq!(format!("{:?}", obs.lever_arm), "Ok");
     exports_hold_the_dvl_in_the_imu(&tmp, &ds, &est, &stdout);
+    // The report: its sections in order, the estimate as the result file has it, the verdicts
+    // in words, and the result file itself.
+    let html = std::fs::read_to_string(&report).expect("report");
+    let mut at = 0;
+    for id in dvlcal::report::DVL_IMU_SECTION_IDS {
+        let pos = html[at..]
+            .find(&format!("<section id=\"{id}\">"))
+            .unwrap_or_else(|| panic!("section {id} missing or out of order"));
+        at += pos;
+    }
+    let lever = format!(
+        "[{:.4}, {:.4}, {:.4}]",
+        r.t_imu_dvl[0][3], r.t_imu_dvl[1][3], r.t_imu_dvl[2][3]
+    );
+    assert!(html.contains(&lever), "no lever arm {lever} in the report");
+    assert!(html.contains(&format!("{:.5} s", r.time_offset_s)));
+    assert!(html.contains("Every estimated quantity is well determined"));
+    assert_eq!(html.matches("well determined</span>").count(), 4);
+    assert!(html.contains("T_imu_dvl:"), "the result file is not shown");
     assert!(!stale.exists(), "the stale Kalibr file was left");
     // A camera run's option is refused; a camera result's reader names the file's kind.
     let refused = dvlcal(&[
@@ -288,8 +319,8 @@ fn calibrate_without_a_camera_writes_the_dvl_relative_to_the_imu() {
         s(&ds),
         "--out",
         s(&tmp.path("r.yaml")),
-        "--report",
-        s(&tmp.path("r.html")),
+        "--loss",
+        "huber",
     ]);
     assert_eq!(refused.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&refused.stderr).contains("DVL + IMU"));

@@ -163,7 +163,15 @@ fn without_a_dvl_log_the_camera_and_imu_are_calibrated_alone() {
     std::fs::remove_file(data.join("dvl.jsonl")).expect("remove the DVL log");
     let truth = read_imu_truth(&data.join("truth/imu.yaml")).expect("truth");
     let result = tmp.path("out/r.yaml");
-    let out = dvlcal(&["calibrate", s(&data), "--out", s(&result)]);
+    let report = tmp.path("out/r.html");
+    let out = dvlcal(&[
+        "calibrate",
+        s(&data),
+        "--out",
+        s(&result),
+        "--report",
+        s(&report),
+    ]);
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
         out.status.success(),
@@ -174,6 +182,22 @@ fn without_a_dvl_log_the_camera_and_imu_are_calibrated_alone() {
         stdout.contains("camera + IMU: no DVL log given"),
         "{stdout}"
     );
+    // The report: its sections in order, the IMU's estimate and verdicts, the result file.
+    let html = std::fs::read_to_string(&report).expect("report");
+    let mut at = 0;
+    for id in dvlcal::report::CAMERA_IMU_SECTION_IDS {
+        at += html[at..]
+            .find(&format!("<section id=\"{id}\">"))
+            .unwrap_or_else(|| panic!("section {id} missing or out of order"));
+    }
+    let written = read_imu_result_yaml(&result).expect("result");
+    let lever = format!(
+        "[{:.4}, {:.4}, {:.4}]",
+        written.t_cam_imu[0][3], written.t_cam_imu[1][3], written.t_cam_imu[2][3]
+    );
+    assert!(html.contains(&lever), "no lever arm {lever} in the report");
+    assert!(html.contains("id=\"imu-verdicts\""));
+    assert!(html.contains("T_cam_imu:"), "the result file is not shown");
     let text = std::fs::read_to_string(&result).expect("result text");
     for key in [
         "T_cam_dvl",

@@ -286,6 +286,8 @@ fn images_are_detected_once_across_solves() {
     let first = poses_from_images(&dir, &chain, &target, &opts).expect("first solve");
     assert_eq!(first.poses.len(), 20);
     assert_eq!(cache.len(), 40);
+    // Each frame's pose is kept too, so a frame seen before is not solved again.
+    assert_eq!(cache.frames(), 20);
     for cam in ["cam0", "cam1"] {
         for n in &names {
             std::fs::write(dir.join(cam).join(n), b"not an image").expect("overwrite");

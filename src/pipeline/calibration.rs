@@ -574,6 +574,9 @@ pub struct ResultPaths {
     pub camchain_imucam: Option<PathBuf>,
     /// `RESULT-urdf.xml`: a URDF robot, the camera and DVL links and the fixed joint (as `tf`).
     pub urdf: Option<PathBuf>,
+    /// The HTML report, when the writer wrote it (the IMU modes' writers do; the DVL's report
+    /// is written by [`super::write_report`]).
+    pub report: Option<PathBuf>,
 }
 
 /// How [`write_results`] writes.
@@ -712,6 +715,7 @@ pub fn write_results(
     if !(run.outcome.status.is_ok() || opts.force) {
         crate::files::remove_stale(&[&tf, &imucam, &urdf])?;
         return Ok(ResultPaths {
+            report: None,
             result: out.to_path_buf(),
             tf: None,
             camchain_imucam: None,
@@ -731,6 +735,7 @@ pub fn write_results(
     write_atomic(&urdf, urdf_text.as_bytes())?;
     write_atomic(&imucam, imucam_text.as_bytes())?;
     Ok(ResultPaths {
+        report: None,
         result: out.to_path_buf(),
         tf: Some(tf),
         camchain_imucam: Some(imucam),

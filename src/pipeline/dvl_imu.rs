@@ -25,6 +25,9 @@ use crate::io::calib_yaml::{
 use crate::io::dvl_imu_result::{DvlImuResultFile, write_dvl_imu_result_yaml};
 use crate::io::exports::{Export, FrameNames, ros_static_transform, urdf_robot};
 use crate::io::write_atomic;
+use crate::report::ImuOnlyKind;
+
+use super::imu_only::{ImuOnlyPage, write_imu_only_report};
 
 /// The mode in words, as the summary and the result's notes state it.
 pub use super::dataset::DVL_IMU_MODE as MODE;
@@ -271,11 +274,15 @@ fn frame_names(opts: &OutputOptions) -> Result<FrameNames> {
 /// is no Kalibr camchain-imucam file: it describes cameras, and this run has none; one left
 /// beside `out` by an earlier run is removed. A failed calibration writes the result alone
 /// (`status: failed`, its exports removed) unless `opts.force`.
+///
+/// With `report`, the HTML report ([`crate::report::render_imu_only_html`]) is written there
+/// last, atomically, also for a failed calibration (it says why).
 pub fn write_dvl_imu_results(
     out: &Path,
     run: &DvlImuRun,
     data: &Dataset,
     opts: &OutputOptions,
+    report: Option<&Path>,
 ) -> Result<ResultPaths> {
     let names = frame_names(opts)?;
     let tf = sibling(out, "tf.txt");
@@ -290,7 +297,37 @@ pub fn write_dvl_imu_results(
         tf: None,
         camchain_imucam: None,
         urdf: None,
+        report: None,
     };
+    if let Some(path) = report {
+        let e = &run.estimate;
+        let counts = [format!(
+            "DVL {}: {} of {} reports used; IMU {}: {} of {} bins used",
+            data.dvl_path
+                .as_ref()
+                .map_or("?".into(), |p| p.display().to_string()),
+            e.dvl_used,
+            e.dvl_total,
+            data.imu
+                .as_ref()
+                .map_or("?".into(), |l| l.path.display().to_string()),
+            e.bins_used,
+            e.bins_total
+        )];
+        let page = ImuOnlyPage {
+            kind: ImuOnlyKind::DvlImu {
+                estimate: e,
+                verdicts: &run.verdicts,
+            },
+            mode: MODE,
+            failure: &run.file.failure,
+            warnings: run.file.info.as_ref().map_or(&[][..], |i| &i.warnings),
+            counts: &counts,
+            elapsed_s: run.elapsed_s,
+        };
+        write_imu_only_report(path, out, data, &page)?;
+        paths.report = Some(path.to_path_buf());
+    }
     if !(run.ok() || opts.force) {
         crate::files::remove_stale(&[&tf, &urdf])?;
         return Ok(paths);

@@ -9,6 +9,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 use std::time::Instant;
 
+use crate::calib::diagnostics::ImuVerdicts;
 use crate::calib::imu::{ImuEstimate, ImuOptions, calibrate_camera_imu};
 use crate::calib::options::WeakThresholds;
 use crate::error::{Error, Result};
@@ -22,6 +23,7 @@ use crate::io::exports::{
 use crate::io::imu_result::{ImuResultFile, write_imu_result_yaml};
 use crate::io::write_atomic;
 use crate::lie::Se3;
+use crate::report::{ImuOnlyKind, ImuOnlyReportInput, ImuReportInput, render_imu_only_html};
 use crate::types::CalibrationParams;
 
 use super::calibration::{
@@ -37,6 +39,8 @@ pub const MODE: &str = "camera + IMU: no DVL log given";
 pub struct CameraImuRun {
     /// What the estimator produced.
     pub estimate: ImuEstimate,
+    /// Its verdicts and the motion they were made from.
+    pub verdicts: ImuVerdicts,
     /// The result file's content (no DVL keys).
     pub file: ImuResultFile,
     /// Seconds spent calibrating (the dataset was read before).
@@ -124,11 +128,13 @@ pub fn calibrate_camera_imu_dataset(
     }
     whole.info = Some(info);
     data.note_held_poses(&mut whole);
-    let estimate = super::imu::note_imu(&mut whole, estimate, data, weak).estimate;
+    let noted = super::imu::note_imu(&mut whole, estimate, data, weak);
+    let (estimate, verdicts) = (noted.estimate, noted.verdicts);
     let file = ImuResultFile::from_calibration_file(&whole)
         .ok_or_else(|| Error::Input("the IMU's result is missing from its result file".into()))?;
     Ok(CameraImuRun {
         estimate,
+        verdicts,
         file,
         elapsed_s,
         whole,
@@ -166,11 +172,15 @@ impl CameraImuRun {
 /// `RESULT-urdf.xml` (the camera and IMU links, a fixed joint) and
 /// `RESULT-camchain-imucam.yaml` (Kalibr's, the IMU in its IMU slot). The exports' camera
 /// frame is `--frames`' parent or the data's, the IMU's `imu`.
+///
+/// With `report`, the HTML report ([`crate::report::render_imu_only_html`]) is written there
+/// last, atomically.
 pub fn write_camera_imu_results(
     out: &Path,
     run: &CameraImuRun,
     data: &Dataset,
     opts: &OutputOptions,
+    report: Option<&Path>,
 ) -> Result<ResultPaths> {
     let names = frame_names(opts, data)?;
     let tf = sibling(out, "tf.txt");
@@ -195,17 +205,83 @@ pub fn write_camera_imu_results(
         &imucam,
         kalibr_camchain_imucam(&e, &kalibr_cameras(data)).as_bytes(),
     )?;
+    let report = match report {
+        Some(path) => {
+            let counts = [format!(
+                "{} camera poses from {}; IMU {}: {} samples, {} of {} bins used",
+                data.poses.len(),
+                data.camera_source.display(),
+                data.imu
+                    .as_ref()
+                    .map_or("?".into(), |l| l.path.display().to_string()),
+                data.imu.as_ref().map_or(0, |l| l.samples.len()),
+                run.estimate.bins_used,
+                run.estimate.bins_total,
+            )];
+            let input = ImuReportInput {
+                estimate: &run.estimate,
+                verdicts: &run.verdicts,
+            };
+            let page = ImuOnlyPage {
+                kind: ImuOnlyKind::CameraImu(input),
+                mode: MODE,
+                failure: &run.file.failure,
+                warnings: run.file.info.as_ref().map_or(&[][..], |i| &i.warnings),
+                counts: &counts,
+                elapsed_s: run.elapsed_s,
+            };
+            write_imu_only_report(path, out, data, &page)?;
+            Some(path.to_path_buf())
+        }
+        None => None,
+    };
     Ok(ResultPaths {
         result: out.to_path_buf(),
         tf: Some(tf),
         camchain_imucam: Some(imucam),
         urdf: Some(urdf),
+        report,
     })
+}
+
+/// What an IMU mode's report shows besides the files: see [`ImuOnlyReportInput`].
+pub(crate) struct ImuOnlyPage<'a> {
+    pub(crate) kind: ImuOnlyKind<'a>,
+    pub(crate) mode: &'a str,
+    pub(crate) failure: &'a [String],
+    pub(crate) warnings: &'a [String],
+    pub(crate) counts: &'a [String],
+    pub(crate) elapsed_s: f64,
+}
+
+/// Writes the report of an IMU mode's run to `path`, atomically, with the result file `result`
+/// (written before) shown in it.
+pub(crate) fn write_imu_only_report(
+    path: &Path,
+    result: &Path,
+    data: &Dataset,
+    page: &ImuOnlyPage,
+) -> Result<()> {
+    let text = std::fs::read_to_string(result).map_err(|e| Error::io(result, e))?;
+    let name = result.display().to_string();
+    let dataset = data.files.root.display().to_string();
+    let html = render_imu_only_html(&ImuOnlyReportInput {
+        title: "IMU calibration report",
+        mode: page.mode,
+        dataset: &dataset,
+        kind: page.kind,
+        failure: page.failure,
+        warnings: page.warnings,
+        counts: page.counts,
+        result: Some((&name, &text)),
+        elapsed_s: page.elapsed_s,
+    });
+    write_atomic(path, html.as_bytes())
 }
 
 /// The files a run wrote, in words (`wrote A, B, C and D`, or the result alone with why).
 pub fn wrote_words(paths: &ResultPaths) -> String {
-    match (&paths.tf, &paths.urdf, &paths.camchain_imucam) {
+    let words = match (&paths.tf, &paths.urdf, &paths.camchain_imucam) {
         (Some(tf), Some(urdf), Some(imucam)) => format!(
             "wrote {}, {}, {} and {}",
             paths.result.display(),
@@ -224,5 +300,9 @@ pub fn wrote_words(paths: &ResultPaths) -> String {
             "wrote {} (status: failed; no ROS or Kalibr exports: --force writes them)",
             paths.result.display()
         ),
+    };
+    match &paths.report {
+        Some(r) => format!("{words}; report {}", r.display()),
+        None => words,
     }
 }

@@ -105,7 +105,7 @@ pub fn evaluate_options(cross_validate: bool, given: &[&str], estimator: &[&str]
 
 /// The options of `calibrate` that only the DVL's calibration reads: refused in the camera +
 /// IMU mode (no DVL log).
-const DVL_ONLY: [&str; 15] = [
+const DVL_ONLY: [&str; 14] = [
     "--method",
     "--dvl-sigma",
     "--offset-range",
@@ -120,7 +120,6 @@ const DVL_ONLY: [&str; 15] = [
     "--estimate-offset",
     "--biased",
     "--strict",
-    "--report",
 ];
 
 /// The DVL's options that the DVL + IMU mode (no camera) reads too; the rest of [`DVL_ONLY`] it

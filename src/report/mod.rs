@@ -28,6 +28,7 @@ mod frames;
 mod guidance;
 mod html;
 mod imu;
+mod imu_only;
 mod input;
 mod motion;
 mod page;
@@ -49,6 +50,10 @@ pub use cameras::{
 };
 pub use failure::{FAILURE_PLOT_IDS, FAILURE_SECTION_IDS, FailureReportInput, render_failure_html};
 pub use guidance::{NextStep, StepKind, next_steps};
+pub use imu_only::{
+    CAMERA_IMU_SECTION_IDS, DVL_IMU_SECTION_IDS, ImuOnlyKind, ImuOnlyReportInput,
+    render_imu_only_html,
+};
 pub use input::{
     BLUR_FACTOR, BLUR_MARGIN_PX, BLURRED_EDGE_PX, FrameDrop, FrameStat, ImuReportInput,
     ReportInput, frame_stats, posed_edge_width_px,

@@ -51,11 +51,17 @@ use crate::vision::refine::{quad_centre, refine_corners};
 /// image's sharpest edges. An image file must not change once written under its name (writers
 /// rename finished files into place). Clones share one store; two caches are equal when they
 /// are the same store.
+///
+/// It also keeps what a whole frame came to (its pose solved from those detections), keyed by
+/// the frame and the settings it was solved with, so that a frame seen before is not solved
+/// again ([`DetectionCache::solved`]).
 #[derive(Clone, Default)]
-pub struct DetectionCache(Arc<Mutex<CacheMap>>);
+pub struct DetectionCache(Arc<Mutex<CacheMap>>, Arc<Mutex<SolvedMap>>);
 
 type CacheKey = (PathBuf, usize, String);
 type CacheMap = HashMap<CacheKey, (Vec<TagDetection>, Option<f64>)>;
+/// A frame's outcome by its key, with the image files it was made from.
+type SolvedMap = HashMap<String, (Vec<PathBuf>, Arc<dyn std::any::Any + Send + Sync>)>;
 
 impl DetectionCache {
     /// The key of camera `cam`'s image `path` detected with `camera` (its model refines the
@@ -106,10 +112,36 @@ impl DetectionCache {
         self.len() == 0
     }
 
-    /// Drops what it holds of the image `path` (a file replaced under its name).
+    /// Drops what it holds of the image `path` (a file replaced under its name), and of the
+    /// frames made from it.
     pub fn forget(&self, path: &std::path::Path) {
         let mut map = self.0.lock().unwrap_or_else(|p| p.into_inner());
         map.retain(|(p, _, _), _| p != path);
+        let mut solved = self.1.lock().unwrap_or_else(|p| p.into_inner());
+        solved.retain(|_, (files, _)| !files.iter().any(|f| f == path));
+    }
+
+    /// How many frames' outcomes it holds.
+    pub fn frames(&self) -> usize {
+        self.1.lock().unwrap_or_else(|p| p.into_inner()).len()
+    }
+
+    /// The outcome kept under `key` (see [`DetectionCache::keep_solved`]), if it is a `T`.
+    pub fn solved<T: Clone + 'static>(&self, key: &str) -> Option<T> {
+        let solved = self.1.lock().unwrap_or_else(|p| p.into_inner());
+        solved.get(key)?.1.downcast_ref::<T>().cloned()
+    }
+
+    /// Keeps `value`, what a frame made of the image `files` came to, under `key` (which must
+    /// name the frame and everything its outcome depends on).
+    pub fn keep_solved<T: Send + Sync + 'static>(
+        &self,
+        key: String,
+        files: Vec<PathBuf>,
+        value: T,
+    ) {
+        let mut solved = self.1.lock().unwrap_or_else(|p| p.into_inner());
+        solved.insert(key, (files, Arc::new(value)));
     }
 
     /// A new cache with the entries of the images under `from`, keyed as the same files under
@@ -123,7 +155,7 @@ impl DetectionCache {
                 Some(((to.join(rel), *cam, model.clone()), found.clone()))
             })
             .collect();
-        DetectionCache(Arc::new(Mutex::new(moved)))
+        DetectionCache(Arc::new(Mutex::new(moved)), Arc::default())
     }
 }
 

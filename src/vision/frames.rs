@@ -10,6 +10,7 @@
 //! threads. Images that cannot be read, or whose size differs from the camera chain's, are
 //! counted and named in [`DetectStats::problems`]; they never stop the run.
 
+use std::hash::{Hash, Hasher};
 use std::sync::Mutex;
 use std::sync::mpsc::sync_channel;
 
@@ -18,7 +19,7 @@ use rayon::prelude::*;
 
 use crate::error::{Error, Result};
 use crate::io::frames::{FrameImages, FrameSource, decode};
-use crate::io::images::StereoFrame;
+use crate::io::images::{ImageRef, StereoFrame};
 use crate::types::board::Board;
 use crate::types::camera::{Camchain, Camera};
 use crate::vision::detect::{DetectionCache, Detector, DetectorSettings, TagDetection};
@@ -248,12 +249,39 @@ pub fn detect_source(
     }
     let bar = progress_bar(n_frames as u64, progress);
 
+    // A frame solved before with the same settings is taken from the cache, when there is one.
+    let settings = det.cache.as_ref().map(|_| {
+        let mut h = std::hash::DefaultHasher::new();
+        let det = DetectorSettings {
+            cache: None,
+            ..det.clone()
+        };
+        format!("{board:?}{chain:?}{det:?}{opts:?}").hash(&mut h);
+        h.finish()
+    });
     let out: Vec<(FrameResult, FrameCounts)> = for_each_frame(src, &bar, &|f, load| {
+        let key = settings.map(|s| format!("{s:016x} {f:?}"));
+        if let (Some(cache), Some(key)) = (&det.cache, &key)
+            && let Some(hit) = cache.solved::<(FrameResult, FrameCounts)>(key)
+        {
+            return hit;
+        }
         let idx = rayon::current_thread_index().unwrap_or(0) % workers;
         // A poisoned lock only means another frame panicked; the detector is still whole.
         let mut guard = detectors[idx].lock().unwrap_or_else(|p| p.into_inner());
         let r = process_frame(f, load, board, chain, det, opts, &mut guard);
         drop(guard);
+        if let (Some(cache), Some(key)) = (&det.cache, key) {
+            let files = f
+                .images
+                .iter()
+                .filter_map(|i| match i {
+                    Some(ImageRef::File(p)) => Some(p.clone()),
+                    _ => None,
+                })
+                .collect();
+            cache.keep_solved(key, files, r.clone());
+        }
         r
     })?;
     bar.finish_and_clear();
@@ -292,6 +320,7 @@ pub fn detect_source(
     Ok((results, stats))
 }
 
+#[derive(Clone)]
 struct FrameCounts {
     images: usize,
     unreadable: usize,

@@ -279,7 +279,7 @@ pub fn run(a: CalibrateArgs, cache: Option<DetectionCache>) -> Result<()> {
     };
     if data.log.is_none() {
         let run = calibrate_camera_imu_dataset(&data, &opts.weak, a.vision.detect.threads)?;
-        let paths = write_camera_imu_results(&a.out, &run, &data, &output)?;
+        let paths = write_camera_imu_results(&a.out, &run, &data, &output, a.report.as_deref())?;
         print!("{}", run.summary(&data));
         println!("{}", wrote_words(&paths));
         return Ok(());
@@ -287,7 +287,8 @@ pub fn run(a: CalibrateArgs, cache: Option<DetectionCache>) -> Result<()> {
     if data.poses.is_empty() && data.vision.is_none() && data.imu.is_some() {
         unused::dvl_imu_options(&given)?; // a bag shows it holds no camera data once open
         let run = dvl_imu::calibrate_dvl_imu_dataset(&data, &opts)?;
-        let paths = dvl_imu::write_dvl_imu_results(&a.out, &run, &data, &output)?;
+        let paths =
+            dvl_imu::write_dvl_imu_results(&a.out, &run, &data, &output, a.report.as_deref())?;
         println!("{}{}", run.summary(), wrote_words(&paths));
         if !run.ok() {
             bail!("the calibration failed: {}", run.file.failure.join("; "));
