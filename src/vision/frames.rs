@@ -249,14 +249,19 @@ pub fn detect_source(
     }
     let bar = progress_bar(n_frames as u64, progress);
 
-    // A frame solved before with the same settings is taken from the cache, when there is one.
+    // A frame solved before with the same settings is taken from the cache, when there is one
+    // (a bag's frames name their messages, so the bag is part of the settings).
     let settings = det.cache.as_ref().map(|_| {
         let mut h = std::hash::DefaultHasher::new();
         let det = DetectorSettings {
             cache: None,
             ..det.clone()
         };
-        format!("{board:?}{chain:?}{det:?}{opts:?}").hash(&mut h);
+        let bag = match &src {
+            FrameSource::Bag { path, .. } => Some(*path),
+            FrameSource::Files(_) => None,
+        };
+        format!("{bag:?}{board:?}{chain:?}{det:?}{opts:?}").hash(&mut h);
         h.finish()
     });
     let out: Vec<(FrameResult, FrameCounts)> = for_each_frame(src, &bar, &|f, load| {
