@@ -6,15 +6,17 @@
 //! recording that barely rotates must never say done and must keep asking for rotation.
 
 mod tmp_common;
+mod watch_common;
 
-use std::io::{BufRead, BufReader, Write};
+use std::io::Write;
 use std::path::Path;
-use std::process::{Command, Stdio};
+use std::process::Command;
 use std::time::{Duration, Instant};
 
 use dvlcal::io::calib_yaml::read_calib_yaml;
 use serde_json::Value;
 use tmp_common::{TmpDir, dvlcal_ok, s};
+use watch_common::Watching;
 
 const SPEED: f64 = 6.0;
 
@@ -78,40 +80,21 @@ fn watch_while(
     feeder: impl FnOnce(),
 ) -> (Vec<(Instant, Value)>, Instant, String) {
     std::fs::create_dir_all(dir).expect("folder");
-    let mut child = Command::new(env!("CARGO_BIN_EXE_dvlcal"))
-        .args([
-            "watch",
-            s(dir),
-            "--json",
-            "--interval",
-            "0.5",
-            "--until-idle",
-            "3",
-            "--out",
-            s(out),
-        ])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("run dvlcal watch");
-    let stdout = child.stdout.take().expect("stdout");
-    let reader = std::thread::spawn(move || {
-        BufReader::new(stdout)
-            .lines()
-            .map_while(|l| l.ok())
-            .map(|l| {
-                let v: Value = serde_json::from_str(&l)
-                    .unwrap_or_else(|e| panic!("not one JSON object per line: {l}: {e}"));
-                (Instant::now(), v)
-            })
-            .collect::<Vec<_>>()
-    });
+    let watching = Watching::start(&[
+        s(dir),
+        "--interval",
+        "0.5",
+        "--until-idle",
+        "3",
+        "--out",
+        s(out),
+    ]);
     feeder();
     let fed = Instant::now();
-    let status = child.wait_with_output().expect("watch ends");
+    let (updates, status) = watching.finish();
     let stderr = String::from_utf8_lossy(&status.stderr).into_owned();
     assert!(status.status.success(), "{stderr}");
-    (reader.join().expect("reader"), fed, stderr)
+    (updates, fed, stderr)
 }
 
 fn advice(u: &Value) -> Vec<String> {

@@ -7,15 +7,16 @@
 //! result `calibrate` gives on the finished bag.
 
 mod tmp_common;
+mod watch_common;
 
-use std::io::{BufRead, BufReader, Write};
+use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use dvlcal::io::calib_yaml::read_calib_yaml;
 use serde_json::Value;
 use tmp_common::{TmpDir, dvlcal_ok, s};
+use watch_common::Watching;
 
 /// Pieces each bag is written in, and the pause after each.
 const PIECES: usize = 10;
@@ -47,39 +48,15 @@ fn watch_while(
     args: &[&str],
     feeder: impl FnOnce(),
 ) -> (Vec<(Instant, Value)>, Instant, String) {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_dvlcal"))
-        .args([
-            "watch",
-            s(bag),
-            "--json",
-            "--interval",
-            "0.3",
-            "--until-idle",
-            "2",
-        ])
-        .args(args)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("run dvlcal watch");
-    let stdout = child.stdout.take().expect("stdout");
-    let reader = std::thread::spawn(move || {
-        BufReader::new(stdout)
-            .lines()
-            .map_while(|l| l.ok())
-            .map(|l| {
-                let v: Value = serde_json::from_str(&l)
-                    .unwrap_or_else(|e| panic!("not one JSON object per line: {l}: {e}"));
-                (Instant::now(), v)
-            })
-            .collect::<Vec<_>>()
-    });
+    let mut all = vec![s(bag), "--interval", "0.3", "--until-idle", "2"];
+    all.extend_from_slice(args);
+    let watching = Watching::start(&all);
     feeder();
     let fed = Instant::now();
-    let out = child.wait_with_output().expect("watch ends");
+    let (updates, out) = watching.finish();
     let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
     assert!(out.status.success(), "{stderr}");
-    (reader.join().expect("reader"), fed, stderr)
+    (updates, fed, stderr)
 }
 
 fn count(u: &Value, key: &str) -> u64 {

@@ -7,11 +7,11 @@
 //! are refused before anything is written.
 
 mod tmp_common;
+mod watch_common;
 
-use std::io::{BufRead, BufReader, ErrorKind, Write};
+use std::io::{ErrorKind, Write};
 use std::net::TcpListener;
 use std::path::Path;
-use std::process::{Command, Stdio};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc;
@@ -20,6 +20,7 @@ use std::time::{Duration, Instant};
 use dvlcal::io::calib_yaml::read_calib_yaml;
 use serde_json::Value;
 use tmp_common::{TmpDir, dvlcal, dvlcal_ok, s};
+use watch_common::Watching;
 
 const SPEED: f64 = 8.0;
 
@@ -126,25 +127,17 @@ fn watch_records_a_live_dvl_beside_a_pose_file_and_ends_as_calibrate() {
     let (dir, out) = (tmp.path("live"), tmp.path("watch.yaml"));
     std::fs::create_dir_all(&dir).expect("folder");
     let t_run = Instant::now();
-    let mut child = Command::new(env!("CARGO_BIN_EXE_dvlcal"))
-        .args(["watch", s(&dir), "--dvl-tcp", &addr, "--json"])
-        .args(["--interval", "0.5", "--until-idle", "2", "--out", s(&out)])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("run dvlcal watch");
-    let stdout = child.stdout.take().expect("stdout");
-    let reader = std::thread::spawn(move || {
-        BufReader::new(stdout)
-            .lines()
-            .map_while(|l| l.ok())
-            .map(|l| {
-                let v: Value = serde_json::from_str(&l)
-                    .unwrap_or_else(|e| panic!("not one JSON object per line: {l}: {e}"));
-                (Instant::now(), v)
-            })
-            .collect::<Vec<_>>()
-    });
+    let watching = Watching::start(&[
+        s(&dir),
+        "--dvl-tcp",
+        &addr,
+        "--interval",
+        "0.5",
+        "--until-idle",
+        "2",
+        "--out",
+        s(&out),
+    ]);
     let start = start_rx
         .recv_timeout(Duration::from_secs(20))
         .expect("the watch connects to the DVL");
@@ -154,13 +147,12 @@ fn watch_records_a_live_dvl_beside_a_pose_file_and_ends_as_calibrate() {
         in_halves(&mut file, &format!("{line}\n"));
     }
     let fed = Instant::now();
-    let run = child.wait_with_output().expect("the watch ends");
+    let (updates, run) = watching.finish();
     let took = t_run.elapsed();
     hang_up.store(true, Ordering::SeqCst);
     server.join().expect("fake A50");
     let err = String::from_utf8_lossy(&run.stderr).into_owned();
     assert!(run.status.success(), "{err}");
-    let updates = reader.join().expect("reader");
 
     // The updates came while the data came, and saw the DVL's reports grow.
     let during: Vec<&Value> = updates
