@@ -389,6 +389,11 @@ fn a_long_recording_is_calibrated_in_stretches() {
         second.counts
     );
     assert_eq!(second.counts.stretches, 4);
+    assert!(
+        second.text().contains(", 4 stretches combined ("),
+        "{}",
+        second.text()
+    );
     for (name, state) in &second.parameters {
         let (a, b) = (
             state.std.expect("std"),

@@ -844,12 +844,17 @@ impl WatchUpdate {
         let c = &self.counts;
         let _ = writeln!(
             s,
-            "update {}: {} poses over {:.0} s, {} of {} DVL reports used ({:.1} s){}",
+            "update {}: {} poses over {:.0} s, {} of {} DVL reports used{} ({:.1} s){}",
             self.update,
             c.poses,
             c.span_s,
             c.dvl_used,
             c.dvl_reports,
+            match (c.stretches, c.stretches_failed) {
+                (0 | 1, 0) => String::new(),
+                (n, 0) => format!(", {n} stretches combined"),
+                (n, f) => format!(", {n} stretches combined ({f} failed, left out)"),
+            },
             self.update_s,
             if self.done { ": DONE" } else { "" }
         );
