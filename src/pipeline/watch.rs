@@ -27,7 +27,7 @@ use super::calibration::calibrate_dataset;
 use super::dataset::{Dataset, dataset_files_checked};
 use super::exports::state;
 use super::vision::VisionOptions;
-use super::watch_bag::FollowedBag;
+use super::watch_bag::{FollowedBag, Signature, signature};
 use crate::calib::CalibOptions;
 use crate::calib::advice::{Recording, advise, group_std};
 use crate::calib::fusion::{StretchEstimate, fuse};
@@ -165,12 +165,12 @@ pub struct Watcher {
     /// The bag followed, when the source is one (nothing is staged then).
     bag: Option<FollowedBag>,
     staging: PathBuf,
-    last: Option<Vec<(PathBuf, u64, Option<SystemTime>)>>,
+    last: Option<Signature>,
     /// The size and time each staged file had when it was staged.
     staged: BTreeMap<PathBuf, (u64, Option<SystemTime>)>,
     updates: usize,
     /// The closed stretches' calibrations, by index (each solved once).
-    stretches: BTreeMap<usize, StretchRun>,
+    closed: BTreeMap<usize, StretchRun>,
     /// The clock offset of the last update, to pick a stretch's DVL reports by.
     offset_guess: f64,
     /// The images' detections, so that each image is detected once over all updates.
@@ -227,7 +227,7 @@ impl Watcher {
             last: None,
             staged: BTreeMap::new(),
             updates: 0,
-            stretches: BTreeMap::new(),
+            closed: BTreeMap::new(),
             offset_guess: 0.0,
             cache: DetectionCache::default(),
         })
@@ -242,15 +242,7 @@ impl Watcher {
         let mut files = Vec::new();
         files_under(&self.source, &mut files)?;
         files.sort();
-        let sig: Vec<_> = files
-            .into_iter()
-            .map(|p| {
-                let m = std::fs::metadata(&p).ok();
-                let len = m.as_ref().map_or(0, |m| m.len());
-                let time = m.and_then(|m| m.modified().ok());
-                (p, len, time)
-            })
-            .collect();
+        let sig = signature(files);
         let changed = self.last.as_ref() != Some(&sig);
         self.last = Some(sig);
         Ok(changed)
@@ -384,26 +376,22 @@ impl Watcher {
             (Some(a), Some(b)) => b.t - a.t,
             _ => 0.0,
         };
-        let solved = match self.stretches(&data, opts) {
+        let solved = match self.stretch_plan(&data, opts) {
             Some(stretches) => self.solve_stretches(&data, opts, &stretches),
-            None => calibrate_dataset(&data, &opts.calib, opts.threads).map(|run| {
-                let o = run.outcome;
-                Solved {
-                    params: o.params,
-                    covariance: o.covariance,
-                    verdicts: states(&o),
-                    dvl_used: o.counts.dvl_used,
-                    dvl_samples: o.counts.dvl_samples,
-                    dvl_in_pose_gaps: o.counts.dvl_in_pose_gaps,
-                    residual_rms: o.residual_rms,
-                    failed: match &o.status {
-                        Status::Failed(reasons) => Some(reasons.join("; ")),
-                        Status::Ok => None,
-                    },
+            None => calibrate_dataset(&data, &opts.calib, opts.threads).and_then(|run| {
+                let run = StretchRun::of(Ok(run.outcome));
+                let est = run
+                    .estimate
+                    .clone()
+                    .ok_or_else(|| Error::Input("the calibration gave no estimate".into()))?;
+                Ok(Solved {
+                    params: est.params,
+                    covariance: est.covariance,
+                    run,
                     stretches: 1,
                     stretches_failed: 0,
                     solved_s: u.counts.span_s,
-                }
+                })
             }),
         };
         let s = match solved {
@@ -412,14 +400,14 @@ impl Watcher {
         };
         self.offset_guess = s.params.time_offset_s;
         u.estimate = Some(WatchEstimate::of(&s.params));
-        u.counts.dvl_used = s.dvl_used;
-        u.counts.dvl_without_pose = s.dvl_in_pose_gaps;
+        u.counts.dvl_used = s.run.dvl_used;
+        u.counts.dvl_without_pose = s.run.dvl_in_pose_gaps;
         u.counts.stretches = s.stretches;
         u.counts.stretches_failed = s.stretches_failed;
         u.counts.solved_s = s.solved_s;
         let groups = group_std(&s.covariance, limits);
         let mut all_ok = true;
-        for (((name, _), g), verdict) in targets.iter().zip(groups).zip(s.verdicts) {
+        for (((name, _), g), verdict) in targets.iter().zip(groups).zip(s.run.verdicts) {
             all_ok &= matches!(verdict, Observability::Ok | Observability::Fixed);
             u.parameters.insert(
                 name,
@@ -430,18 +418,18 @@ impl Watcher {
                 },
             );
         }
-        let failed = s.failed.is_some();
+        let failed = s.run.failed.is_some();
         u.status = if failed { "failed" } else { "ok" }.into();
-        u.reason = s.failed;
+        u.reason = s.run.failed.clone();
         u.done = all_ok && !failed;
         if !u.done {
             let rec = Recording {
                 dvl_rate_hz: if u.counts.span_s > 0.0 {
-                    s.dvl_used as f64 / u.counts.span_s
+                    s.run.dvl_used as f64 / u.counts.span_s
                 } else {
                     1.0
                 },
-                dvl_sigma: (s.residual_rms.norm() / 3f64.sqrt()).max(1e-3),
+                dvl_sigma: (s.run.residual_rms.norm() / 3f64.sqrt()).max(1e-3),
                 speed_mps: rms_speed(&data),
             };
             u.advice = advise(&s.params, &s.covariance, limits, &rec)
@@ -455,8 +443,8 @@ impl Watcher {
                 ));
             }
         }
-        let dvl = s.dvl_samples.max(1) as f64;
-        let blind = s.dvl_in_pose_gaps as f64 / dvl;
+        let dvl = s.run.dvl_samples.max(1) as f64;
+        let blind = s.run.dvl_in_pose_gaps as f64 / dvl;
         if blind > 0.2 {
             u.advice.push(format!(
                 "the camera had no pose for {:.0} % of the DVL's reports (the board out of \
@@ -602,14 +590,8 @@ impl Watcher {
 struct Solved {
     params: CalibrationParams,
     covariance: ParamMat,
-    /// Rotation, lever arm, clock offset, velocity scale.
-    verdicts: [Observability; 4],
-    dvl_used: usize,
-    dvl_samples: usize,
-    dvl_in_pose_gaps: usize,
-    residual_rms: Vector3<f64>,
-    /// Why the calibration failed, when it did.
-    failed: Option<String>,
+    /// The verdicts, counts, residuals and failure of the whole (its `estimate` unused).
+    run: StretchRun,
     stretches: usize,
     stretches_failed: usize,
     solved_s: f64,
@@ -618,7 +600,7 @@ struct Solved {
 /// One stretch's calibration (kept across updates once the stretch is closed).
 #[derive(Clone, Debug)]
 struct StretchRun {
-    /// The estimate, when the calibration succeeded and passed its checks.
+    /// The estimate, when the calibration gave one (`failed` says whether it can be used).
     estimate: Option<StretchEstimate>,
     verdicts: [Observability; 4],
     dvl_used: usize,
@@ -648,7 +630,7 @@ impl StretchRun {
                     Status::Ok => None,
                 };
                 StretchRun {
-                    estimate: failed.is_none().then_some(StretchEstimate {
+                    estimate: Some(StretchEstimate {
                         params: o.params,
                         covariance: o.covariance,
                         priors: o.priors,
@@ -680,7 +662,7 @@ impl StretchRun {
 type Stretches = (Vec<(f64, f64)>, (f64, f64));
 
 impl Watcher {
-    fn stretches(&self, data: &Dataset, opts: &WatchOptions) -> Option<Stretches> {
+    fn stretch_plan(&self, data: &Dataset, opts: &WatchOptions) -> Option<Stretches> {
         let len = opts.stretch_s.unwrap_or(STRETCH_S);
         let one_clock = data.camera_segments.len() <= 1
             && data
@@ -741,22 +723,27 @@ impl Watcher {
     ) -> Result<Solved> {
         let mut solved_s = 0.0;
         for (j, &span) in closed.iter().enumerate() {
-            if !self.stretches.contains_key(&j) {
+            if !self.closed.contains_key(&j) {
                 let run = self.solve_stretch(data, opts, span);
-                self.stretches.insert(j, run);
+                self.closed.insert(j, run);
                 solved_s += span.1 - span.0;
             }
         }
         let latest = self.solve_stretch(data, opts, *open);
         solved_s += open.1 - open.0;
         let runs: Vec<&StretchRun> = self
-            .stretches
+            .closed
             .range(..closed.len())
             .map(|(_, r)| r)
             .chain([&latest])
             .collect();
+        let ok: Vec<&StretchRun> = runs
+            .iter()
+            .copied()
+            .filter(|r| r.failed.is_none())
+            .collect();
         let estimates: Vec<StretchEstimate> =
-            runs.iter().filter_map(|r| r.estimate.clone()).collect();
+            ok.iter().filter_map(|r| r.estimate.clone()).collect();
         let Some(reference) = estimates.last() else {
             return Err(Error::Input(format!(
                 "no stretch of the recording could be calibrated; the latest: {}",
@@ -768,14 +755,13 @@ impl Watcher {
             ..reference.priors
         };
         let fused = fuse(&estimates, reference, &base);
-        let ok: Vec<&&StretchRun> = runs.iter().filter(|r| r.estimate.is_some()).collect();
         let (params, covariance) = match &fused {
             Some(f) => (f.params, f.covariance),
             None => (reference.params, reference.covariance),
         };
         let limits = &opts.calib.weak;
         let groups = group_std(&covariance, limits);
-        let reference_run = ok.last().map_or(&latest, |r| **r);
+        let reference_run = ok.last().copied().unwrap_or(&latest);
         let verdicts = std::array::from_fn(|k| {
             let held = reference_run.verdicts[k] == Observability::Fixed;
             let by_prior = ok.iter().all(|r| r.verdicts[k] == Observability::Prior);
@@ -801,12 +787,15 @@ impl Watcher {
         Ok(Solved {
             params,
             covariance,
-            verdicts,
-            dvl_used: ok.iter().map(|r| r.dvl_used).sum(),
-            dvl_samples: runs.iter().map(|r| r.dvl_samples).sum(),
-            dvl_in_pose_gaps: runs.iter().map(|r| r.dvl_in_pose_gaps).sum(),
-            residual_rms: reference_run.residual_rms,
-            failed,
+            run: StretchRun {
+                estimate: None,
+                verdicts,
+                dvl_used: ok.iter().map(|r| r.dvl_used).sum(),
+                dvl_samples: runs.iter().map(|r| r.dvl_samples).sum(),
+                dvl_in_pose_gaps: runs.iter().map(|r| r.dvl_in_pose_gaps).sum(),
+                residual_rms: reference_run.residual_rms,
+                failed,
+            },
             stretches: estimates.len(),
             stretches_failed: runs.len() - estimates.len(),
             solved_s,

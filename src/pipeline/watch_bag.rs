@@ -34,8 +34,21 @@ use crate::vision::detect::DetectionCache;
 /// The suffix `rosbag record` gives a bag while it records.
 const ACTIVE: &str = ".active";
 
-/// What a bag's files looked like at one look: each file's path, size and time.
-type Signature = Vec<(PathBuf, u64, Option<SystemTime>)>;
+/// What some files looked like at one look: each file's path, size and time.
+pub(super) type Signature = Vec<(PathBuf, u64, Option<SystemTime>)>;
+
+/// The signature of `files`, in their order (a file that cannot be read has size 0, no time).
+pub(super) fn signature(files: Vec<PathBuf>) -> Signature {
+    files
+        .into_iter()
+        .map(|p| {
+            let m = std::fs::metadata(&p).ok();
+            let len = m.as_ref().map_or(0, |m| m.len());
+            let time = m.and_then(|m| m.modified().ok());
+            (p, len, time)
+        })
+        .collect()
+}
 
 /// A bag followed while it is recorded.
 #[derive(Debug)]
@@ -141,16 +154,7 @@ impl FollowedBag {
     /// time), where the bag is to be read now, and whether the recording ended. The
     /// detections in `cache` are moved with the bag when it is read under another path.
     pub(super) fn changed(&mut self, cache: &mut DetectionCache) -> bool {
-        let sig: Signature = self
-            .watched_files()
-            .into_iter()
-            .map(|p| {
-                let m = std::fs::metadata(&p).ok();
-                let len = m.as_ref().map_or(0, |m| m.len());
-                let time = m.and_then(|m| m.modified().ok());
-                (p, len, time)
-            })
-            .collect();
+        let sig = signature(self.watched_files());
         let changed = self.last.as_ref() != Some(&sig);
         self.last = Some(sig);
         self.moved(cache);
