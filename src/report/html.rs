@@ -70,6 +70,38 @@ pub(super) fn percent(x: f64) -> String {
     format!("{:.1}%", 100.0 * x)
 }
 
+/// The document's start: the doctype, the head with `title` and the style, and `<body>`.
+pub(super) fn page_start(s: &mut String, title: &str) {
+    put!(
+        s,
+        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\
+         <meta name=\"viewport\" content=\"width=device-width,initial-scale=1\">\
+         <title>{}</title><style>{STYLE}</style></head><body>\n",
+        escape(title)
+    );
+}
+
+/// A table of estimates with id `id`: a row per quantity, its estimate, its standard
+/// deviation and its verdict (a cell of HTML; the rest is escaped).
+pub(super) fn estimate_table(s: &mut String, id: &str, rows: &[(&str, String, String, &str)]) {
+    put!(
+        s,
+        "<table id=\"{id}\"><tr><th>quantity</th><th>estimate</th>\
+         <th>standard deviation</th><th>verdict</th></tr>\n"
+    );
+    for (name, value, sd, verdict) in rows {
+        put!(
+            s,
+            "<tr><td>{}</td><td class=\"num\">{}</td><td class=\"num\">{}</td><td>{verdict}</td>\
+             </tr>\n",
+            escape(name),
+            escape(value),
+            escape(sd)
+        );
+    }
+    s.push_str("</table>\n");
+}
+
 pub(super) fn section(s: &mut String, id: &str, title: &str) {
     put!(s, "<section id=\"{id}\"><h2>{}</h2>\n", escape(title));
 }

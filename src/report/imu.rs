@@ -7,7 +7,7 @@ use std::fmt::Write as _;
 
 use nalgebra::Vector3;
 
-use super::html::{put, quat, section, vec3};
+use super::html::{estimate_table, put, quat, section, vec3};
 use super::input::ImuReportInput;
 use super::results::{verdict_cell, verdict_sentence};
 use super::svg::escape;
@@ -57,10 +57,6 @@ pub(super) fn imu_section(s: &mut String, imu: &ImuReportInput) {
         "<p>An IMU was calibrated against the same camera poses: T_cam_imu maps IMU-frame points \
          into the camera frame, and its clock runs t_cam = t_imu + offset.</p>\n",
     );
-    s.push_str(
-        "<table id=\"imu-results\"><tr><th>quantity</th><th>estimate</th>\
-         <th>standard deviation</th><th>verdict</th></tr>\n",
-    );
     let (gyro_factor, accel_factor) = est.noise_factor;
     let bias = st.bias.values.first();
     let rows = [
@@ -107,17 +103,8 @@ pub(super) fn imu_section(s: &mut String, imu: &ImuReportInput) {
             "",
         ),
     ];
-    for (name, value, sd, verdict) in rows {
-        put!(
-            s,
-            "<tr><td>{}</td><td class=\"num\">{}</td><td class=\"num\">{}</td><td>{verdict}</td>\
-             </tr>\n",
-            escape(name),
-            escape(&value),
-            escape(&sd)
-        );
-    }
-    s.push_str("</table>\n<ul class=\"verdicts\" id=\"imu-verdicts\">");
+    estimate_table(s, "imu-results", &rows);
+    s.push_str("<ul class=\"verdicts\" id=\"imu-verdicts\">");
     for line in [
         verdict_sentence(
             "The IMU's rotation",

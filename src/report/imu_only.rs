@@ -9,7 +9,7 @@ use std::fmt::Write as _;
 
 use nalgebra::Vector3;
 
-use super::html::{STYLE, put, quat, section, vec3};
+use super::html::{estimate_table, page_start, put, quat, section, vec3};
 use super::input::ImuReportInput;
 use super::results::{verdict_cell, verdict_sentence};
 use super::summary::warnings;
@@ -64,13 +64,7 @@ pub struct ImuOnlyReportInput<'a> {
 /// Renders the report as one HTML document.
 pub fn render_imu_only_html(input: &ImuOnlyReportInput) -> String {
     let mut s = String::with_capacity(32 * 1024);
-    put!(
-        s,
-        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\
-         <meta name=\"viewport\" content=\"width=device-width,initial-scale=1\">\
-         <title>{}</title><style>{STYLE}</style></head><body>\n",
-        escape(input.title)
-    );
+    page_start(&mut s, input.title);
     summary(&mut s, input);
     match input.kind {
         ImuOnlyKind::CameraImu(imu) => super::imu::imu_section(&mut s, &imu),
@@ -91,31 +85,33 @@ pub fn render_imu_only_html(input: &ImuOnlyReportInput) -> String {
     s
 }
 
-/// The verdicts of the calibration, rotation first.
-fn verdicts<'a>(kind: &ImuOnlyKind<'a>) -> [&'a Verdict; 4] {
+/// The calibration's verdicts with the quantities' names, rotation first.
+fn named_verdicts<'a>(kind: &ImuOnlyKind<'a>) -> Vec<(&'static str, &'a Verdict)> {
     match *kind {
         ImuOnlyKind::CameraImu(imu) => {
             let v = imu.verdicts;
-            // The camera + IMU mode has no scale: its rotation stands in the fourth place.
-            [&v.rotation, &v.lever_arm, &v.time_offset, &v.rotation]
+            vec![
+                ("rotation", &v.rotation),
+                ("lever arm", &v.lever_arm),
+                ("clock offset", &v.time_offset),
+            ]
         }
         ImuOnlyKind::DvlImu { verdicts, .. } => {
-            [&verdicts[0], &verdicts[1], &verdicts[2], &verdicts[3]]
+            let names = ["rotation", "lever arm", "clock offset", "velocity scale"];
+            names.into_iter().zip(verdicts.iter()).collect()
         }
     }
 }
 
 fn summary(s: &mut String, input: &ImuOnlyReportInput) {
     section(s, "summary", "Summary");
-    let (what, names) = match input.kind {
-        ImuOnlyKind::CameraImu(_) => (
-            "the IMU against the camera (T_cam_imu and the IMU's clock offset)",
-            &["rotation", "lever arm", "clock offset"][..],
-        ),
-        ImuOnlyKind::DvlImu { .. } => (
-            "the DVL against the IMU (T_imu_dvl, the clock offset and the velocity scale)",
-            &["rotation", "lever arm", "clock offset", "velocity scale"][..],
-        ),
+    let what = match input.kind {
+        ImuOnlyKind::CameraImu(_) => {
+            "the IMU against the camera (T_cam_imu and the IMU's clock offset)"
+        }
+        ImuOnlyKind::DvlImu { .. } => {
+            "the DVL against the IMU (T_imu_dvl, the clock offset and the velocity scale)"
+        }
     };
     put!(
         s,
@@ -125,12 +121,10 @@ fn summary(s: &mut String, input: &ImuOnlyReportInput) {
         escape(what),
         input.elapsed_s
     );
-    let v = verdicts(&input.kind);
-    let weak: Vec<&str> = names
-        .iter()
-        .zip(v)
+    let weak: Vec<&str> = named_verdicts(&input.kind)
+        .into_iter()
         .filter(|(_, v)| !v.ok)
-        .map(|(n, _)| *n)
+        .map(|(n, _)| n)
         .collect();
     let verdict = if !input.failure.is_empty() {
         format!(
@@ -182,10 +176,6 @@ fn dvl_imu_section(s: &mut String, e: &DvlImuEstimate, v: &[Verdict; 4]) {
     let st = &e.imu;
     let bias = st.bias.values.first();
     let (gyro_factor, accel_factor, dvl_factor) = e.noise_factor;
-    s.push_str(
-        "<table id=\"dvl-imu-results\"><tr><th>quantity</th><th>estimate</th>\
-         <th>standard deviation</th><th>verdict</th></tr>\n",
-    );
     let rows = [
         (
             "rotation, quaternion_imu_dvl_xyzw (std about DVL x, y, z)",
@@ -236,17 +226,8 @@ fn dvl_imu_section(s: &mut String, e: &DvlImuEstimate, v: &[Verdict; 4]) {
             "",
         ),
     ];
-    for (name, value, sd, verdict) in rows {
-        put!(
-            s,
-            "<tr><td>{}</td><td class=\"num\">{}</td><td class=\"num\">{}</td><td>{verdict}</td>\
-             </tr>\n",
-            escape(name),
-            escape(&value),
-            escape(&sd)
-        );
-    }
-    s.push_str("</table>\n<ul class=\"verdicts\" id=\"dvl-imu-verdicts\">");
+    estimate_table(s, "dvl-imu-results", &rows);
+    s.push_str("<ul class=\"verdicts\" id=\"dvl-imu-verdicts\">");
     for line in [
         verdict_sentence(
             "The rotation",

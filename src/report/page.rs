@@ -1,34 +1,26 @@
 //! The HTML page of the DVL calibration's report: the document around its sections, in page
 //! order; each section is built, values and HTML, by a file of its own.
 
-use std::fmt::Write as _;
-
 use super::clock_offset::clock_offset;
 use super::data::Derived;
 use super::dvl_log::{dvl_log, result_file};
 use super::frames::frames;
 use super::guidance::{FrameLoss, next_steps, next_steps_section};
-use super::html::{STYLE, put};
+
 use super::input::ReportInput;
 use super::motion::motion;
 use super::refinement::refinement;
 use super::results::results;
 use super::robustness::robustness;
 use super::summary::{all_warnings, summary, warnings};
-use super::svg::escape;
+
 use super::trajectory_fit::trajectory;
 use super::velocity::{residuals, velocity};
 
 pub(super) fn render(input: &ReportInput, d: &Derived) -> String {
     let o = input.outcome;
     let mut s = String::with_capacity(256 * 1024);
-    put!(
-        s,
-        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\
-         <meta name=\"viewport\" content=\"width=device-width,initial-scale=1\">\
-         <title>{}</title><style>{STYLE}</style></head><body>\n",
-        escape(input.title)
-    );
+    super::html::page_start(&mut s, input.title);
     let steps = next_steps(input);
     let warned = all_warnings(input);
     summary(&mut s, input, d, &steps, &warned);
