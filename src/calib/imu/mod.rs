@@ -15,6 +15,7 @@
 //! smooth over).
 
 pub(crate) mod bins;
+pub(crate) mod coupling;
 pub mod dvl;
 pub(crate) mod dvl_init;
 pub(crate) mod factors;

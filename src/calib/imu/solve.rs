@@ -12,11 +12,12 @@ use std::ops::{AddAssign, SubAssign};
 use nalgebra::{DMatrix, DVector, Matrix3, SMatrix, Vector6};
 
 use super::bins::ImuBin;
+use super::coupling::{Coupling, schur_forms};
 use super::factors::{BinTerms, SparsePoseFactors, bin_residual, bin_terms};
 use super::state::{ImuState, NFIXED};
 use crate::calib::model::{DvlObs, NPARAM, d_predict_d_params, d_predict_d_twist, predict};
 use crate::error::{Error, Result};
-use crate::trajectory::blocktri::{BlockTridiagonal, Factored, V18};
+use crate::trajectory::blocktri::{BandedInverse, BlockTridiagonal, M18, V18};
 use crate::trajectory::gp::{Knot, LocalState, local_gamma, local_state};
 use crate::trajectory::solver::{Problem, step};
 use crate::trajectory::{JerkDensity, KnotView};
@@ -68,8 +69,8 @@ struct DvlTerms {
 /// The calibration's part of the normal equations at one linearisation point.
 struct Linear {
     cost: f64,
-    /// `H_x theta`, 18 rows per knot.
-    cross: DMatrix<f64>,
+    /// `H_x theta`, per knot on the columns its factors touch.
+    cross: Coupling,
     hth: DMatrix<f64>,
     /// `-J_theta^T W e`.
     gth: DVector<f64>,
@@ -78,14 +79,6 @@ struct Linear {
 /// Gauss-Newton stops when the step's predicted decrease of the cost is below this: no linear
 /// function of the variables would move by more than a tenth of its standard deviation.
 const STOP_DECREMENT: f64 = 1e-2;
-
-/// The Schur complement of the calibration at one linearisation.
-struct Schur {
-    xr: DVector<f64>,
-    x: DMatrix<f64>,
-    schur: DMatrix<f64>,
-    s: DVector<f64>,
-}
 
 /// One Gauss-Newton step.
 struct Step {
@@ -117,6 +110,27 @@ fn theta_jacobian(t: &BinTerms) -> SMatrix<f64, 6, 21> {
         jl[(r, 15 + r)] = u;
     }
     jl
+}
+
+/// The columns of `theta` the redundancy's solves take at once.
+const CHUNK: usize = 36;
+
+/// The error of a calibration whose information is singular.
+fn singular() -> Error {
+    Error::Numerical("the IMU calibration's information is singular".into())
+}
+
+/// `J Sigma J^T` of a residual block with Jacobians `j1`, `j2` on knots `k`, `k + 1`, for the
+/// knots' covariance blocks `band` (the trajectory's own, the calibration held).
+fn local_projection<const M: usize>(
+    band: &BandedInverse,
+    k: usize,
+    j1: &SMatrix<f64, M, 18>,
+    j2: &SMatrix<f64, M, 18>,
+) -> SMatrix<f64, M, M> {
+    let (d1, d2, u): (&M18, &M18, &M18) = (&band.diag[k], &band.diag[k + 1], &band.upper[k]);
+    let a = j1 * u * j2.transpose();
+    j1 * d1 * j1.transpose() + a + a.transpose() + j2 * d2 * j2.transpose()
 }
 
 /// `S^-1 s`, or an error saying the calibration is not determined.
@@ -284,7 +298,7 @@ impl ImuJoint<'_> {
         let n = knots.len();
         let p = st.dim();
         let mut cost = self.problem().assemble_into(knots, sys);
-        let mut cross = DMatrix::<f64>::zeros(18 * n, p);
+        let mut cross = Coupling::zeros(n, p, st.dvl.map(|_| st.dvl_start()));
         let mut hth = DMatrix::<f64>::zeros(p, p);
         let mut gth = DVector::<f64>::zeros(p);
         let mut ls = None;
@@ -313,11 +327,9 @@ impl ImuJoint<'_> {
             let c2 = t.j2.transpose() * wjl;
             let hl = jl.transpose() * wjl;
             let gl = jl.transpose() * we;
+            cross.add_bin(k, t.node.0, &c1);
+            cross.add_bin(k + 1, t.node.0, &c2);
             for (a, &ca) in cols.iter().enumerate() {
-                for r in 0..18 {
-                    cross[(18 * k + r, ca)] += c1[(r, a)];
-                    cross[(18 * (k + 1) + r, ca)] += c2[(r, a)];
-                }
                 gth[ca] -= gl[a];
                 for (b, &cb) in cols.iter().enumerate() {
                     hth[(ca, cb)] += hl[(a, b)];
@@ -364,10 +376,8 @@ impl ImuJoint<'_> {
                 sys.rhs[k + 1] -= t.j2.transpose() * we;
                 let c1 = t.j1.transpose() * wjt;
                 let c2 = t.j2.transpose() * wjt;
-                cross.view_mut((18 * k, c0), (18, NPARAM)).add_assign(&c1);
-                cross
-                    .view_mut((18 * (k + 1), c0), (18, NPARAM))
-                    .add_assign(&c2);
+                cross.add_dvl(k, &c1);
+                cross.add_dvl(k + 1, &c2);
                 hth.view_mut((c0, c0), (NPARAM, NPARAM))
                     .add_assign(&(t.jth.transpose() * wjt));
                 gth.rows_mut(c0, NPARAM)
@@ -375,7 +385,7 @@ impl ImuJoint<'_> {
             }
         }
         for &c in &self.held {
-            cross.column_mut(c).fill(0.0);
+            cross.hold(c);
             hth.row_mut(c).fill(0.0);
             hth.column_mut(c).fill(0.0);
             hth[(c, c)] = 1.0;
@@ -389,47 +399,22 @@ impl ImuJoint<'_> {
         }
     }
 
-    /// The calibration's Schur complement at one linearisation, given the knots' factor:
-    /// `A^-1 r` (flat), `X = A^-1 H_x theta`, `S = H_theta - H_x theta^T X` and the reduced
-    /// right-hand side.
-    fn schur(&self, lin: &Linear, factor: &Factored) -> Schur {
-        let n = lin.cross.nrows() / 18;
-        let p = lin.hth.nrows();
-        let xr = factor.solve();
-        let mut x = DMatrix::<f64>::zeros(18 * n, p);
-        for c0 in (0..p).step_by(6) {
-            let cols = (p - c0).min(6);
-            let rhs: Vec<SMatrix<f64, 18, 6>> = (0..n)
-                .map(|k| {
-                    let mut m = SMatrix::<f64, 18, 6>::zeros();
-                    m.view_mut((0, 0), (18, cols))
-                        .copy_from(&lin.cross.view((18 * k, c0), (18, cols)));
-                    m
-                })
-                .collect();
-            let sol = factor.solve_many::<6>(&rhs);
-            for (k, m) in sol.iter().enumerate() {
-                x.view_mut((18 * k, c0), (18, cols))
-                    .copy_from(&m.view((0, 0), (18, cols)));
-            }
-        }
-        let xr = DVector::<f64>::from_iterator(18 * n, xr.iter().flat_map(|v| v.iter().copied()));
-        let schur = &lin.hth - lin.cross.transpose() * &x;
-        let schur = (&schur + schur.transpose()) * 0.5;
-        let s = &lin.gth - lin.cross.transpose() * &xr;
-        Schur { xr, x, schur, s }
-    }
-
     /// The Gauss-Newton step at one linearisation: the knots' and the calibration's, the
-    /// Schur complement of the calibration, and the predicted decrease of the cost.
+    /// Schur complement of the calibration, and the predicted decrease of the cost. The Schur
+    /// complement `S = H_theta - H_x theta^T A^-1 H_x theta` and the reduced right-hand side
+    /// `s = g_theta - H_x theta^T A^-1 r` come from one streamed elimination; the knots' step
+    /// is `A^-1 (r - H_x theta d_theta)`.
     fn step(&self, lin: &Linear, sys: BlockTridiagonal) -> Result<Step> {
-        let factor = sys.factor()?;
-        let Schur { xr, x, schur, s } = self.schur(lin, &factor);
+        let (hah, har) = schur_forms(&sys, &lin.cross)?;
+        let schur = &lin.hth - hah;
+        let schur = (&schur + schur.transpose()) * 0.5;
+        let s = &lin.gth - har;
         let dth = solve_schur(&schur, &s)?;
-        let dx_flat = &xr - &x * &dth;
-        let dx = (0..xr.len() / 18)
-            .map(|k| V18::from_iterator(dx_flat.rows(18 * k, 18).iter().copied()))
-            .collect();
+        let factor = sys.factor()?;
+        let xr = factor.solve();
+        let hd: Vec<V18> = (0..xr.len()).map(|k| lin.cross.times(k, &dth)).collect();
+        let xd = factor.solve_many::<1>(&hd);
+        let dx = xr.iter().zip(&xd).map(|(a, b)| a - b).collect();
         let decrement = factor.decrement() + s.dot(&dth);
         Ok(Step {
             dx,
@@ -444,61 +429,63 @@ impl ImuJoint<'_> {
     /// The redundancy of a residual block is its dimension less `tr(W J Sigma J^T)`, with
     /// `Sigma` the joint covariance of the two knots and the calibration it touches; the
     /// chi-square over it estimates the factor by which the stated variances are off.
+    ///
+    /// With `X = A^-1 H_x theta` and `S^-1 = G G^T` (`G = L^-T` of the Schur complement's
+    /// Cholesky factor), `J Sigma J^T = J_x A^-1 J_x^T + U U^T` with `U = J_x X G - J_theta G`:
+    /// the first term needs the knots' banded covariance, the second splits by the columns of
+    /// `G`, so `X G` is solved for a few columns at a time and never stored whole.
     pub fn redundancy(&self, knots: &[Knot], st: &ImuState) -> Result<Redundancy> {
         let n = knots.len();
         let mut sys = BlockTridiagonal::zeros(n);
         let lin = self.linearise(knots, st, &mut sys);
+        let (hah, _) = schur_forms(&sys, &lin.cross)?;
+        let schur = &lin.hth - hah;
+        let schur = (&schur + schur.transpose()) * 0.5;
+        let p = schur.nrows();
+        let l = schur.cholesky().ok_or_else(singular)?.unpack();
+        let g = l
+            .transpose()
+            .solve_upper_triangular(&DMatrix::identity(p, p))
+            .ok_or_else(singular)?;
         let factor = sys.factor()?;
-        let Schur { x, schur, .. } = self.schur(&lin, &factor);
-        let sinv = schur.clone().try_inverse().ok_or_else(|| {
-            Error::Numerical("the IMU calibration's information is singular".into())
-        })?;
-        let band = factor.banded_inverse();
-        let y = &x * &sinv;
-        // `J Sigma J^T` of a residual block on knots k, k + 1 (Jacobians j1, j2) and on the
-        // columns `cols` of theta (Jacobian jt).
-        let project =
-            |k: usize, j1: &DMatrix<f64>, j2: &DMatrix<f64>, cols: &[usize], jt: &DMatrix<f64>| {
-                let sxx = |a: usize, b: usize| -> DMatrix<f64> {
-                    let base = if a == b {
-                        band.diag[a].clone_owned()
-                    } else {
-                        band.upper[a.min(b)].clone_owned()
-                    };
-                    let base = DMatrix::from_column_slice(18, 18, base.as_slice());
-                    let base = if a > b { base.transpose() } else { base };
-                    base + y.rows(18 * a, 18) * x.rows(18 * b, 18).transpose()
-                };
-                let m = j1.nrows();
-                let mut jx = DMatrix::<f64>::zeros(m, 36);
-                jx.view_mut((0, 0), (m, 18)).copy_from(j1);
-                jx.view_mut((0, 18), (m, 18)).copy_from(j2);
-                let mut sig_xx = DMatrix::<f64>::zeros(36, 36);
-                sig_xx.view_mut((0, 0), (18, 18)).copy_from(&sxx(k, k));
-                sig_xx.view_mut((0, 18), (18, 18)).copy_from(&sxx(k, k + 1));
-                sig_xx.view_mut((18, 0), (18, 18)).copy_from(&sxx(k + 1, k));
-                sig_xx
-                    .view_mut((18, 18), (18, 18))
-                    .copy_from(&sxx(k + 1, k + 1));
-                let c = cols.len();
-                let mut sig_xt = DMatrix::<f64>::zeros(36, c);
-                let mut sig_tt = DMatrix::<f64>::zeros(c, c);
-                for (a, &ca) in cols.iter().enumerate() {
-                    for r in 0..18 {
-                        sig_xt[(r, a)] = -y[(18 * k + r, ca)];
-                        sig_xt[(18 + r, a)] = -y[(18 * (k + 1) + r, ca)];
-                    }
-                    for (b, &cb) in cols.iter().enumerate() {
-                        sig_tt[(a, b)] = sinv[(ca, cb)];
-                    }
-                }
-                let cross = &jx * &sig_xt * jt.transpose();
-                &jx * sig_xx * jx.transpose()
-                    + &cross
-                    + cross.transpose()
-                    + jt * sig_tt * jt.transpose()
-            };
+        let solved = |c0: usize| {
+            let rhs: Vec<SMatrix<f64, 18, CHUNK>> = (0..n)
+                .map(|k| lin.cross.times_matrix::<CHUNK>(k, &g, c0))
+                .collect();
+            factor.solve_many::<CHUNK>(&rhs)
+        };
+        let starts: Vec<usize> = (0..p).step_by(CHUNK).collect();
         let mut out = Redundancy::default();
+        let Some((&last, rest)) = starts.split_last() else {
+            return Ok(out);
+        };
+        for &c0 in rest {
+            self.redundancy_pass(knots, st, (&solved(c0), &g, c0), None, &mut out);
+        }
+        let x = solved(last);
+        let band = factor.banded_inverse();
+        self.redundancy_pass(knots, st, (&x, &g, last), Some(&band), &mut out);
+        Ok(out)
+    }
+
+    /// One pass of [`ImuJoint::redundancy`] over the residual blocks: subtracts `tr(W U U^T)`
+    /// on the columns `c0..c0 + CHUNK` of `G` (`xg` holds those of `X G`, knot by knot) from
+    /// each sensor's redundancy; with the knots' banded covariance, also adds each block's
+    /// dimension less `tr(W J_x A^-1 J_x^T)` and its chi-square.
+    fn redundancy_pass(
+        &self,
+        knots: &[Knot],
+        st: &ImuState,
+        (xg, g, c0): (&[SMatrix<f64, 18, CHUNK>], &DMatrix<f64>, usize),
+        band: Option<&BandedInverse>,
+        out: &mut Redundancy,
+    ) {
+        let width = CHUNK.min(g.ncols() - c0);
+        let g_rows = |cols: &[usize]| -> DMatrix<f64> {
+            DMatrix::from_fn(cols.len(), CHUNK, |a, c| {
+                if c < width { g[(cols[a], c0 + c)] } else { 0.0 }
+            })
+        };
         let mut ls = None;
         for (j, k, s) in self.placed(st.time_offset_s) {
             if ls.as_ref().is_none_or(|(kk, _)| *kk != k) {
@@ -509,23 +496,25 @@ impl ImuJoint<'_> {
             let t = bin_terms(&knots[k], l, s, dt, &self.bins[j], st);
             let mut jl = theta_jacobian(&t);
             self.hold_bin(&mut jl);
-            let p = project(
-                k,
-                &DMatrix::from_column_slice(6, 18, t.j1.as_slice()),
-                &DMatrix::from_column_slice(6, 18, t.j2.as_slice()),
-                &theta_columns(t.node.0),
-                &DMatrix::from_column_slice(6, 21, jl.as_slice()),
+            let gl = SMatrix::<f64, 21, CHUNK>::from_iterator(
+                g_rows(&theta_columns(t.node.0)).iter().copied(),
             );
+            let u = t.j1 * xg[k] + t.j2 * xg[k + 1] - jl * gl;
             let w = &self.info[j];
+            let proj = band.map(|b| local_projection(b, k, &t.j1, &t.j2));
             for r in 0..6 {
                 let part = if r < 3 { &mut out.gyro } else { &mut out.accel };
-                part.0 += w[r] * t.e[r] * t.e[r];
-                part.1 += 1.0 - w[r] * p[(r, r)];
+                part.1 -= w[r] * u.row(r).norm_squared();
+                if let Some(pr) = &proj {
+                    part.0 += w[r] * t.e[r] * t.e[r];
+                    part.1 += 1.0 - w[r] * pr[(r, r)];
+                }
             }
         }
         if let Some(pd) = &st.dvl {
-            let c0 = st.dvl_start();
-            let cols: Vec<usize> = (c0..c0 + NPARAM).collect();
+            let c = st.dvl_start();
+            let cols: Vec<usize> = (c..c + NPARAM).collect();
+            let gl = SMatrix::<f64, NPARAM, CHUNK>::from_iterator(g_rows(&cols).iter().copied());
             let mut ls: Option<(usize, LocalState)> = None;
             for (i, k, tau) in self.placed_dvl(st) {
                 if ls.as_ref().is_none_or(|(kk, _)| *kk != k) {
@@ -533,24 +522,17 @@ impl ImuJoint<'_> {
                 }
                 let Some((_, l)) = &ls else { continue };
                 let t = self.dvl_terms(knots, k, tau, l, i, pd);
-                let p = project(
-                    k,
-                    &DMatrix::from_column_slice(3, 18, t.j1.as_slice()),
-                    &DMatrix::from_column_slice(3, 18, t.j2.as_slice()),
-                    &cols,
-                    &DMatrix::from_column_slice(3, NPARAM, t.jth.as_slice()),
-                );
+                let u = t.j1 * xg[k] + t.j2 * xg[k + 1] - t.jth * gl;
                 let w = &self.dvl_info[i];
-                out.dvl.0 += (t.e.transpose() * w * t.e)[0];
-                // tr(W P), P = J Sigma J^T.
-                let wp: f64 = (0..3)
-                    .flat_map(|r| (0..3).map(move |c| (r, c)))
-                    .map(|(r, c)| w[(r, c)] * p[(c, r)])
-                    .sum();
-                out.dvl.1 += 3.0 - wp;
+                // tr(W P) for symmetric P.
+                let trace = |p: &Matrix3<f64>| w.component_mul(p).sum();
+                out.dvl.1 -= trace(&(u * u.transpose()));
+                if let Some(b) = band {
+                    out.dvl.0 += (t.e.transpose() * w * t.e)[0];
+                    out.dvl.1 += 3.0 - trace(&local_projection(b, k, &t.j1, &t.j2));
+                }
             }
         }
-        Ok(out)
     }
 
     /// Gauss-Newton from `knots` and `st`.
@@ -577,9 +559,7 @@ impl ImuJoint<'_> {
             sys = spare;
             if converged || decrement < STOP_DECREMENT || iterations >= max_iterations {
                 converged = converged || decrement < STOP_DECREMENT;
-                let covariance = schur.clone().try_inverse().ok_or_else(|| {
-                    Error::Numerical("the IMU calibration's information is singular".into())
-                })?;
+                let covariance = schur.clone().try_inverse().ok_or_else(singular)?;
                 let bins_used = self.placed(st.time_offset_s).len();
                 return Ok(Solution {
                     knots,

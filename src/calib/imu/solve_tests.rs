@@ -62,34 +62,40 @@ fn state(dvl: bool) -> ImuState {
     }
 }
 
-#[test]
-fn the_gradient_matches_differences_of_the_cost_with_a_dvl_and_held_columns() {
-    let (times, ks) = knots(7);
-    let bins: Vec<ImuBin> = (0..14)
+fn bins() -> Vec<ImuBin> {
+    (0..14)
         .map(|j| ImuBin {
             t: 0.003 + 0.011 * j as f64,
             gyro: Vector3::new(0.1, -0.3 + 0.01 * j as f64, 0.2),
             accel: Vector3::new(0.5, 9.0, -2.0 + 0.1 * j as f64),
             n: 2,
         })
-        .collect();
-    let dvl: Vec<DvlObs> = (0..5)
+        .collect()
+}
+
+fn dvl_obs() -> Vec<DvlObs> {
+    (0..5)
         .map(|j| DvlObs {
             t: 0.01 + 0.03 * j as f64,
             v: Vector3::new(0.2, -0.1 * j as f64, 0.3),
             cov: Matrix3::identity() * 1e-4,
         })
-        .collect();
+        .collect()
+}
+
+/// The problem on `ks`: a pose on the first knot, the bins, the DVL's velocities, the lever
+/// arm's x and the clock offset held.
+fn joint<'a>(times: &[f64], ks: &[Knot], bins: &'a [ImuBin], dvl: &'a [DvlObs]) -> ImuJoint<'a> {
     let mut poses = vec![None; times.len()];
     poses[0] = Some((
         ks[0].pose * Se3::exp(&Vector6::from_element(0.01)),
         Matrix6::identity() * 1e3,
     ));
-    let joint = ImuJoint {
-        times: times.clone(),
+    ImuJoint {
+        times: times.to_vec(),
         poses: SparsePoseFactors { poses },
         density: JerkDensity::constant(Vector6::from_element(1e5)),
-        bins: &bins,
+        bins,
         info: vec![Vector6::from_element(50.0); bins.len()],
         noise: ImuNoise {
             accelerometer_noise_density: 4e-3,
@@ -99,9 +105,16 @@ fn the_gradient_matches_differences_of_the_cost_with_a_dvl_and_held_columns() {
             update_rate: 200.0,
         },
         held: vec![3, 6],
-        dvl: &dvl,
+        dvl,
         dvl_info: dvl.iter().map(|o| o.information().expect("info")).collect(),
-    };
+    }
+}
+
+#[test]
+fn the_gradient_matches_differences_of_the_cost_with_a_dvl_and_held_columns() {
+    let (times, ks) = knots(7);
+    let (bins, dvl) = (bins(), dvl_obs());
+    let joint = joint(&times, &ks, &bins, &dvl);
     let st = state(true);
     let mut sys = BlockTridiagonal::zeros(ks.len());
     let lin = joint.linearise(&ks, &st, &mut sys);
@@ -122,7 +135,7 @@ fn the_gradient_matches_differences_of_the_cost_with_a_dvl_and_held_columns() {
             -(joint.cost(&ks, &st.retract(&d)) - joint.cost(&ks, &st.retract(&-d))) / (4.0 * h);
         if joint.held.contains(&c) {
             assert_eq!(lin.gth[c], 0.0, "held column {c}");
-            assert!(lin.cross.column(c).iter().all(|x| *x == 0.0));
+            assert!(lin.cross.dense().column(c).iter().all(|x| *x == 0.0));
             continue;
         }
         assert!(
@@ -146,5 +159,189 @@ fn the_gradient_matches_differences_of_the_cost_with_a_dvl_and_held_columns() {
                 "knot {k} variable {i}: numeric {num} vs {ana}"
             );
         }
+    }
+}
+
+/// The whole problem's information matrix (knots, then `theta`) and right-hand side, dense.
+fn dense_system(
+    sys: &BlockTridiagonal,
+    lin: &Linear,
+    n: usize,
+) -> (nalgebra::DMatrix<f64>, DVector<f64>) {
+    let (nx, p) = (18 * n, lin.hth.nrows());
+    let mut h = nalgebra::DMatrix::zeros(nx + p, nx + p);
+    let mut g = DVector::zeros(nx + p);
+    for k in 0..n {
+        h.view_mut((18 * k, 18 * k), (18, 18))
+            .copy_from(&sys.diag[k]);
+        g.rows_mut(18 * k, 18).copy_from(&sys.rhs[k]);
+        if k + 1 < n {
+            h.view_mut((18 * k, 18 * (k + 1)), (18, 18))
+                .copy_from(&sys.upper[k]);
+            h.view_mut((18 * (k + 1), 18 * k), (18, 18))
+                .copy_from(&sys.upper[k].transpose());
+        }
+    }
+    let cross = lin.cross.dense();
+    h.view_mut((0, nx), (nx, p)).copy_from(&cross);
+    h.view_mut((nx, 0), (p, nx)).copy_from(&cross.transpose());
+    h.view_mut((nx, nx), (p, p)).copy_from(&lin.hth);
+    g.rows_mut(nx, p).copy_from(&lin.gth);
+    (h, g)
+}
+
+#[test]
+fn the_streamed_schur_and_the_chunked_redundancy_match_the_dense_problem() {
+    let (times, ks) = knots(7);
+    let (bins, dvl) = (bins(), dvl_obs());
+    let mut joint = joint(&times, &ks, &bins, &dvl);
+    // Poses on every knot and informative bins, so that the dense inverse the results are
+    // compared with is accurate (with a pose on the first knot alone, the accelerometer's bias
+    // and the knots' accelerations are nearly confounded over 0.15 s).
+    for (k, pose) in joint.poses.poses.iter_mut().enumerate() {
+        let d = Vector6::from_element(1e-3 * k as f64);
+        *pose = Some((ks[k].pose * Se3::exp(&d), Matrix6::identity() * 1e8));
+    }
+    joint.info = vec![Vector6::from_element(1e4); bins.len()];
+    let n = ks.len();
+    // 3, 7 or 8, and 16 bias nodes: theta of 35 columns (one elimination, one chunk of the
+    // redundancy), 59 or 65 (two chunks) and 113 (eliminations by pairs of ranges, four
+    // chunks); with 16 nodes a knot's bins touch up to four of them.
+    for (spacing, range) in [(0.1, 35..=35), (0.025, 59..=65), (0.01, 113..=113)] {
+        let mut st = state(true);
+        st.bias = BiasNodes::spanning(0.0, 0.15, spacing, st.bias.values[0]);
+        for (i, b) in st.bias.values.iter_mut().enumerate() {
+            b.accel.y -= 0.01 * i as f64;
+        }
+        let p = st.dim();
+        assert!(range.contains(&p), "{p} columns");
+        let mut sys = BlockTridiagonal::zeros(n);
+        let lin = joint.linearise(&ks, &st, &mut sys);
+        let (h, g) = dense_system(&sys, &lin, n);
+        let nx = 18 * n;
+        // The knots' block is well conditioned (poses on every knot); the calibration's Schur
+        // complement is not (0.15 s of motion), so it is compared as information, and the
+        // covariance below is built from it.
+        let a_inv = h
+            .view((0, 0), (nx, nx))
+            .into_owned()
+            .cholesky()
+            .expect("knots")
+            .inverse();
+        let cross = h.view((0, nx), (nx, p)).into_owned();
+        let x = &a_inv * &cross;
+        let schur = h.view((nx, nx), (p, p)) - cross.transpose() * &x;
+        let s_red = g.rows(nx, p) - x.transpose() * g.rows(0, nx);
+        let (_, har) = schur_forms(&sys, &lin.cross).expect("forms");
+        // Relative to the terms it is the difference of (the random walks' and the poses'
+        // information make both large).
+        let xtr = x.transpose() * g.rows(0, nx);
+        let scale = lin.gth.amax() + xtr.amax();
+        let err = (&lin.gth - har - &s_red).amax();
+        assert!(
+            err < 1e-10 * scale,
+            "p {p}: reduced gradient off by {err} of {scale}"
+        );
+        let step = joint.step(&lin, sys).expect("step");
+        let err = (&step.schur - &schur).amax();
+        assert!(
+            err < 1e-9 * schur.amax(),
+            "p {p}: Schur complement off by {err}"
+        );
+        let err = (&step.schur * &step.dth - &s_red).amax();
+        // The Cholesky solution's backward error (its forward error is the condition's).
+        let bound = 1e-12 * step.schur.amax() * step.dth.amax() * p as f64;
+        assert!(
+            err < bound,
+            "p {p}: calibration step off by {err} (bound {bound})"
+        );
+        // The knots' step is the difference of `A^-1 r` and `X d_theta`.
+        let (xr, xd) = (&a_inv * g.rows(0, nx), &x * &step.dth);
+        let dx = &xr - &xd;
+        let scale = xr.amax() + xd.amax();
+        for k in 0..n {
+            let err = (step.dx[k] - dx.rows(18 * k, 18)).amax();
+            assert!(err < 1e-9 * scale, "p {p}: knot {k}'s step off by {err}");
+        }
+        let decrement =
+            (g.rows(0, nx).transpose() * &a_inv * g.rows(0, nx))[0] + s_red.dot(&step.dth);
+        assert!((step.decrement - decrement).abs() < 1e-9 * decrement);
+
+        // The redundancy from the dense joint covariance, residual block by residual block.
+        let s_inv = step.schur.clone().cholesky().expect("schur").inverse();
+        let xs = &x * &s_inv;
+        let mut cov = nalgebra::DMatrix::zeros(nx + p, nx + p);
+        cov.view_mut((0, 0), (nx, nx))
+            .copy_from(&(&a_inv + &xs * x.transpose()));
+        cov.view_mut((0, nx), (nx, p)).copy_from(&-&xs);
+        cov.view_mut((nx, 0), (p, nx)).copy_from(&-xs.transpose());
+        cov.view_mut((nx, nx), (p, p)).copy_from(&s_inv);
+        let mut want = Redundancy::default();
+        let add = |part: &mut (f64, f64),
+                   jac: &nalgebra::DMatrix<f64>,
+                   w: &nalgebra::DMatrix<f64>,
+                   e: &DVector<f64>| {
+            let proj = jac * &cov * jac.transpose();
+            part.0 += (e.transpose() * w * e)[0];
+            part.1 += e.len() as f64 - (w * proj).trace();
+        };
+        for (j, k, s) in joint.placed(st.time_offset_s) {
+            let l = local_state(&ks[k], &ks[k + 1]);
+            let t = bin_terms(&ks[k], &l, s, times[k + 1] - times[k], &bins[j], &st);
+            let mut jl = theta_jacobian(&t);
+            joint.hold_bin(&mut jl);
+            let mut jac = nalgebra::DMatrix::zeros(6, nx + p);
+            jac.view_mut((0, 18 * k), (6, 18)).copy_from(&t.j1);
+            jac.view_mut((0, 18 * (k + 1)), (6, 18)).copy_from(&t.j2);
+            for (a, c) in theta_columns(t.node.0).into_iter().enumerate() {
+                jac.view_mut((0, nx + c), (6, 1)).copy_from(&jl.column(a));
+            }
+            let w = &joint.info[j];
+            for (part, r0) in [(&mut want.gyro, 0), (&mut want.accel, 3)] {
+                let wd = nalgebra::DMatrix::from_diagonal(&w.rows(r0, 3).into_owned());
+                add(
+                    part,
+                    &jac.rows(r0, 3).into_owned(),
+                    &wd,
+                    &DVector::from_column_slice(t.e.rows(r0, 3).as_slice()),
+                );
+            }
+        }
+        let pd = st.dvl.expect("dvl");
+        for (i, k, tau) in joint.placed_dvl(&st) {
+            let l = local_state(&ks[k], &ks[k + 1]);
+            let t = joint.dvl_terms(&ks, k, tau, &l, i, &pd);
+            let mut jac = nalgebra::DMatrix::zeros(3, nx + p);
+            jac.view_mut((0, 18 * k), (3, 18)).copy_from(&t.j1);
+            jac.view_mut((0, 18 * (k + 1)), (3, 18)).copy_from(&t.j2);
+            jac.view_mut((0, nx + st.dvl_start()), (3, NPARAM))
+                .copy_from(&t.jth);
+            let w = nalgebra::DMatrix::from_column_slice(3, 3, joint.dvl_info[i].as_slice());
+            add(
+                &mut want.dvl,
+                &jac,
+                &w,
+                &DVector::from_column_slice(t.e.as_slice()),
+            );
+        }
+        let got = joint.redundancy(&ks, &st).expect("redundancy");
+        // The redundancy is the blocks' dimension less a trace nearly as large: its error is
+        // relative to the dimension.
+        for (name, a, b, dim) in [
+            ("gyro", got.gyro, want.gyro, 3 * bins.len()),
+            ("accel", got.accel, want.accel, 3 * bins.len()),
+            ("dvl", got.dvl, want.dvl, 3 * dvl.len()),
+        ] {
+            assert!(
+                (a.0 - b.0).abs() < 1e-9 * b.0,
+                "p {p} {name} chi-square {a:?} vs {b:?}"
+            );
+            assert!(
+                (a.1 - b.1).abs() < 1e-8 * dim as f64,
+                "p {p} {name} redundancy {a:?} vs {b:?}"
+            );
+        }
+        // The redundancies are the blocks' dimensions less a share of the parameters.
+        assert!(got.gyro.1 > 0.0 && got.gyro.1 < 3.0 * bins.len() as f64);
     }
 }
