@@ -8,19 +8,16 @@
 //! of bias nodes. Dense, the coupling took `18 N p` numbers and its solution as many again.
 //!
 //! The Schur complement `S = H_theta - H_x theta^T A^-1 H_x theta` and the reduced right-hand
-//! side need `H_x theta^T A^-1 H_x theta` and `H_x theta^T A^-1 r`: the block-tridiagonal
-//! elimination's sweeps carry the forward-substituted columns from knot to knot and sum their
-//! products as they go ([`streamed_quadratic_forms`]), so nothing of the recording's length is
-//! stored beyond the system and the coupling.
+//! side need `H_x theta^T A^-1 H_x theta` and `H_x theta^T A^-1 r`: `A^-1 H_x theta` is solved
+//! six columns at a time and multiplied by the stored blocks at once ([`schur_forms`]), so
+//! nothing of the recording's length is stored beyond the system, its factor, the coupling and
+//! six columns.
 
 use nalgebra::{DMatrix, DVector, SMatrix};
 
 use super::state::NFIXED;
 use crate::calib::model::NPARAM;
-use crate::error::Result;
-use crate::trajectory::blocktri::{
-    BlockSource, BlockTridiagonal, M18, V18, streamed_quadratic_forms,
-};
+use crate::trajectory::blocktri::{Factored, V18};
 
 /// Knot rows.
 const R: usize = 18;
@@ -176,85 +173,45 @@ impl Coupling {
     }
 }
 
-/// The system and up to two ranges of the coupling's columns side by side, as a
-/// [`BlockSource`].
-struct Source<'a, const C: usize> {
-    sys: &'a BlockTridiagonal,
-    cross: &'a Coupling,
-    /// `(first column of theta, width, first column of the block)`.
-    ranges: &'a [(usize, usize, usize)],
-}
+/// Columns of `H_x theta` solved for at once in [`schur_forms`].
+const CHUNK: usize = 6;
 
-impl<const C: usize> BlockSource<C> for Source<'_, C> {
-    fn len(&self) -> usize {
-        self.sys.len()
-    }
-    fn diag(&self, k: usize) -> M18 {
-        self.sys.diag[k]
-    }
-    fn upper(&self, k: usize) -> M18 {
-        self.sys.upper[k]
-    }
-    fn rhs(&self, k: usize) -> V18 {
-        self.sys.rhs[k]
-    }
-    fn columns(&self, k: usize) -> SMatrix<f64, R, C> {
-        let mut out = SMatrix::zeros();
-        for &(from, width, to) in self.ranges {
-            self.cross.put(k, from, width, to, &mut out);
-        }
-        out
-    }
-}
-
-/// `H^T A^-1 H` and `H^T A^-1 r` for the system `sys` (`A`, `r`) and the coupling `H`, in one
-/// streamed elimination when `theta` has at most 72 columns, else in one per pair of 36-column
-/// ranges.
-pub fn schur_forms(
-    sys: &BlockTridiagonal,
-    cross: &Coupling,
-) -> Result<(DMatrix<f64>, DVector<f64>)> {
+/// `H^T A^-1 H` and `H^T A^-1 r` for the factored system `factor` (`A`, `r`) and the coupling
+/// `H`, with `A^-1 r` (knot by knot). `A^-1 H` is solved for a few columns at a time and
+/// multiplied by the coupling's stored blocks at once, so only those columns are ever held.
+pub fn schur_forms(factor: &Factored, cross: &Coupling) -> (DMatrix<f64>, DVector<f64>, Vec<V18>) {
     let p = cross.columns();
+    let xr = factor.solve();
     let mut hah = DMatrix::zeros(p, p);
     let mut har = DVector::zeros(p);
-    // Runs one elimination on the column ranges and writes the blocks they give.
-    fn run<const C: usize>(
-        sys: &BlockTridiagonal,
-        cross: &Coupling,
-        ranges: &[(usize, usize, usize)],
-        hah: &mut DMatrix<f64>,
-        har: &mut DVector<f64>,
-    ) -> Result<()> {
-        let (q, g) = streamed_quadratic_forms::<C>(&Source { sys, cross, ranges })?;
-        for &(fa, wa, ta) in ranges {
-            for &(fb, wb, tb) in ranges {
-                for i in 0..wa {
-                    for j in 0..wb {
-                        hah[(fa + i, fb + j)] = q[(ta + i, tb + j)];
-                    }
-                }
-            }
-            for i in 0..wa {
-                har[fa + i] = g[ta + i];
-            }
-        }
-        Ok(())
+    for (k, x) in xr.iter().enumerate() {
+        cross.for_each_column(k, |c, col| {
+            har[c] += x.iter().zip(col).map(|(a, b)| a * b).sum::<f64>();
+        });
     }
-    let all = [(0, p, 0)];
-    match p {
-        0..=24 => run::<24>(sys, cross, &all, &mut hah, &mut har)?,
-        25..=48 => run::<48>(sys, cross, &all, &mut hah, &mut har)?,
-        49..=64 => run::<64>(sys, cross, &all, &mut hah, &mut har)?,
-        65..=72 => run::<72>(sys, cross, &all, &mut hah, &mut har)?,
-        _ => {
-            let starts: Vec<usize> = (0..p).step_by(36).collect();
-            for (i, &a) in starts.iter().enumerate() {
-                for &b in &starts[i + 1..] {
-                    let ranges = [(a, 36.min(p - a), 0), (b, 36.min(p - b), 36)];
-                    run::<72>(sys, cross, &ranges, &mut hah, &mut har)?;
+    for c0 in (0..p).step_by(CHUNK) {
+        let width = CHUNK.min(p - c0);
+        let rhs: Vec<SMatrix<f64, R, CHUNK>> = (0..xr.len())
+            .map(|k| {
+                let mut m = SMatrix::zeros();
+                cross.put(k, c0, width, 0, &mut m);
+                m
+            })
+            .collect();
+        let x = factor.solve_many::<CHUNK>(&rhs);
+        drop(rhs);
+        for (k, xk) in x.iter().enumerate() {
+            cross.for_each_column(k, |c, col| {
+                for j in 0..width {
+                    hah[(c, c0 + j)] += xk
+                        .column(j)
+                        .iter()
+                        .zip(col)
+                        .map(|(a, b)| a * b)
+                        .sum::<f64>();
                 }
-            }
+            });
         }
     }
-    Ok((hah, har))
+    (hah, har, xr)
 }

@@ -402,16 +402,15 @@ impl ImuJoint<'_> {
     /// The Gauss-Newton step at one linearisation: the knots' and the calibration's, the
     /// Schur complement of the calibration, and the predicted decrease of the cost. The Schur
     /// complement `S = H_theta - H_x theta^T A^-1 H_x theta` and the reduced right-hand side
-    /// `s = g_theta - H_x theta^T A^-1 r` come from one streamed elimination; the knots' step
-    /// is `A^-1 (r - H_x theta d_theta)`.
+    /// `s = g_theta - H_x theta^T A^-1 r` come from the knots' factor ([`schur_forms`]); the
+    /// knots' step is `A^-1 (r - H_x theta d_theta)`.
     fn step(&self, lin: &Linear, sys: BlockTridiagonal) -> Result<Step> {
-        let (hah, har) = schur_forms(&sys, &lin.cross)?;
+        let factor = sys.factor()?;
+        let (hah, har, xr) = schur_forms(&factor, &lin.cross);
         let schur = &lin.hth - hah;
         let schur = (&schur + schur.transpose()) * 0.5;
         let s = &lin.gth - har;
         let dth = solve_schur(&schur, &s)?;
-        let factor = sys.factor()?;
-        let xr = factor.solve();
         let hd: Vec<V18> = (0..xr.len()).map(|k| lin.cross.times(k, &dth)).collect();
         let xd = factor.solve_many::<1>(&hd);
         let dx = xr.iter().zip(&xd).map(|(a, b)| a - b).collect();
@@ -438,7 +437,8 @@ impl ImuJoint<'_> {
         let n = knots.len();
         let mut sys = BlockTridiagonal::zeros(n);
         let lin = self.linearise(knots, st, &mut sys);
-        let (hah, _) = schur_forms(&sys, &lin.cross)?;
+        let factor = sys.factor()?;
+        let (hah, _, _) = schur_forms(&factor, &lin.cross);
         let schur = &lin.hth - hah;
         let schur = (&schur + schur.transpose()) * 0.5;
         let p = schur.nrows();
@@ -447,7 +447,6 @@ impl ImuJoint<'_> {
             .transpose()
             .solve_upper_triangular(&DMatrix::identity(p, p))
             .ok_or_else(singular)?;
-        let factor = sys.factor()?;
         let solved = |c0: usize| {
             let rhs: Vec<SMatrix<f64, 18, CHUNK>> = (0..n)
                 .map(|k| lin.cross.times_matrix::<CHUNK>(k, &g, c0))

@@ -204,9 +204,8 @@ fn the_streamed_schur_and_the_chunked_redundancy_match_the_dense_problem() {
     }
     joint.info = vec![Vector6::from_element(1e4); bins.len()];
     let n = ks.len();
-    // 3, 7 or 8, and 16 bias nodes: theta of 35 columns (one elimination, one chunk of the
-    // redundancy), 59 or 65 (two chunks) and 113 (eliminations by pairs of ranges, four
-    // chunks); with 16 nodes a knot's bins touch up to four of them.
+    // 3, 7 or 8, and 16 bias nodes: theta of 35 columns (one chunk of the redundancy's
+    // columns), 59 or 65 (two) and 113 (four); with 16 nodes a knot's bins touch up to four of them.
     for (spacing, range) in [(0.1, 35..=35), (0.025, 59..=65), (0.01, 113..=113)] {
         let mut st = state(true);
         st.bias = BiasNodes::spanning(0.0, 0.15, spacing, st.bias.values[0]);
@@ -232,7 +231,8 @@ fn the_streamed_schur_and_the_chunked_redundancy_match_the_dense_problem() {
         let x = &a_inv * &cross;
         let schur = h.view((nx, nx), (p, p)) - cross.transpose() * &x;
         let s_red = g.rows(nx, p) - x.transpose() * g.rows(0, nx);
-        let (_, har) = schur_forms(&sys, &lin.cross).expect("forms");
+        let factor = sys.clone().factor().expect("factor");
+        let (_, har, _) = schur_forms(&factor, &lin.cross);
         // Relative to the terms it is the difference of (the random walks' and the poses'
         // information make both large).
         let xtr = x.transpose() * g.rows(0, nx);
@@ -326,7 +326,8 @@ fn the_streamed_schur_and_the_chunked_redundancy_match_the_dense_problem() {
         }
         let got = joint.redundancy(&ks, &st).expect("redundancy");
         // The redundancy is the blocks' dimension less a trace nearly as large: its error is
-        // relative to the dimension.
+        // relative to the dimension (and limited by the dense inverse on this ill-conditioned
+        // problem: an error of bookkeeping would be of order one).
         for (name, a, b, dim) in [
             ("gyro", got.gyro, want.gyro, 3 * bins.len()),
             ("accel", got.accel, want.accel, 3 * bins.len()),
@@ -337,7 +338,7 @@ fn the_streamed_schur_and_the_chunked_redundancy_match_the_dense_problem() {
                 "p {p} {name} chi-square {a:?} vs {b:?}"
             );
             assert!(
-                (a.1 - b.1).abs() < 1e-8 * dim as f64,
+                (a.1 - b.1).abs() < 1e-7 * dim as f64,
                 "p {p} {name} redundancy {a:?} vs {b:?}"
             );
         }
