@@ -66,7 +66,9 @@ pub(super) fn open_file(path: &Path, problems: &mut Vec<String>) -> Result<(Mcap
         closed: false,
         channels: BTreeMap::new(),
         chunk_channels: BTreeMap::new(),
+        slot: crate::io::bag::growing::slot_of(path),
     };
+    file.check_kept();
     // The footer, when the file was closed.
     let mut summary = None;
     if len >= data_start + TAIL {
@@ -175,6 +177,7 @@ fn scan(file: &McapFile, problems: &mut Vec<String>) -> Result<FileInfo> {
     let mut found = Vec::new();
     let walk = Walk {
         want: &|_| false,
+        whole: &|_| false,
         use_index: false,
         counting: false,
     };
