@@ -76,13 +76,14 @@ pub(crate) struct McapKept {
 
 impl McapFile {
     /// Checks what the file's slot keeps against the file as it is now (readable to
-    /// `self.len`): kept when the file still starts as it did, else emptied.
+    /// `self.len`): kept when the file still starts as it did and what is kept lies in its
+    /// data section (a file closed since has its summary after it), else emptied.
     pub(super) fn check_kept(&self) {
         let Some(slot) = &self.slot else { return };
         let mut slot = memory::lock(slot);
         let held = slot
             .kept::<McapKept>()
-            .filter(|k| k.prefix.holds(&self.path, self.len))
+            .filter(|k| k.prefix.len <= self.data_end && k.prefix.holds(&self.path, self.len))
             .map(|k| k.prefix.len);
         if held.is_none() {
             slot.take::<McapKept>();

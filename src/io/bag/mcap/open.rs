@@ -68,7 +68,6 @@ pub(super) fn open_file(path: &Path, problems: &mut Vec<String>) -> Result<(Mcap
         chunk_channels: BTreeMap::new(),
         slot: crate::io::bag::growing::slot_of(path),
     };
-    file.check_kept();
     // The footer, when the file was closed.
     let mut summary = None;
     if len >= data_start + TAIL {
@@ -102,6 +101,8 @@ pub(super) fn open_file(path: &Path, problems: &mut Vec<String>) -> Result<(Mcap
             }
         }
     }
+    // What earlier reads kept, checked once the data section's end is known.
+    file.check_kept();
     if let Some((start, end)) = summary {
         match read_summary(&mut r, start, end) {
             Ok(mut info) if !info.channels.is_empty() => {
