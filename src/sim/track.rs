@@ -105,11 +105,8 @@ fn normal_cdf(x: f64) -> f64 {
 /// simulated camera.
 pub fn replay_track(track: &[PoseMeasurement], opts: &TrackOptions) -> Result<TrackMotion> {
     let ok = |x: f64| x.is_finite() && x > 0.0;
-    if !ok(opts.time_scale)
-        || !ok(opts.smoothing_s)
-        || !ok(opts.grid_dt_s)
-        || !(opts.min_smoothing_steps.is_finite() && opts.min_smoothing_steps >= 0.0)
-    {
+    let steps_ok = opts.min_smoothing_steps.is_finite() && opts.min_smoothing_steps >= 0.0;
+    if !(ok(opts.time_scale) && ok(opts.smoothing_s) && ok(opts.grid_dt_s) && steps_ok) {
         return Err(input(format!(
             "track replay: time scale, smoothing and grid step must be positive and the smallest \
              kernel in steps at least 0, got {}, {}, {}, {}",
