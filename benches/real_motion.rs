@@ -307,11 +307,12 @@ fn bench_scale(track_def: &Track, recorded: &[PoseMeasurement], scale: f64, seed
     ];
     println!(
         "## {} replayed at time scale {scale}: {:.1} s, RMS speed {:.3} m/s, RMS rate {:.3} rad/s \
-         (replay drift {:.1} mm RMS)\n",
+         (twists smoothed over {:.0} ms, replay drift {:.1} mm RMS)\n",
         track_def.name,
         track.duration_s,
         track.rms_speed_mps,
         track.rms_rate_radps,
+        track.smoothing_s * 1e3,
         track.position_drift_rms_m * 1e3
     );
     for (name, damage) in &scenarios {

@@ -1,7 +1,9 @@
 //! The clock offset on the trolley track under each robust loss and jerk density
 //! (docs/accuracy.md, "Real vehicle motion"): `cargo run --release --example real_motion_loss --
-//! [SEEDS]` (default 6). Each seed is simulated as in `benches/real_motion.rs` (10 Hz poses of
-//! 2 mm / 0.1 deg, 10 Hz DVL reports of 1 cm/s, white noise) and calibrated with the Cauchy
+//! [SEEDS] [STEPS]` (default 6 seeds; STEPS, the replay's smallest smoothing kernel in the
+//! track's steps, default 2 as in the bench: 0 replays the motion capture's jitter). Each seed
+//! is simulated as in `benches/real_motion.rs` (10 Hz poses of 2 mm / 0.1 deg, 10 Hz DVL
+//! reports of 1 cm/s, white noise) and calibrated with the Cauchy
 //! (default), least-squares and Huber losses, and with the first two at 30 times the jerk density
 //! the fit chooses; the spline estimator gives the reference. Printed: each seed's offset error
 //! (and dvlcal's std), then the RMS error of each.
@@ -25,7 +27,21 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let recorded = read_tum(Path::new(TRACK), None)?.poses;
     let cut = cut_track(&recorded, &CutOptions::default())?;
     let piece = cut.longest().ok_or("no usable piece")?.to_vec();
-    let track = replay_track(&piece, &TrackOptions::default())?;
+    let steps: f64 = std::env::args()
+        .nth(2)
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(TrackOptions::default().min_smoothing_steps);
+    let track = replay_track(
+        &piece,
+        &TrackOptions {
+            min_smoothing_steps: steps,
+            ..TrackOptions::default()
+        },
+    )?;
+    println!(
+        "trolley replayed with its twists smoothed over {:.0} ms",
+        track.smoothing_s * 1e3
+    );
     let variants: [(&str, Loss, f64); 5] = [
         ("cauchy", Loss::Cauchy, 1.0),
         ("l2", Loss::L2, 1.0),

@@ -38,6 +38,19 @@ fn replay_longest(c: &CutTrack, time_scale: f64) -> TrackMotion {
     replay_track(piece, &opts).expect("replay")
 }
 
+/// The longest piece of a track replayed at its own speed with the twists smoothed over 50 ms
+/// only, less than the default's two steps: on a 10 Hz track the tracker's jitter stays in
+/// the replay as a vibration of the vehicle.
+fn replay_with_jitter(file: &str) -> TrackMotion {
+    let c = cut(file);
+    let piece = c.longest().expect("a usable piece");
+    let opts = TrackOptions {
+        min_smoothing_steps: 0.0,
+        ..TrackOptions::default()
+    };
+    replay_track(piece, &opts).expect("replay")
+}
+
 /// The longest piece of a track, replayed at `time_scale`.
 fn replay(file: &str, time_scale: f64) -> TrackMotion {
     replay_longest(&cut(file), time_scale)
@@ -94,8 +107,10 @@ fn the_recorded_track_replays_with_its_speeds_and_little_drift() {
         "{}",
         r.rms_rate_radps
     );
-    // The integral of the smoothed twist stays within millimetres of the recorded positions.
-    assert!(r.position_drift_rms_m < 0.01, "{}", r.position_drift_rms_m);
+    // The integral of the smoothed twist (two 50 ms steps of the 20 Hz track) stays within
+    // about a centimetre of the recorded positions.
+    assert!((r.smoothing_s - 0.1).abs() < 1e-9, "{}", r.smoothing_s);
+    assert!(r.position_drift_rms_m < 0.02, "{}", r.position_drift_rms_m);
     assert_consistent(&r);
 }
 
@@ -112,8 +127,9 @@ fn the_hand_held_track_is_cut_at_its_tracking_loss_and_replays() {
         "{}",
         r.rms_rate_radps
     );
-    // A hand's shake smoothed away: a few centimetres over some 50 m of path.
-    assert!(r.position_drift_rms_m < 0.08, "{}", r.position_drift_rms_m);
+    // A hand's shake smoothed away with the tracker's jitter (two 50 ms steps): under 25 cm
+    // over some 50 m of path.
+    assert!(r.position_drift_rms_m < 0.25, "{}", r.position_drift_rms_m);
     assert_consistent(&r);
 }
 
@@ -287,7 +303,10 @@ fn the_poses_and_the_dvl_together_prefer_the_jerk_density_chosen_from_the_poses(
 /// the DVL residuals over rotations replaces it, with a warning, and the result is right.
 #[test]
 fn a_trolley_moving_only_forward_is_calibrated_from_the_best_rotation() {
-    let track = replay(TROLLEY, 1.0);
+    // The seed and the assertions below were found on the replay with the tracker's jitter
+    // (the default before the two-step smoothing); the rotation search and the one-axis hold do
+    // not depend on it, so the test keeps that replay.
+    let track = replay_with_jitter(TROLLEY);
     let cfg = SimConfig {
         seed: 3001,
         duration_s: track.duration_s,

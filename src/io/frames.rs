@@ -77,6 +77,16 @@ impl<'a> FrameSource<'a> {
     /// passes, then those a bag cut short left incomplete). An error from `send` (the receiver
     /// stopped) ends the pass and is returned.
     pub fn read(&self, send: &mut dyn FnMut(usize, FrameImages<'a>) -> Result<()>) -> Result<()> {
+        self.read_some(&|_| true, send)
+    }
+
+    /// [`FrameSource::read`], where a bag's frames that `needed` refuses (by index) may be left
+    /// out: their images are not read (a frame whose outcome is kept from an earlier update).
+    pub fn read_some(
+        &self,
+        needed: &dyn Fn(usize) -> bool,
+        send: &mut dyn FnMut(usize, FrameImages<'a>) -> Result<()>,
+    ) -> Result<()> {
         match *self {
             FrameSource::Files(frames) => {
                 for (i, f) in frames.iter().enumerate() {
@@ -85,7 +95,7 @@ impl<'a> FrameSource<'a> {
                 }
                 Ok(())
             }
-            FrameSource::Bag { path, plan } => read_bag(path, plan, send),
+            FrameSource::Bag { path, plan } => read_bag(path, plan, needed, send),
         }
     }
 }
@@ -100,10 +110,12 @@ fn read_file(r: &ImageRef) -> Result<EncodedImage<'_>> {
     }
 }
 
-/// Streams the image messages of `plan`'s frames from the bag at `path` in one pass.
+/// Streams the image messages of `plan`'s frames that are `needed` from the bag at `path` in
+/// one pass (of a bag followed while recorded, only those messages' bytes are read again).
 fn read_bag<'a>(
     path: &Path,
     plan: &'a BagFrames,
+    needed: &dyn Fn(usize) -> bool,
     send: &mut dyn FnMut(usize, FrameImages<'a>) -> Result<()>,
 ) -> Result<()> {
     let cams = plan.topics.len();
@@ -111,6 +123,9 @@ fn read_bag<'a>(
     let mut slot: HashMap<(usize, u64), usize> = HashMap::new();
     let mut expected = vec![0usize; plan.frames.len()];
     for (fi, f) in plan.frames.iter().enumerate() {
+        if !needed(fi) {
+            continue;
+        }
         for (c, r) in f.images.iter().enumerate() {
             if let Some(ImageRef::Message { index, .. }) = r {
                 slot.insert((c, *index), fi);
@@ -126,13 +141,21 @@ fn read_bag<'a>(
         .map(|(c, t)| (t.topic, c))
         .collect();
     let mut partial: BTreeMap<usize, FrameImages<'a>> = BTreeMap::new();
-    bag.messages(&|i| cam_of.contains_key(&i), &mut |m| {
+    let whole = |topic: usize, index: u64| {
+        cam_of
+            .get(&topic)
+            .is_some_and(|&c| slot.contains_key(&(c, index)))
+    };
+    bag.messages_with(&|i| cam_of.contains_key(&i), &whole, &mut |m| {
         let Some(&c) = cam_of.get(&m.topic) else {
             return Ok(());
         };
         let Some(&fi) = slot.get(&(c, m.index)) else {
             return Ok(());
         };
+        if !m.whole {
+            return Ok(());
+        }
         let topic = &plan.topics[c];
         let entry = partial
             .entry(fi)

@@ -23,11 +23,15 @@
 //!
 //! The image messages' detections are kept across updates under the bag's path, topic and
 //! message number ([`DetectionCache::message_key`]), moved with the bag when it is renamed.
+//! So is the readers' place in each storage file ([`BagMemory`]): an update of a ROS 1 or MCAP
+//! bag parses only what was appended since the last one (and its last, unfinished chunk), and
+//! reads an image's bytes again only for a frame not solved yet.
 
 use std::path::{Path, PathBuf};
 use std::time::SystemTime;
 
 use crate::io::bag::growing::FixedLengths;
+use crate::io::bag::memory::BagMemory;
 use crate::io::bag::{Storage, is_bag};
 use crate::vision::detect::DetectionCache;
 
@@ -61,6 +65,8 @@ pub(super) struct FollowedBag {
     last: Option<Signature>,
     /// Why the recording is over, once a look saw it end.
     ended: Option<String>,
+    /// Where the readers got to in its files, kept across updates.
+    memory: BagMemory,
 }
 
 /// Whether `name` is a storage file of a ROS 2 bag, or a file SQLite keeps beside one.
@@ -132,6 +138,7 @@ impl FollowedBag {
             read: None,
             last: None,
             ended: None,
+            memory: BagMemory::default(),
         })
     }
 
@@ -171,6 +178,11 @@ impl FollowedBag {
             && old != new
         {
             *cache = cache.rebased(old, new);
+            // A file renamed (not a recording folder now read through its metadata.yaml,
+            // whose storage file keeps its name).
+            if !old.exists() {
+                self.memory.rebase(old, new);
+            }
         }
         self.read = read;
         if self.ended.is_none() {
@@ -267,7 +279,10 @@ impl FollowedBag {
         } else {
             vec![read.clone()]
         };
-        Ok((read.clone(), FixedLengths::fix(&files)))
+        Ok((
+            read.clone(),
+            FixedLengths::fix_remembering(&files, &self.memory),
+        ))
     }
 
     /// Words added to why the bag could not be read yet, when its storage explains it.

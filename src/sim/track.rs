@@ -2,7 +2,8 @@
 //! truth of a simulation.
 //!
 //! The body twist between consecutive recorded poses, `log(T_k^-1 T_k+1) / dt_k`, held over its
-//! step, is convolved with a Gaussian kernel (to remove the tracker's own jitter; the convolution
+//! step, is convolved with a Gaussian kernel at least two of the track's steps wide (to remove the
+//! tracker's own jitter, which differencing turns into a vibration at the track's rate; the convolution
 //! keeps the twist's integral however unevenly the poses are spaced) and sampled on a fine grid
 //! with its rate; [`SampledMotion::from_twists`] then integrates it from the
 //! first recorded pose. The replay therefore has exactly the recorded vehicle's speeds, turns and
@@ -23,8 +24,14 @@ pub struct TrackOptions {
     /// angular rates). Lets a fast vehicle's track (a drone's) stand in for a slower one's.
     pub time_scale: f64,
     /// Standard deviation of the Gaussian kernel that smooths the recorded twists, seconds of
-    /// playback time.
+    /// playback time (at least [`Self::min_smoothing_steps`] of the track's steps).
     pub smoothing_s: f64,
+    /// Smallest kernel, in median steps between recorded poses (in playback time). A twist
+    /// differenced from poses `dt` apart holds the tracker's own noise at up to `1 / (2 dt)` Hz;
+    /// a kernel of two steps passes that frequency at 3e-9 and half of it at 7e-3, so that the
+    /// tracker's jitter is not replayed as a vibration of the vehicle. 0 leaves
+    /// [`Self::smoothing_s`] alone.
+    pub min_smoothing_steps: f64,
     /// Grid step of the replayed twist, seconds.
     pub grid_dt_s: f64,
     /// Largest accepted step between recorded poses, in multiples of the median step: the replay
@@ -37,6 +44,7 @@ impl Default for TrackOptions {
         TrackOptions {
             time_scale: 1.0,
             smoothing_s: 0.05,
+            min_smoothing_steps: 2.0,
             grid_dt_s: 0.005,
             max_step_ratio: 5.0,
         }
@@ -55,6 +63,8 @@ pub struct TrackMotion {
     /// RMS over the recorded poses of the distance between recorded and replayed positions, m
     /// (the drift of the integrated smoothed twist).
     pub position_drift_rms_m: f64,
+    /// Standard deviation of the kernel that smoothed the twists, seconds of playback time.
+    pub smoothing_s: f64,
     /// RMS body speed and angular rate of the replay, m/s and rad/s.
     pub rms_speed_mps: f64,
     /// RMS angular rate of the replay, rad/s.
@@ -95,10 +105,12 @@ fn normal_cdf(x: f64) -> f64 {
 /// simulated camera.
 pub fn replay_track(track: &[PoseMeasurement], opts: &TrackOptions) -> Result<TrackMotion> {
     let ok = |x: f64| x.is_finite() && x > 0.0;
-    if !ok(opts.time_scale) || !ok(opts.smoothing_s) || !ok(opts.grid_dt_s) {
+    let steps_ok = opts.min_smoothing_steps.is_finite() && opts.min_smoothing_steps >= 0.0;
+    if !(ok(opts.time_scale) && ok(opts.smoothing_s) && ok(opts.grid_dt_s) && steps_ok) {
         return Err(input(format!(
-            "track replay: time scale, smoothing and grid step must be positive, got {}, {}, {}",
-            opts.time_scale, opts.smoothing_s, opts.grid_dt_s
+            "track replay: time scale, smoothing and grid step must be positive and the smallest \
+             kernel in steps at least 0, got {}, {}, {}, {}",
+            opts.time_scale, opts.smoothing_s, opts.grid_dt_s, opts.min_smoothing_steps
         )));
     }
     if track.len() < 10 {
@@ -155,7 +167,9 @@ pub fn replay_track(track: &[PoseMeasurement], opts: &TrackOptions) -> Result<Tr
     // The step twists, each held over its step, convolved with the Gaussian kernel at every grid
     // time: step j weighs the kernel's mass over its span (kernel cut at 4 sigma; near the ends
     // the weights are renormalised).
-    let sigma = opts.smoothing_s;
+    let sigma = opts
+        .smoothing_s
+        .max(opts.min_smoothing_steps * median * opts.time_scale);
     let reach = 4.0 * sigma;
     let mut lo = 0usize;
     let mut smoothed = Vec::with_capacity(n);
@@ -209,6 +223,7 @@ pub fn replay_track(track: &[PoseMeasurement], opts: &TrackOptions) -> Result<Tr
         duration_s: duration,
         poses_used: track.len(),
         position_drift_rms_m: (drift / track.len() as f64).sqrt(),
+        smoothing_s: sigma,
         rms_speed_mps: (v2 / g).sqrt(),
         rms_rate_radps: (w2 / g).sqrt(),
     })
@@ -542,6 +557,54 @@ mod tests {
         }
         let r = replay_track(&track, &TrackOptions::default()).expect("replay");
         assert!(r.position_drift_rms_m < 0.01, "{}", r.position_drift_rms_m);
+    }
+
+    #[test]
+    fn the_tracker_jitter_is_not_replayed_as_a_vibration() {
+        // A vehicle driving straight at 0.1 m/s, tracked at 10 Hz with a yaw that alternates by
+        // +-0.1 deg from one pose to the next (a tracker's jitter at its Nyquist frequency).
+        let jitter = 0.1f64.to_radians();
+        let track: Vec<_> = (0..300)
+            .map(|k| {
+                let t = k as f64 * 0.1;
+                let yaw = if k % 2 == 0 { jitter } else { -jitter };
+                let xi = Vector6::new(0.1 * t, 0.0, 0.0, 0.0, 0.0, yaw);
+                PoseMeasurement {
+                    t,
+                    pose: Se3::exp(&xi),
+                    cov: None,
+                }
+            })
+            .collect();
+        let peak_rate = |opts: &TrackOptions| {
+            let r = replay_track(&track, opts).expect("replay");
+            let rate = (100..2800)
+                .map(|k| r.motion.state(k as f64 * 0.01).twist[5].abs())
+                .fold(0.0, f64::max);
+            (r.smoothing_s, rate)
+        };
+        // Differenced, the jitter is a yaw rate of +-0.035 rad/s; 50 ms of smoothing keeps a
+        // large part of it, two steps (200 ms) remove it.
+        let (sigma, rate) = peak_rate(&TrackOptions {
+            min_smoothing_steps: 0.0,
+            ..TrackOptions::default()
+        });
+        assert!((sigma - 0.05).abs() < 1e-12);
+        assert!(rate > 0.005, "{rate}");
+        let (sigma, rate) = peak_rate(&TrackOptions::default());
+        assert!((sigma - 0.2).abs() < 1e-9, "{sigma}");
+        assert!(rate < 1e-6, "{rate}");
+        // At half speed the steps are 0.2 s of playback, and so is the floor.
+        let (sigma, _) = peak_rate(&TrackOptions {
+            time_scale: 2.0,
+            ..TrackOptions::default()
+        });
+        assert!((sigma - 0.4).abs() < 1e-9, "{sigma}");
+        let bad = TrackOptions {
+            min_smoothing_steps: -1.0,
+            ..TrackOptions::default()
+        };
+        assert!(replay_track(&track, &bad).is_err());
     }
 
     #[test]

@@ -34,10 +34,12 @@ const QUEUE_PER_WORKER: usize = 2;
 /// Runs `work` on every frame of `src` on the current rayon pool; results in frame order.
 /// Frames the source never delivered (a bag cut short) get `work` with images that fail to load
 /// (counted as unreadable, named); an error of the reading pass is returned after the workers
-/// end.
+/// end. The images of the frames `needed` refuses (by index) may be left unread: `work` must
+/// not need them (a frame whose outcome is kept).
 fn for_each_frame<R: Send>(
     src: FrameSource<'_>,
     bar: &ProgressBar,
+    needed: &(dyn Fn(usize) -> bool + Sync),
     work: &(dyn Fn(&StereoFrame, LoadImage<'_>) -> R + Sync),
 ) -> Result<Vec<R>> {
     let frames = src.frames();
@@ -45,7 +47,7 @@ fn for_each_frame<R: Send>(
     let (tx, rx) = sync_channel::<(usize, FrameImages<'_>)>(QUEUE_PER_WORKER * workers);
     let (mut done, produced) = std::thread::scope(|scope| {
         let producer = scope.spawn(move || {
-            src.read(&mut |i, images| {
+            src.read_some(needed, &mut |i, images| {
                 tx.send((i, images))
                     .map_err(|_| Error::Input("the image workers stopped early".into()))
             })
@@ -264,8 +266,20 @@ pub fn detect_source(
         format!("{bag:?}{board:?}{chain:?}{det:?}{opts:?}").hash(&mut h);
         h.finish()
     });
-    let out: Vec<(FrameResult, FrameCounts)> = for_each_frame(src, &bar, &|f, load| {
-        let key = settings.map(|s| format!("{s:016x} {f:?}"));
+    let key_of = |f: &StereoFrame| settings.map(|s| format!("{s:016x} {f:?}"));
+    // Frames solved before: their images are not read again.
+    let kept: Vec<bool> = match &det.cache {
+        Some(cache) => frames
+            .iter()
+            .map(|f| {
+                key_of(f).is_some_and(|k| cache.solved::<(FrameResult, FrameCounts)>(&k).is_some())
+            })
+            .collect(),
+        None => vec![false; n_frames],
+    };
+    let needed = |i: usize| !kept.get(i).copied().unwrap_or(false);
+    let out: Vec<(FrameResult, FrameCounts)> = for_each_frame(src, &bar, &needed, &|f, load| {
+        let key = key_of(f);
         if let (Some(cache), Some(key)) = (&det.cache, &key)
             && let Some(hit) = cache.solved::<(FrameResult, FrameCounts)>(key)
         {
@@ -483,7 +497,7 @@ pub fn detect_source_tags(
         .collect();
     let bar = progress_bar(n_frames as u64, progress);
     let out: Vec<(Vec<Vec<TagDetection>>, bool, FrameCounts)> =
-        for_each_frame(src, &bar, &|f, load| {
+        for_each_frame(src, &bar, &|_| true, &|f, load| {
             let idx = rayon::current_thread_index().unwrap_or(0) % workers;
             let mut guard = detectors[idx].lock().unwrap_or_else(|p| p.into_inner());
             let mut c = FrameCounts {

@@ -41,7 +41,10 @@ pub struct BagFrames {
     pub(crate) topics: Vec<ImageTopic>,
 }
 
-/// The first pass over the image topics: stamps, pairing, sizes.
+/// The first pass over the image topics: stamps, pairing, sizes. An image message is read
+/// whole only until its camera's size is known; of the others the first bytes do (their header),
+/// which spares a bag followed while recorded the reading of the images it kept
+/// ([`crate::io::bag::memory`]).
 pub fn plan_frames(ob: &OpenBag, tolerance_ns: i64) -> Result<BagFrames> {
     let cams = ob.roles.images.len();
     if cams == 0 {
@@ -78,9 +81,12 @@ pub fn plan_frames(ob: &OpenBag, tolerance_ns: i64) -> Result<BagFrames> {
     let mut n_unreadable = 0usize;
     let mut zero = 0usize;
     let time = ob.options.time;
-    let summary = ob
-        .bag
-        .messages(&|i| cam_of.contains_key(&i), &mut |m: BagMessage<'_>| {
+    let need_size: Vec<std::cell::Cell<bool>> = vec![std::cell::Cell::new(true); cams];
+    let whole = |topic: usize, _| cam_of.get(&topic).is_some_and(|&c| need_size[c].get());
+    let summary = ob.bag.messages_with(
+        &|i| cam_of.contains_key(&i),
+        &whole,
+        &mut |m: BagMessage<'_>| {
             let Some(&c) = cam_of.get(&m.topic) else {
                 return Ok(());
             };
@@ -101,9 +107,12 @@ pub fn plan_frames(ob: &OpenBag, tolerance_ns: i64) -> Result<BagFrames> {
                     return Ok(());
                 }
             };
-            if sizes[c].is_none() {
+            if sizes[c].is_none() && m.whole {
                 match message_to_gray(m.data, t.serialization, &t.type_name) {
-                    Ok(img) => sizes[c] = Some((img.width(), img.height())),
+                    Ok(img) => {
+                        sizes[c] = Some((img.width(), img.height()));
+                        need_size[c].set(false);
+                    }
                     Err(e) => size_errors[c] = Some(format!("{} message {}: {e}", t.name, m.index)),
                 }
             }
@@ -116,7 +125,8 @@ pub fn plan_frames(ob: &OpenBag, tolerance_ns: i64) -> Result<BagFrames> {
                 },
             ));
             Ok(())
-        })?;
+        },
+    )?;
     let mut scan = ScanStats {
         layout: Layout::Bag,
         folders: vec![None; cams],

@@ -10,16 +10,22 @@
 //! gives each read a consistent database of its own; it is not fixed.
 
 use std::path::{Path, PathBuf};
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
+
+use super::memory::{BagMemory, SlotRef};
 
 /// The lengths fixed now, by canonical path (a path fixed twice holds both entries; the
 /// shorter wins).
 static FIXED: Mutex<Vec<(PathBuf, u64)>> = Mutex::new(Vec::new());
 
+/// The memories attached to fixed files, by canonical path ([`FixedLengths::fix_remembering`]).
+static REMEMBERED: Mutex<Vec<(PathBuf, SlotRef)>> = Mutex::new(Vec::new());
+
 /// The lengths of some files, fixed until this is dropped.
 #[derive(Debug)]
 pub struct FixedLengths {
     held: Vec<(PathBuf, u64)>,
+    slots: Vec<(PathBuf, SlotRef)>,
 }
 
 impl FixedLengths {
@@ -37,7 +43,26 @@ impl FixedLengths {
             .lock()
             .unwrap_or_else(|p| p.into_inner())
             .extend(held.iter().cloned());
-        FixedLengths { held }
+        FixedLengths {
+            held,
+            slots: Vec::new(),
+        }
+    }
+
+    /// Fixes `files` as [`FixedLengths::fix`] does, and until this is dropped lets their
+    /// readers keep their place in `memory` (each file's slot under its path as given) and
+    /// read on from it ([`super::memory`]).
+    pub fn fix_remembering(files: &[PathBuf], memory: &BagMemory) -> FixedLengths {
+        let mut fixed = FixedLengths::fix(files);
+        fixed.slots = files
+            .iter()
+            .filter_map(|f| Some((std::fs::canonicalize(f).ok()?, memory.slot(f))))
+            .collect();
+        REMEMBERED
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .extend(fixed.slots.iter().cloned());
+        fixed
     }
 
     /// The files and the lengths they were fixed at.
@@ -52,6 +77,13 @@ impl Drop for FixedLengths {
         for h in &self.held {
             if let Some(i) = fixed.iter().position(|f| f == h) {
                 fixed.swap_remove(i);
+            }
+        }
+        drop(fixed);
+        let mut slots = REMEMBERED.lock().unwrap_or_else(|p| p.into_inner());
+        for (p, s) in &self.slots {
+            if let Some(i) = slots.iter().position(|(q, t)| q == p && Arc::ptr_eq(s, t)) {
+                slots.swap_remove(i);
             }
         }
     }
@@ -72,6 +104,20 @@ pub(crate) fn readable_len(path: &Path, len: u64) -> u64 {
         .filter(|(p, _)| *p == canonical)
         .map(|&(_, l)| l)
         .fold(len, u64::min)
+}
+
+/// The memory the reads of `path` keep their place in, while one is attached
+/// ([`FixedLengths::fix_remembering`]).
+pub(crate) fn slot_of(path: &Path) -> Option<SlotRef> {
+    let slots = REMEMBERED.lock().unwrap_or_else(|p| p.into_inner());
+    if slots.is_empty() {
+        return None;
+    }
+    let canonical = std::fs::canonicalize(path).ok()?;
+    slots
+        .iter()
+        .find(|(p, _)| *p == canonical)
+        .map(|(_, s)| s.clone())
 }
 
 #[cfg(test)]

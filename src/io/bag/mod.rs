@@ -19,6 +19,7 @@ pub mod image;
 pub mod imu;
 pub mod info;
 pub mod mcap;
+pub mod memory;
 pub mod open;
 pub mod poses;
 pub mod roles;
@@ -158,20 +159,43 @@ impl Bag {
         wanted: &dyn Fn(usize) -> bool,
         f: &mut dyn FnMut(BagMessage<'_>) -> Result<()>,
     ) -> Result<BagReadSummary> {
+        self.messages_with(wanted, &|_, _| true, f)
+    }
+
+    /// [`Bag::messages`], for a reader that needs some messages only in part: while the bag
+    /// is followed as it is recorded ([`memory`]), a long message (an image) kept from an
+    /// earlier update is handed over whole only when `whole(topic, index)` says so (asked
+    /// just before it is handed over), else as its first [`memory::HEAD`] bytes
+    /// ([`BagMessage::whole`] false), so that its bytes are not read again. Otherwise every
+    /// message is whole.
+    pub fn messages_with(
+        &self,
+        wanted: &dyn Fn(usize) -> bool,
+        whole: &dyn Fn(usize, u64) -> bool,
+        f: &mut dyn FnMut(BagMessage<'_>) -> Result<()>,
+    ) -> Result<BagReadSummary> {
         match &self.inner {
             Inner::Ros1 { bag, conn_topic } => {
-                let mut counts = vec![0u64; self.topics.len()];
+                let counts = vec![std::cell::Cell::new(0u64); self.topics.len()];
                 let want = |id: u32| conn_topic.get(&id).is_some_and(|&t| wanted(t));
-                let s = bag.messages(&want, &mut |m| {
+                // The message about to be handed over is its topic's next.
+                let fetch = |id: u32| {
+                    conn_topic
+                        .get(&id)
+                        .is_some_and(|&t| whole(t, counts[t].get() + 1))
+                };
+                let s = bag.messages_with(&want, &fetch, &mut |m| {
                     let Some(&topic) = conn_topic.get(&m.conn_id) else {
                         return Ok(());
                     };
-                    counts[topic] += 1;
+                    let n = counts[topic].get() + 1;
+                    counts[topic].set(n);
                     f(BagMessage {
                         topic,
                         log_time_ns: i64::from(m.sec) * 1_000_000_000 + i64::from(m.nsec),
                         data: m.data,
-                        index: counts[topic],
+                        index: n,
+                        whole: m.whole,
                     })
                 })?;
                 let mut problems = s.problems;
@@ -185,7 +209,7 @@ impl Bag {
                     problems,
                 })
             }
-            Inner::Mcap(b) => b.messages(wanted, f),
+            Inner::Mcap(b) => b.messages(wanted, whole, f),
             Inner::Sqlite(b) => b.messages(wanted, f),
         }
     }

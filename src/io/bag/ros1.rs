@@ -11,37 +11,23 @@
 //! parses. What could not be read is described in [`Ros1Bag::problems`] and in the
 //! [`ReadSummary`] of a pass over the messages.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
 use std::fs::File;
-use std::io::{Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
+mod records;
+
+use super::memory::{self, Kept, Prefix, SlotRef};
 use crate::error::{Error, Result};
+use records::{
+    ANY_OP, ChunkLoc, Compression, MAX_CHUNK, MAX_HEADER, OP_BAG_HEADER, OP_CHUNK, OP_CHUNK_INFO,
+    OP_CONNECTION, OP_INDEX_DATA, OP_MESSAGE, RecordHead, connection_type, decompress, read_at,
+    record_at, resync,
+};
 
 /// The first 13 bytes of every ROS 1 bag of format 2.0.
 pub const MAGIC: &[u8] = b"#ROSBAG V2.0\n";
-
-/// The largest record header accepted (real headers are well under 1 kB; a connection record's
-/// header holds only op, conn and topic).
-const MAX_HEADER: usize = 1 << 16;
-/// The largest chunk, compressed or not (rosbag's default is 768 kB; images make them bigger).
-const MAX_CHUNK: usize = 1 << 30;
-
-const OP_MESSAGE: u8 = 2;
-const OP_BAG_HEADER: u8 = 3;
-const OP_INDEX_DATA: u8 = 4;
-const OP_CHUNK: u8 = 5;
-const OP_CHUNK_INFO: u8 = 6;
-const OP_CONNECTION: u8 = 7;
-/// Every op a top-level scan may meet (messages only where a chunk header was damaged).
-const ANY_OP: [u8; 6] = [
-    OP_MESSAGE,
-    OP_BAG_HEADER,
-    OP_INDEX_DATA,
-    OP_CHUNK,
-    OP_CHUNK_INFO,
-    OP_CONNECTION,
-];
 
 /// One connection of a bag: a topic with its message type.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -63,35 +49,16 @@ pub struct Message<'a> {
     pub sec: u32,
     /// The record time: nanoseconds.
     pub nsec: u32,
-    /// The serialised message.
+    /// The serialised message: all of it, or its first [`memory::HEAD`] bytes when `whole`
+    /// is false.
     pub data: &'a [u8],
+    /// Whether `data` is the whole message (it is unless the message was kept from an earlier
+    /// read of a bag followed while recorded, and not asked for whole).
+    pub whole: bool,
     /// The 1-based number of this message among the messages read (all connections).
     pub number: usize,
     /// The byte offset in the file of the chunk holding the message.
     pub chunk_offset: u64,
-}
-
-/// How a chunk's data is stored.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Compression {
-    None,
-    Bz2,
-    Lz4,
-}
-
-#[derive(Clone, Debug)]
-struct ChunkLoc {
-    /// Offset of the chunk record in the file.
-    record: u64,
-    /// Offset of the chunk's data.
-    data: u64,
-    /// Bytes of data present in the file (less than declared when the file is cut).
-    len: usize,
-    /// Whether the file ends before the chunk's declared end.
-    cut: bool,
-    compression: Compression,
-    /// Declared uncompressed size.
-    size: usize,
 }
 
 /// What one pass over the messages found.
@@ -119,138 +86,51 @@ pub struct Ros1Bag {
     index_counts: BTreeMap<u64, BTreeMap<u32, u32>>,
     indexed: bool,
     problems: Vec<String>,
+    /// Where the reads of a bag followed while recorded keep their place ([`memory`]).
+    slot: Option<SlotRef>,
 }
 
-/// A parsed record header: its fields, and where the record's data lies.
-struct RecordHead<'a> {
-    fields: Vec<(&'a [u8], &'a [u8])>,
-    op: u8,
+/// The walk over the top-level records, as far as it got: where it is and what it found.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct Scan {
+    /// The next record's offset.
+    p: u64,
+    /// The connections of the index section.
+    connections: BTreeMap<u32, Connection>,
+    chunks: Vec<ChunkLoc>,
+    index_counts: BTreeMap<u64, BTreeMap<u32, u32>>,
+    index_pos: Option<u64>,
+    /// The bag header's conn_count and chunk_count.
+    declared: (Option<u32>, Option<u32>),
+    index_conns: u32,
+    chunk_infos: u32,
 }
 
-impl<'a> RecordHead<'a> {
-    fn field(&self, name: &str) -> Option<&'a [u8]> {
-        self.fields
-            .iter()
-            .find(|(k, _)| *k == name.as_bytes())
-            .map(|(_, v)| *v)
-    }
-    fn u32(&self, name: &str) -> Option<u32> {
-        let v = self.field(name)?;
-        Some(u32::from_le_bytes(v.try_into().ok()?))
-    }
-    fn u64(&self, name: &str) -> Option<u64> {
-        let v = self.field(name)?;
-        Some(u64::from_le_bytes(v.try_into().ok()?))
-    }
-    fn time(&self, name: &str) -> Option<(u32, u32)> {
-        let v = self.field(name)?;
-        if v.len() != 8 {
-            return None;
-        }
-        let sec = u32::from_le_bytes(v[..4].try_into().ok()?);
-        let nsec = u32::from_le_bytes(v[4..].try_into().ok()?);
-        Some((sec, nsec))
-    }
-    fn text(&self, name: &str) -> Option<String> {
-        self.field(name)
-            .map(|v| String::from_utf8_lossy(v).into_owned())
-    }
-    /// Whether the fields an op needs are present and well formed.
-    fn complete(&self) -> bool {
-        match self.op {
-            OP_MESSAGE => self.u32("conn").is_some() && self.time("time").is_some(),
-            OP_BAG_HEADER => self.u64("index_pos").is_some(),
-            OP_CHUNK => self.field("compression").is_some() && self.u32("size").is_some(),
-            OP_CONNECTION => self.u32("conn").is_some() && self.field("topic").is_some(),
-            OP_INDEX_DATA => self.u32("conn").is_some() && self.u32("ver").is_some(),
-            OP_CHUNK_INFO => self.u64("chunk_pos").is_some() && self.u32("count").is_some(),
-            _ => false,
-        }
-    }
+/// A record of a chunk, kept.
+#[derive(Debug)]
+pub(crate) enum Item {
+    Connection {
+        id: u32,
+        topic: String,
+        msg_type: String,
+    },
+    Message {
+        conn_id: u32,
+        sec: u32,
+        nsec: u32,
+        /// Its bytes, or their head and offset in the chunk's decompressed records.
+        data: Kept,
+    },
 }
 
-/// Parses the header fields of a record; `None` when they are not a well-formed header.
-fn parse_header(h: &[u8]) -> Option<RecordHead<'_>> {
-    let mut fields = Vec::new();
-    let mut i = 0usize;
-    while i < h.len() {
-        let n = u32::from_le_bytes(h.get(i..i + 4)?.try_into().ok()?) as usize;
-        i += 4;
-        let f = h.get(i..i.checked_add(n)?)?;
-        i += n;
-        let eq = f.iter().position(|&b| b == b'=')?;
-        if eq == 0 {
-            return None;
-        }
-        fields.push((&f[..eq], &f[eq + 1..]));
-    }
-    let op = fields.iter().find(|(k, _)| *k == b"op")?.1;
-    if op.len() != 1 {
-        return None;
-    }
-    let head = RecordHead { op: op[0], fields };
-    head.complete().then_some(head)
-}
-
-/// A record found in a buffer: its header, and the range of its data (which may run past the
-/// buffer's end when `cut`).
-struct Found<'a> {
-    head: RecordHead<'a>,
-    data_start: usize,
-    data_len: usize,
-}
-
-/// Reads the record at `p` of `buf`; `None` when no well-formed record header starts there.
-fn record_at(buf: &[u8], p: usize) -> Option<Found<'_>> {
-    let hl = u32::from_le_bytes(buf.get(p..p + 4)?.try_into().ok()?) as usize;
-    if hl == 0 || hl > MAX_HEADER {
-        return None;
-    }
-    let h_end = p.checked_add(4)?.checked_add(hl)?;
-    let head = parse_header(buf.get(p + 4..h_end)?)?;
-    let dl = u32::from_le_bytes(buf.get(h_end..h_end + 4)?.try_into().ok()?) as usize;
-    Some(Found {
-        head,
-        data_start: h_end + 4,
-        data_len: dl,
-    })
-}
-
-/// The next offset after `from` where a record of one of `ops` parses and its data fits in
-/// `buf` (records cut by the end of `buf` are accepted when `allow_cut`).
-fn resync(buf: &[u8], from: usize, ops: &[u8], allow_cut: bool) -> Option<usize> {
-    let mut s = from;
-    while let Some(k) = find(&buf[s.min(buf.len())..], b"op=") {
-        let at = s + k;
-        // `op=` is preceded by its field length (4 bytes) and possibly by other fields; the
-        // record starts at most a few hundred bytes earlier.
-        let lo = at.saturating_sub(512).max(from);
-        for start in lo..at.saturating_sub(7).max(lo) {
-            if let Some(f) = record_at(buf, start)
-                && ops.contains(&f.head.op)
-                && (allow_cut || f.data_start + f.data_len <= buf.len())
-                && f.data_start > at
-            {
-                return Some(start);
-            }
-        }
-        s = at + 3;
-    }
-    None
-}
-
-fn find(hay: &[u8], needle: &[u8]) -> Option<usize> {
-    hay.windows(needle.len()).position(|w| w == needle)
-}
-
-/// Reads up to `len` bytes at `offset`, never past byte `end` (fewer when the file or `end`
-/// comes first: `end` is the length the bag is read to, [`super::growing`]).
-fn read_at(file: &mut File, offset: u64, len: usize, end: u64) -> std::io::Result<Vec<u8>> {
-    file.seek(SeekFrom::Start(offset))?;
-    let mut v = Vec::new();
-    let len = (len as u64).min(end.saturating_sub(offset));
-    file.take(len).read_to_end(&mut v)?;
-    Ok(v)
+/// What the reads of a ROS 1 bag being recorded keep ([`memory`]): the top-level walk up to
+/// the first record that was cut or damaged, and the records of every whole, undamaged chunk
+/// before it, by the chunk's offset.
+#[derive(Debug)]
+pub(crate) struct Ros1Kept {
+    prefix: Prefix,
+    scan: Scan,
+    chunks: HashMap<u64, Arc<Vec<Item>>>,
 }
 
 impl Ros1Bag {
@@ -270,6 +150,14 @@ impl Ros1Bag {
                 path.display()
             )));
         }
+        let slot = super::growing::slot_of(path);
+        let mut s = slot
+            .as_ref()
+            .and_then(|slot| resumed(slot, path, file_len))
+            .unwrap_or(Scan {
+                p: MAGIC.len() as u64,
+                ..Scan::default()
+            });
         let mut bag = Ros1Bag {
             path: path.to_path_buf(),
             file_len,
@@ -278,22 +166,25 @@ impl Ros1Bag {
             index_counts: BTreeMap::new(),
             indexed: false,
             problems: Vec::new(),
+            slot,
         };
-        let mut index_pos = None;
-        let mut declared = (None, None); // (conn_count, chunk_count)
-        let mut index_conns = 0u32;
-        let mut chunk_infos = 0u32;
-        let mut p = MAGIC.len() as u64;
-        while p < file_len {
+        // The walk as it was before the first record that is cut or damaged: where a later
+        // read of a bag being recorded takes it up.
+        let mut checkpoint: Option<Scan> = None;
+        while s.p < file_len {
+            let p = s.p;
             // A record header is small: read it with its length words.
             let head_buf = read_at(&mut file, p, 4 + MAX_HEADER + 4, file_len).map_err(io_err)?;
             let Some(f) = record_at(&head_buf, 0) else {
+                if bag.problems.is_empty() {
+                    checkpoint = Some(s.clone());
+                }
                 match bag.resync_file(&mut file, p, &ANY_OP)? {
                     Some(q) => {
                         bag.problems.push(format!(
                             "bytes {p}..{q} are not bag records (a damaged stretch): skipped"
                         ));
-                        p = q;
+                        s.p = q;
                         continue;
                     }
                     None => {
@@ -309,6 +200,9 @@ impl Ros1Bag {
             let data = p + f.data_start as u64;
             let end = data + f.data_len as u64;
             let cut = end > file_len;
+            if bag.problems.is_empty() && (cut || f.head.op == OP_MESSAGE) {
+                checkpoint = Some(s.clone());
+            }
             match f.head.op {
                 OP_MESSAGE => {
                     // Messages outside a chunk: a chunk whose header was damaged. They are read
@@ -320,7 +214,7 @@ impl Ros1Bag {
                         "bytes {p}..{stop} are messages outside any chunk (a damaged chunk \
                          header): read as they are"
                     ));
-                    bag.chunks.push(ChunkLoc {
+                    s.chunks.push(ChunkLoc {
                         record: p,
                         data: p,
                         len: (stop - p) as usize,
@@ -328,12 +222,12 @@ impl Ros1Bag {
                         compression: Compression::None,
                         size: (stop - p) as usize,
                     });
-                    p = stop;
+                    s.p = stop;
                     continue;
                 }
                 OP_BAG_HEADER => {
-                    index_pos = f.head.u64("index_pos");
-                    declared = (f.head.u32("conn_count"), f.head.u32("chunk_count"));
+                    s.index_pos = f.head.u64("index_pos");
+                    s.declared = (f.head.u32("conn_count"), f.head.u32("chunk_count"));
                 }
                 OP_CHUNK => {
                     let compression = match f.head.field("compression") {
@@ -345,7 +239,7 @@ impl Ros1Bag {
                     let size = f.head.u32("size").unwrap_or(0) as usize;
                     match compression {
                         Some(c) if f.data_len <= MAX_CHUNK && size <= MAX_CHUNK => {
-                            bag.chunks.push(ChunkLoc {
+                            s.chunks.push(ChunkLoc {
                                 record: p,
                                 data,
                                 len: (end.min(file_len) - data) as usize,
@@ -367,19 +261,23 @@ impl Ros1Bag {
                     }
                 }
                 OP_CONNECTION => {
-                    index_conns +=
-                        u32::from(bag.add_connection(&f.head, &mut file, data, f.data_len, cut)?);
+                    if let Some((id, topic, tp)) =
+                        bag.connection(&f.head, &mut file, data, f.data_len, cut)?
+                    {
+                        insert_connection(&mut s.connections, id, topic, tp);
+                        s.index_conns += 1;
+                    }
                 }
                 OP_CHUNK_INFO if !cut => {
                     let d = read_at(&mut file, data, f.data_len, file_len).map_err(io_err)?;
                     if let Some(pos) = f.head.u64("chunk_pos") {
-                        let counts = bag.index_counts.entry(pos).or_default();
+                        let counts = s.index_counts.entry(pos).or_default();
                         for e in d.chunks_exact(8) {
                             let id = u32::from_le_bytes([e[0], e[1], e[2], e[3]]);
                             let n = u32::from_le_bytes([e[4], e[5], e[6], e[7]]);
                             counts.insert(id, n);
                         }
-                        chunk_infos += 1;
+                        s.chunk_infos += 1;
                     }
                 }
                 _ => {} // index data: the chunks are read in order instead
@@ -392,8 +290,25 @@ impl Ros1Bag {
                 ));
                 break;
             }
-            p = end;
+            s.p = end;
         }
+        if bag.problems.is_empty() {
+            checkpoint = Some(s.clone());
+        }
+        bag.keep(checkpoint);
+        let Scan {
+            connections,
+            chunks,
+            index_counts,
+            index_pos,
+            declared,
+            index_conns,
+            chunk_infos,
+            ..
+        } = s;
+        bag.connections = connections;
+        bag.chunks = chunks;
+        bag.index_counts = index_counts;
         let chunk_count = declared.1;
         // The index is whole when it lists as many chunks as the bag header declares.
         bag.indexed = match (index_pos, chunk_count) {
@@ -458,17 +373,17 @@ impl Ros1Bag {
         Ok(None)
     }
 
-    /// Adds a connection record; returns whether it was read.
-    fn add_connection(
-        &mut self,
+    /// A connection record's id, topic and type (`None`: it names no id or topic).
+    fn connection(
+        &self,
         head: &RecordHead<'_>,
         file: &mut File,
         data: u64,
         len: usize,
         cut: bool,
-    ) -> Result<bool> {
+    ) -> Result<Option<(u32, String, String)>> {
         let (Some(id), Some(topic)) = (head.u32("conn"), head.text("topic")) else {
-            return Ok(false);
+            return Ok(None);
         };
         let msg_type = if cut || len > MAX_HEADER {
             String::new()
@@ -477,19 +392,31 @@ impl Ros1Bag {
                 .map_err(|e| Error::Input(format!("{}: {e}", self.path.display())))?;
             connection_type(&d)
         };
-        self.insert_connection(id, topic, msg_type);
-        Ok(true)
+        Ok(Some((id, topic, msg_type)))
     }
 
-    fn insert_connection(&mut self, id: u32, topic: String, msg_type: String) {
-        let c = self.connections.entry(id).or_insert(Connection {
-            id,
-            topic,
-            msg_type: String::new(),
-        });
-        if c.msg_type.is_empty() {
-            c.msg_type = msg_type;
-        }
+    /// Keeps the top-level walk as it was at `checkpoint` in the bag's slot, when it has one;
+    /// the chunks kept before stay when the file still starts as it did.
+    fn keep(&self, checkpoint: Option<Scan>) {
+        let (Some(slot), Some(scan)) = (&self.slot, checkpoint) else {
+            return;
+        };
+        let Ok(prefix) = Prefix::of(&self.path, scan.p) else {
+            return;
+        };
+        let mut slot = memory::lock(slot);
+        let chunks = slot
+            .take::<Ros1Kept>()
+            .map_or_else(HashMap::new, |k| k.chunks);
+        let to = prefix.len;
+        slot.keep(
+            Ros1Kept {
+                prefix,
+                scan,
+                chunks,
+            },
+            to,
+        );
     }
 
     /// Collects the connections written inside the chunks (every bag has them there, before
@@ -497,7 +424,7 @@ impl Ros1Bag {
     fn connections_from_chunks(&mut self) -> Result<()> {
         let mut found = Vec::new();
         let mut problems = Vec::new();
-        self.walk_chunks(&mut problems, &mut |rec| {
+        self.walk_chunks(&mut problems, &|_| false, &mut |rec| {
             if let Inner::Connection {
                 id,
                 topic,
@@ -509,7 +436,7 @@ impl Ros1Bag {
             Ok(())
         })?;
         for (id, topic, tp) in found {
-            self.insert_connection(id, topic, tp);
+            insert_connection(&mut self.connections, id, topic, tp);
         }
         Ok(())
     }
@@ -542,16 +469,30 @@ impl Ros1Bag {
         wanted: &dyn Fn(u32) -> bool,
         f: &mut dyn FnMut(Message<'_>) -> Result<()>,
     ) -> Result<ReadSummary> {
+        self.messages_with(wanted, &|_| true, f)
+    }
+
+    /// [`Ros1Bag::messages`], where a message kept from an earlier read of a bag being
+    /// recorded ([`memory`]) is handed over whole only when `whole` says so for its connection
+    /// (asked just before it is handed over), else as its first bytes ([`Message::whole`]).
+    pub fn messages_with(
+        &self,
+        wanted: &dyn Fn(u32) -> bool,
+        whole: &dyn Fn(u32) -> bool,
+        f: &mut dyn FnMut(Message<'_>) -> Result<()>,
+    ) -> Result<ReadSummary> {
         let mut summary = ReadSummary::default();
         let mut per_chunk: BTreeMap<u64, u64> = BTreeMap::new();
         let mut problems = Vec::new();
         let mut number = 0usize;
-        let chunks_read = self.walk_chunks(&mut problems, &mut |rec| {
+        let fetch = |id: u32| wanted(id) && whole(id);
+        let chunks_read = self.walk_chunks(&mut problems, &fetch, &mut |rec| {
             if let Inner::Message {
                 conn_id,
                 sec,
                 nsec,
                 data,
+                whole,
                 chunk,
             } = rec
                 && wanted(conn_id)
@@ -563,6 +504,7 @@ impl Ros1Bag {
                     sec,
                     nsec,
                     data,
+                    whole,
                     number,
                     chunk_offset: chunk,
                 })?;
@@ -588,17 +530,29 @@ impl Ros1Bag {
     }
 
     /// Decompresses each chunk and hands its records to `f`; returns the chunks read whole.
+    /// The chunks kept by earlier reads ([`memory`]) are not read again: their records are
+    /// handed over as kept, a long message whole only when `fetch` says so for its connection.
     fn walk_chunks(
         &self,
         problems: &mut Vec<String>,
+        fetch: &dyn Fn(u32) -> bool,
         f: &mut dyn FnMut(Inner<'_>) -> Result<()>,
     ) -> Result<usize> {
         let mut file = File::open(&self.path)
             .map_err(|e| Error::Input(format!("{}: {e}", self.path.display())))?;
+        let (kept, keep_to) = self.kept_chunks();
         let mut whole = 0usize;
-        for c in &self.chunks {
+        for (c, kept) in self.chunks.iter().zip(kept) {
+            if let Some(items) = kept {
+                whole += 1;
+                self.replay(&mut file, c, &items, fetch, f)?;
+                continue;
+            }
             let raw = read_at(&mut file, c.data, c.len, self.file_len)
                 .map_err(|e| Error::Input(format!("{}: {e}", self.path.display())))?;
+            self.count_decoded(c.record);
+            // The chunk's records are kept when it lies whole before the kept offset.
+            let mut items = (!c.cut && c.data + c.len as u64 <= keep_to).then(Vec::<Item>::new);
             let data = match decompress(c, &raw) {
                 Ok(d) => d,
                 Err(why) => {
@@ -654,21 +608,39 @@ impl Ros1Bag {
                 match r.head.op {
                     OP_MESSAGE => {
                         let (sec, nsec) = r.head.time("time").unwrap_or((0, 0));
+                        let conn_id = r.head.u32("conn").unwrap_or(u32::MAX);
+                        if let Some(items) = &mut items {
+                            items.push(Item::Message {
+                                conn_id,
+                                sec,
+                                nsec,
+                                data: Kept::of(body, r.data_start as u64),
+                            });
+                        }
                         f(Inner::Message {
-                            conn_id: r.head.u32("conn").unwrap_or(u32::MAX),
+                            conn_id,
                             sec,
                             nsec,
                             data: body,
+                            whole: true,
                             chunk: c.record,
                         })?;
                     }
                     _ => {
                         if let (Some(id), Some(topic)) = (r.head.u32("conn"), r.head.text("topic"))
                         {
+                            let msg_type = connection_type(body);
+                            if let Some(items) = &mut items {
+                                items.push(Item::Connection {
+                                    id,
+                                    topic: topic.clone(),
+                                    msg_type: msg_type.clone(),
+                                });
+                            }
                             f(Inner::Connection {
                                 id,
                                 topic,
-                                msg_type: connection_type(body),
+                                msg_type,
                             })?;
                         }
                     }
@@ -677,9 +649,124 @@ impl Ros1Bag {
             }
             if clean {
                 whole += 1;
+                if let Some(items) = items {
+                    self.keep_chunk(c.record, items);
+                }
             }
         }
         Ok(whole)
+    }
+
+    /// The records kept of each chunk (`None`: read it), and the offset up to which the file
+    /// is kept (0 when nothing is).
+    fn kept_chunks(&self) -> (Vec<Option<Arc<Vec<Item>>>>, u64) {
+        let none = || vec![None; self.chunks.len()];
+        let Some(slot) = &self.slot else {
+            return (none(), 0);
+        };
+        let slot = memory::lock(slot);
+        let Some(k) = slot.kept::<Ros1Kept>() else {
+            return (none(), 0);
+        };
+        let kept = self
+            .chunks
+            .iter()
+            .map(|c| {
+                (!c.cut && c.data + c.len as u64 <= k.prefix.len)
+                    .then(|| k.chunks.get(&c.record).cloned())
+                    .flatten()
+            })
+            .collect();
+        (kept, k.prefix.len)
+    }
+
+    /// Counts the chunk at `at` decoded, in the bag's slot.
+    fn count_decoded(&self, at: u64) {
+        if let Some(slot) = &self.slot {
+            memory::lock(slot).decoded(at);
+        }
+    }
+
+    /// Keeps the records of the whole chunk at `record`.
+    fn keep_chunk(&self, record: u64, items: Vec<Item>) {
+        let Some(slot) = &self.slot else { return };
+        if let Some(k) = memory::lock(slot).kept_mut::<Ros1Kept>() {
+            k.chunks.insert(record, Arc::new(items));
+        }
+    }
+
+    /// Hands over the kept records of chunk `c`; a long message whose connection `fetch`
+    /// accepts is read again whole (the chunk decompressed once for all of them).
+    fn replay(
+        &self,
+        file: &mut File,
+        c: &ChunkLoc,
+        items: &[Item],
+        fetch: &dyn Fn(u32) -> bool,
+        f: &mut dyn FnMut(Inner<'_>) -> Result<()>,
+    ) -> Result<()> {
+        let mut records: Option<Vec<u8>> = None;
+        for item in items {
+            match item {
+                Item::Connection {
+                    id,
+                    topic,
+                    msg_type,
+                } => f(Inner::Connection {
+                    id: *id,
+                    topic: topic.clone(),
+                    msg_type: msg_type.clone(),
+                })?,
+                Item::Message {
+                    conn_id,
+                    sec,
+                    nsec,
+                    data,
+                } => {
+                    let (bytes, whole) = match data {
+                        Kept::Head { at, len, .. } if fetch(*conn_id) => {
+                            if records.is_none() {
+                                let raw = read_at(file, c.data, c.len, self.file_len)
+                                    .map_err(|e| Error::io(&self.path, e))?;
+                                self.count_decoded(c.record);
+                                records = Some(decompress(c, &raw).map_err(|why| {
+                                    Error::Input(format!(
+                                        "{}: the chunk at byte {} could not be read again \
+                                         ({why}): the file changed while it was followed",
+                                        self.path.display(),
+                                        c.record
+                                    ))
+                                })?);
+                            }
+                            let at = *at as usize;
+                            let bytes = records
+                                .as_deref()
+                                .and_then(|r| r.get(at..at.checked_add(*len)?))
+                                .ok_or_else(|| {
+                                    Error::Input(format!(
+                                        "{}: the chunk at byte {} changed while the file was \
+                                         followed",
+                                        self.path.display(),
+                                        c.record
+                                    ))
+                                })?;
+                            (bytes, true)
+                        }
+                        Kept::Head { head, .. } => (head.as_slice(), false),
+                        Kept::Whole(b) => (b.as_slice(), true),
+                    };
+                    f(Inner::Message {
+                        conn_id: *conn_id,
+                        sec: *sec,
+                        nsec: *nsec,
+                        data: bytes,
+                        whole,
+                        chunk: c.record,
+                    })?;
+                }
+            }
+        }
+        Ok(())
     }
 }
 
@@ -690,6 +777,7 @@ enum Inner<'a> {
         sec: u32,
         nsec: u32,
         data: &'a [u8],
+        whole: bool,
         chunk: u64,
     },
     Connection {
@@ -699,47 +787,34 @@ enum Inner<'a> {
     },
 }
 
-/// The `type` field of a connection record's data (itself a header of fields).
-fn connection_type(data: &[u8]) -> String {
-    let mut i = 0usize;
-    while let Some(n) = data
-        .get(i..i + 4)
-        .and_then(|b| b.try_into().ok())
-        .map(u32::from_le_bytes)
-    {
-        i += 4;
-        let Some(f) = i.checked_add(n as usize).and_then(|e| data.get(i..e)) else {
-            break;
-        };
-        i += n as usize;
-        if let Some(t) = f.strip_prefix(b"type=") {
-            return String::from_utf8_lossy(t).into_owned();
-        }
+/// Adds a connection (its type filled in when it was not known).
+fn insert_connection(
+    map: &mut BTreeMap<u32, Connection>,
+    id: u32,
+    topic: String,
+    msg_type: String,
+) {
+    let c = map.entry(id).or_insert(Connection {
+        id,
+        topic,
+        msg_type: String::new(),
+    });
+    if c.msg_type.is_empty() {
+        c.msg_type = msg_type;
     }
-    String::new()
 }
 
-/// A chunk's records, decompressed; a cut compressed chunk gives what decompresses.
-fn decompress(c: &ChunkLoc, raw: &[u8]) -> std::result::Result<Vec<u8>, String> {
-    let limit = c.size as u64;
-    let mut out = Vec::new();
-    let r = match c.compression {
-        Compression::None => return Ok(raw.to_vec()),
-        Compression::Bz2 => bzip2::read::BzDecoder::new(raw)
-            .take(limit + 1)
-            .read_to_end(&mut out),
-        Compression::Lz4 => lz4::Decoder::new(raw)
-            .map_err(|e| e.to_string())?
-            .take(limit + 1)
-            .read_to_end(&mut out),
-    };
-    match r {
-        Ok(_) if out.len() as u64 > limit => Err(format!(
-            "it decompresses to more than the {limit} bytes it declares"
-        )),
-        Ok(_) => Ok(out),
-        // A cut chunk: keep what came out before the end.
-        Err(_) if c.cut && !out.is_empty() => Ok(out),
-        Err(e) => Err(format!("{:?} decompression failed: {e}", c.compression)),
+/// The top-level walk kept in `slot` for the file at `path` (readable to `len`), when the file
+/// still starts as it did; else the slot is emptied (the file is read from its start).
+fn resumed(slot: &SlotRef, path: &Path, len: u64) -> Option<Scan> {
+    let mut slot = memory::lock(slot);
+    let scan = slot
+        .kept::<Ros1Kept>()
+        .filter(|k| k.prefix.holds(path, len))
+        .map(|k| k.scan.clone());
+    if scan.is_none() {
+        slot.take::<Ros1Kept>();
     }
+    slot.resumed(scan.as_ref().map_or(0, |s| s.p));
+    scan
 }

@@ -393,6 +393,7 @@ impl Pass<'_> {
             log_time_ns: t,
             data,
             index: *n,
+            whole: true,
         })
     }
 

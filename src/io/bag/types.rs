@@ -156,10 +156,14 @@ pub struct BagMessage<'a> {
     pub topic: usize,
     /// The record (log) time: when the recorder received the message, Unix nanoseconds.
     pub log_time_ns: i64,
-    /// The serialised message.
+    /// The serialised message: all of it, or only its first
+    /// [`HEAD`](super::memory::HEAD) bytes when `whole` is false.
     pub data: &'a [u8],
     /// The 1-based number of this message among its topic's messages read in this pass.
     pub index: u64,
+    /// Whether `data` is the whole message: always, but in a pass of
+    /// [`Bag::messages_with`](super::Bag::messages_with) over a bag followed while recorded.
+    pub whole: bool,
 }
 
 /// What one pass over the messages found.

@@ -4,17 +4,21 @@
 
 use super::damage::Damaged;
 use super::file::{Buffers, McapFile, Walk};
+use super::kept::{Inside, Meta};
 use super::reader::{Reader, decompress};
 use super::records::{
     CHUNK_FIXED, Cur, MAX_CHUNK, MAX_COMPRESSION_NAME, OP_CHANNEL, OP_MESSAGE, OP_SCHEMA,
     RECORD_HEAD, Rec, inner_meta, op_name,
 };
 use crate::error::Result;
+use crate::io::bag::memory::Kept;
 
 impl McapFile {
     /// Reads the chunk record at `p` (its content declared `len` bytes long, possibly cut by
     /// the end of the file) and hands its records to `f`. Returns what damaged it, if
-    /// anything did.
+    /// anything did. Every Schema, Channel and Message record is added to `keep` when given
+    /// (the caller keeps them only when the chunk was whole and undamaged).
+    #[allow(clippy::too_many_arguments)]
     pub(super) fn chunk(
         &self,
         r: &mut Reader,
@@ -23,6 +27,7 @@ impl McapFile {
         len: u64,
         opts: &Walk<'_>,
         f: &mut dyn FnMut(Rec<'_>) -> Result<()>,
+        mut keep: Option<&mut Vec<Inside>>,
     ) -> Result<Option<Damaged>> {
         let body = p + RECORD_HEAD;
         let present = len.min(self.len.saturating_sub(body));
@@ -35,11 +40,7 @@ impl McapFile {
             listed_wanted: 0,
             indexed: false,
         };
-        if opts.use_index
-            && let Some(ids) = self.chunk_channels.get(&p)
-            && !ids.is_empty()
-            && !ids.iter().any(|&id| (opts.want)(id))
-        {
+        if self.skipped_by_index(p, opts) {
             return Ok(None);
         }
         // The fixed fields and the compression name's length.
@@ -167,18 +168,33 @@ impl McapFile {
                     let mut m = Cur::new(content);
                     if let (Some(channel), Some(_), Some(log_time), Some(_)) =
                         (m.u16(), m.u32(), m.u64(), m.u64())
-                        && (opts.want)(channel)
                     {
-                        delivered += 1;
-                        f(Rec::Message {
-                            channel,
-                            log_time,
-                            data: m.rest(),
-                        })?;
+                        // Where the message's data starts in the chunk's records.
+                        let at = q as u64 + RECORD_HEAD + m.p as u64;
+                        let data = m.rest();
+                        if let Some(keep) = keep.as_deref_mut() {
+                            keep.push(Inside::Message {
+                                channel,
+                                log_time,
+                                data: Kept::of(data, at),
+                            });
+                        }
+                        if (opts.want)(channel) {
+                            delivered += 1;
+                            f(Rec::Message {
+                                channel,
+                                log_time,
+                                data,
+                                whole: true,
+                            })?;
+                        }
                     }
                 }
                 OP_SCHEMA | OP_CHANNEL => {
                     if let Some(rec) = inner_meta(op, content) {
+                        if let (Some(keep), Some(m)) = (keep.as_deref_mut(), Meta::of(&rec)) {
+                            keep.push(Inside::Meta(m));
+                        }
                         f(rec)?;
                     }
                 }
@@ -190,5 +206,15 @@ impl McapFile {
             d.delivered = delivered;
             d
         }))
+    }
+
+    /// Whether the summary's chunk index says the chunk at `p` holds no channel `opts` wants
+    /// (the walk then skips it).
+    pub(super) fn skipped_by_index(&self, p: u64, opts: &Walk<'_>) -> bool {
+        opts.use_index
+            && self
+                .chunk_channels
+                .get(&p)
+                .is_some_and(|ids| !ids.is_empty() && !ids.iter().any(|&id| (opts.want)(id)))
     }
 }

@@ -30,6 +30,8 @@ pub(super) struct McapFile {
     /// The channels with messages in each chunk (by the chunk record's offset), from the
     /// summary's chunk indexes; chunks it does not list are always read.
     pub(super) chunk_channels: BTreeMap<u64, Vec<u16>>,
+    /// Where the reads of a file being recorded keep their place ([`super::kept`]).
+    pub(super) slot: Option<crate::io::bag::memory::SlotRef>,
 }
 
 /// What the summary section (or a reading of the whole file) tells of one file.
@@ -54,6 +56,9 @@ pub(super) struct Walk<'w> {
     /// The channels whose messages are asked for: only these are handed to the callback,
     /// and losses are counted for them.
     pub(super) want: &'w dyn Fn(u16) -> bool,
+    /// Whether a wanted message kept by an earlier read is to be handed over whole (asked
+    /// just before it is): else its first bytes are ([`super::kept`]).
+    pub(super) whole: &'w dyn Fn(u16) -> bool,
     /// Skip chunks that the summary's index says hold no wanted channel.
     pub(super) use_index: bool,
     /// Messages are being read (damage is described by the messages it cost).

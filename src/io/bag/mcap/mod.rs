@@ -25,6 +25,7 @@
 mod chunk;
 mod damage;
 mod file;
+mod kept;
 mod open;
 mod reader;
 mod records;
@@ -159,22 +160,32 @@ impl McapBag {
         &self.problems
     }
 
-    /// See [`super::Bag::messages`].
+    /// See [`super::Bag::messages_with`].
     pub fn messages(
         &self,
         wanted: &dyn Fn(usize) -> bool,
+        whole: &dyn Fn(usize, u64) -> bool,
         f: &mut dyn FnMut(BagMessage<'_>) -> Result<()>,
     ) -> Result<BagReadSummary> {
         let mut summary = BagReadSummary::default();
-        let mut counts = vec![0u64; self.topics.len()];
+        let counts = vec![std::cell::Cell::new(0u64); self.topics.len()];
         for file in &self.files {
             let want = |id: u16| {
                 file.channels
                     .get(&id)
                     .is_some_and(|c| c.readable && wanted(c.topic))
             };
+            // The message about to be handed over is its topic's next.
+            let fetch = |id: u16| {
+                file.channels.get(&id).is_some_and(|c| {
+                    counts
+                        .get(c.topic)
+                        .is_some_and(|n| whole(c.topic, n.get() + 1))
+                })
+            };
             let walk = Walk {
                 want: &want,
+                whole: &fetch,
                 use_index: true,
                 counting: true,
             };
@@ -185,6 +196,7 @@ impl McapBag {
                     channel,
                     log_time,
                     data,
+                    whole,
                 } = rec
                 else {
                     return Ok(());
@@ -196,16 +208,17 @@ impl McapBag {
                     late += 1;
                     return Ok(());
                 };
-                let Some(n) = counts.get_mut(topic) else {
+                let Some(n) = counts.get(topic) else {
                     return Ok(());
                 };
-                *n += 1;
+                n.set(n.get() + 1);
                 summary.messages += 1;
                 f(BagMessage {
                     topic,
                     log_time_ns,
                     data,
-                    index: *n,
+                    index: n.get(),
+                    whole,
                 })
             })?;
             if late > 0 {

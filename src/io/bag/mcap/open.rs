@@ -66,6 +66,7 @@ pub(super) fn open_file(path: &Path, problems: &mut Vec<String>) -> Result<(Mcap
         closed: false,
         channels: BTreeMap::new(),
         chunk_channels: BTreeMap::new(),
+        slot: crate::io::bag::growing::slot_of(path),
     };
     // The footer, when the file was closed.
     let mut summary = None;
@@ -100,6 +101,8 @@ pub(super) fn open_file(path: &Path, problems: &mut Vec<String>) -> Result<(Mcap
             }
         }
     }
+    // What earlier reads kept, checked once the data section's end is known.
+    file.check_kept();
     if let Some((start, end)) = summary {
         match read_summary(&mut r, start, end) {
             Ok(mut info) if !info.channels.is_empty() => {
@@ -175,6 +178,7 @@ fn scan(file: &McapFile, problems: &mut Vec<String>) -> Result<FileInfo> {
     let mut found = Vec::new();
     let walk = Walk {
         want: &|_| false,
+        whole: &|_| false,
         use_index: false,
         counting: false,
     };

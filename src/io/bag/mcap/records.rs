@@ -164,6 +164,8 @@ pub(super) enum Rec<'a> {
         channel: u16,
         log_time: u64,
         data: &'a [u8],
+        /// Whether `data` is the whole message, not only its first bytes.
+        whole: bool,
     },
 }
 

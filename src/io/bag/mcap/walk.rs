@@ -2,8 +2,11 @@
 //! chunks, and the recovery from damage (a record whose length runs past the data section
 //! resumes at the next indexed chunk; a cut recording ends the pass, described).
 
+use std::sync::Arc;
+
 use super::damage::Damaged;
 use super::file::{Buffers, McapFile, Walk};
+use super::kept::{Meta, Top};
 use super::reader::Reader;
 use super::records::{
     Cur, MAX_MESSAGE, MAX_META, MESSAGE_HEAD, OP_CHANNEL, OP_CHUNK, OP_DATA_END, OP_FOOTER,
@@ -11,11 +14,16 @@ use super::records::{
     parse_message_index,
 };
 use crate::error::Result;
+use crate::io::bag::memory::Kept;
 
 impl McapFile {
     /// Walks the data section in file order, handing Schema, Channel and (wanted) Message
     /// records to `f`, from top level and inside chunks. Damage is skipped and described in
     /// `problems`; an error from `f` or from the file system stops the walk.
+    ///
+    /// A file followed while recorded ([`super::kept`]) has its records kept up to the first
+    /// that is cut or damaged: they are handed over as kept, and the file is parsed from there;
+    /// what is then parsed whole is kept in turn.
     pub(super) fn walk(
         &self,
         opts: &Walk<'_>,
@@ -26,10 +34,22 @@ impl McapFile {
         let mut bufs = Buffers::default();
         let mut damaged: Option<Damaged> = None;
         let limit = self.data_end;
-        let mut p = self.data_start;
+        let (from, kept) = self.kept_items();
+        for item in &kept {
+            self.replay(&mut r, &mut bufs, item, opts, f)?;
+        }
+        let mut p = from;
+        // What is parsed whole and undamaged from `from` on, and where it ends (`None` once a
+        // record is not kept: nothing after it is).
+        let mut keeping = self.slot.is_some().then(Vec::new);
+        let mut kept_to = from;
+        let clean_before = problems.len();
         // Chunk offsets to resume at after damage (known when the file has a summary).
         let resume: Vec<u64> = self.chunk_channels.keys().copied().collect();
         loop {
+            if keeping.is_some() && (problems.len() > clean_before || damaged.is_some()) {
+                keeping = None;
+            }
             if p >= limit {
                 break;
             }
@@ -59,7 +79,8 @@ impl McapFile {
                 if !self.closed {
                     // A recording cut inside this record.
                     if op == OP_CHUNK {
-                        let d = self.chunk(&mut r, &mut bufs, p, len, opts, f)?;
+                        self.count_decoded(p);
+                        let d = self.chunk(&mut r, &mut bufs, p, len, opts, f, None)?;
                         problems.push(d.map_or_else(
                             || {
                                 format!(
@@ -103,6 +124,7 @@ impl McapFile {
                     }
                 }
             };
+            let mut top = Top::Other;
             match op {
                 OP_FOOTER | OP_DATA_END => break,
                 OP_SCHEMA | OP_CHANNEL => {
@@ -115,7 +137,12 @@ impl McapFile {
                     } else {
                         r.read_into(body, len, &mut bufs.record)?;
                         match inner_meta(op, &bufs.record) {
-                            Some(rec) => f(rec)?,
+                            Some(rec) => {
+                                if let Some(m) = Meta::of(&rec) {
+                                    top = Top::Meta(m);
+                                }
+                                f(rec)?
+                            }
                             None => problems.push(format!(
                                 "the {} record at byte {p} is malformed: skipped",
                                 op_name(op)
@@ -124,11 +151,30 @@ impl McapFile {
                     }
                 }
                 OP_MESSAGE => {
-                    self.top_message(&mut r, &mut bufs, p, len, opts, problems, f)?;
+                    let keep = keeping.is_some();
+                    match self.top_message(&mut r, &mut bufs, p, len, opts, problems, f, keep)? {
+                        Some(t) => top = t,
+                        // Skipped for its length: a walk wanting it would say so.
+                        None if len > MAX_MESSAGE => keeping = None,
+                        None => {}
+                    }
                 }
                 OP_CHUNK => {
-                    if let Some(d) = self.chunk(&mut r, &mut bufs, p, len, opts, f)? {
-                        damaged = Some(d);
+                    if keeping.is_some() && self.skipped_by_index(p, opts) {
+                        // Not parsed, so not kept: nor is anything after it.
+                        keeping = None;
+                    }
+                    let mut records = keeping.is_some().then(Vec::new);
+                    if !self.skipped_by_index(p, opts) {
+                        self.count_decoded(p);
+                    }
+                    match self.chunk(&mut r, &mut bufs, p, len, opts, f, records.as_mut())? {
+                        Some(d) => damaged = Some(d),
+                        None => {
+                            if let Some(records) = records {
+                                top = Top::Chunk { p, len, records };
+                            }
+                        }
                     }
                 }
                 OP_MESSAGE_INDEX => {
@@ -148,14 +194,24 @@ impl McapFile {
                 _ => {}
             }
             p = rec_end;
+            if let Some(items) = &mut keeping
+                && problems.len() == clean_before
+                && damaged.is_none()
+            {
+                items.push(Arc::new(top));
+                kept_to = p;
+            }
         }
         if let Some(d) = damaged.take() {
             problems.push(d.describe(opts.counting));
         }
+        if let Some(items) = keeping {
+            self.keep(from, kept_to, items);
+        }
         Ok(())
     }
 
-    /// A message outside any chunk.
+    /// A message outside any chunk; with `keep`, what a later walk hands over for it.
     #[allow(clippy::too_many_arguments)]
     fn top_message(
         &self,
@@ -166,35 +222,48 @@ impl McapFile {
         opts: &Walk<'_>,
         problems: &mut Vec<String>,
         f: &mut dyn FnMut(Rec<'_>) -> Result<()>,
-    ) -> Result<()> {
+        keep: bool,
+    ) -> Result<Option<Top>> {
         let body = p + RECORD_HEAD;
         if len < MESSAGE_HEAD as u64 {
             problems.push(format!(
                 "the Message record at byte {p} is shorter than a message's head: skipped"
             ));
-            return Ok(());
+            return Ok(None);
         }
         let head: [u8; MESSAGE_HEAD] = r.read_array(body)?;
         let mut c = Cur::new(&head);
         let (Some(channel), Some(_seq), Some(log_time)) = (c.u16(), c.u32(), c.u64()) else {
-            return Ok(());
+            return Ok(None);
         };
-        if !(opts.want)(channel) {
-            return Ok(());
+        let wanted = (opts.want)(channel);
+        if !wanted && !keep {
+            return Ok(None);
         }
         if len > MAX_MESSAGE {
-            problems.push(format!(
-                "the message at byte {p} declares {len} bytes, more than this reader accepts: \
-                 skipped"
-            ));
-            return Ok(());
+            if wanted {
+                problems.push(format!(
+                    "the message at byte {p} declares {len} bytes, more than this reader \
+                     accepts: skipped"
+                ));
+            }
+            return Ok(None);
         }
-        let n = len - MESSAGE_HEAD as u64;
-        r.read_into(body + MESSAGE_HEAD as u64, n, &mut bufs.record)?;
-        f(Rec::Message {
+        let at = body + MESSAGE_HEAD as u64;
+        r.read_into(at, len - MESSAGE_HEAD as u64, &mut bufs.record)?;
+        let top = keep.then(|| Top::Message {
             channel,
             log_time,
-            data: &bufs.record,
-        })
+            data: Kept::of(&bufs.record, at),
+        });
+        if wanted {
+            f(Rec::Message {
+                channel,
+                log_time,
+                data: &bufs.record,
+                whole: true,
+            })?;
+        }
+        Ok(top)
     }
 }
