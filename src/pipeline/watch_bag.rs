@@ -24,8 +24,9 @@
 //! The image messages' detections are kept across updates under the bag's path, topic and
 //! message number ([`DetectionCache::message_key`]), moved with the bag when it is renamed.
 //! So is the readers' place in each storage file ([`BagMemory`]): an update of a ROS 1 or MCAP
-//! bag parses only what was appended since the last one (and its last, unfinished chunk), and
-//! reads an image's bytes again only for a frame not solved yet.
+//! bag parses only what was appended since the last one (and its last, unfinished chunk), one
+//! of an sqlite3 bag asks SQLite only for the rows written since, and an image's bytes are read
+//! again only for a frame not solved yet.
 
 use std::path::{Path, PathBuf};
 use std::time::SystemTime;

@@ -7,7 +7,8 @@
 //! read each of those files up to the length it had then, whatever was appended since. The
 //! last chunk or record is then usually cut, which the readers take as the end of a recording
 //! (they read what precedes it and say so). sqlite3 storage is read through SQLite, which
-//! gives each read a consistent database of its own; it is not fixed.
+//! gives each read a consistent database of its own; it is not fixed, but its reader keeps its
+//! place in the memory attached all the same ([`FixedLengths::fix_remembering`]).
 
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};

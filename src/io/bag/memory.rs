@@ -20,7 +20,12 @@
 //! frames whose detections are not kept yet. The last chunk, which a recorder has not finished,
 //! is never kept: each read decodes it again, as before.
 //!
-//! sqlite3 storage is read through SQLite and keeps nothing here.
+//! The sqlite3 reader ([`super::sqlite`]) keeps here, per database, its `topics` rows, the
+//! message counts per topic and the messages read (a long one as its [`HEAD`] and its row id,
+//! [`Kept::Head`]'s `at`), and asks SQLite only for the rows above the largest row id kept
+//! (SQLite reads a database being written as of its last commit); a database whose topics,
+//! first row or last kept row changed is read from its start. Its [`SlotStats::kept_to`] and
+//! [`SlotStats::resumed_at`] are row ids, and [`SlotStats::rows_read`] counts the rows read.
 
 use std::collections::HashMap;
 use std::fs::File;
@@ -42,7 +47,8 @@ pub(crate) enum Kept {
     /// The whole message.
     Whole(Vec<u8>),
     /// The first [`HEAD`] bytes of a longer message, `len` bytes long, starting at byte `at`
-    /// of its chunk's records (or of the file, for a message outside any chunk).
+    /// of its chunk's records (or of the file, for a message outside any chunk; for an sqlite3
+    /// database, `at` is the message's row id).
     Head {
         /// The first [`HEAD`] bytes.
         head: Vec<u8>,
@@ -132,8 +138,13 @@ pub struct SlotStats {
     pub chunks_decoded: u64,
     /// The offset of the first chunk decoded since the last opening (`None`: none was).
     pub first_decoded: Option<u64>,
-    /// The offset up to which the file is kept now.
+    /// The offset up to which the file is kept now (for an sqlite3 database, the largest
+    /// row id kept; `resumed_at` is the one kept before the last opening).
     pub kept_to: u64,
+    /// Rows of an sqlite3 database that SQLite handed over since the memory was made.
+    pub rows_read: u64,
+    /// The smallest row id SQLite handed over since the last opening (`None`: none).
+    pub first_row_read: Option<i64>,
 }
 
 impl Slot {
@@ -168,6 +179,15 @@ impl Slot {
     pub(crate) fn resumed(&mut self, at: u64) {
         self.stats.resumed_at = at;
         self.stats.first_decoded = None;
+        self.stats.first_row_read = None;
+    }
+
+    /// Counts `n` rows of an sqlite3 database read, the first with row id `first`.
+    pub(crate) fn rows_read(&mut self, n: u64, first: Option<i64>) {
+        self.stats.rows_read += n;
+        if let Some(f) = first {
+            self.stats.first_row_read = Some(self.stats.first_row_read.map_or(f, |g| g.min(f)));
+        }
     }
 
     /// Counts the chunk at `at` decoded.
@@ -343,6 +363,94 @@ mod tests {
             "mcap",
             0x1c,
         );
+    }
+
+    /// `f` made a copy of the database `src` holding only its rows up to id `upto`.
+    fn db_upto(src: &Path, f: &Path, upto: i64) {
+        std::fs::copy(src, f).expect("copy");
+        let db = rusqlite::Connection::open(f).expect("open");
+        db.execute("DELETE FROM messages WHERE id > ?1", [upto])
+            .expect("delete");
+    }
+
+    /// The rows of `src` above id `from` up to `to` written into `f`, as a recorder commits
+    /// a batch.
+    fn db_append(src: &Path, f: &Path, from: i64, to: i64) {
+        let db = rusqlite::Connection::open(f).expect("open");
+        db.execute("ATTACH DATABASE ?1 AS src", [src.to_str().expect("utf-8")])
+            .expect("attach");
+        db.execute(
+            "INSERT INTO messages SELECT * FROM src.messages WHERE id > ?1 AND id <= ?2",
+            [from, to],
+        )
+        .expect("insert");
+    }
+
+    /// The topics' message counts of `path`, read with `memory` when given.
+    fn declared(path: &Path, memory: Option<&BagMemory>) -> Vec<Option<u64>> {
+        let fixed = memory.map(|m| FixedLengths::fix_remembering(&[path.to_path_buf()], m));
+        let bag = Bag::open(path).expect("bag");
+        drop(fixed);
+        bag.topics().iter().map(|t| t.declared_count).collect()
+    }
+
+    /// A read with the memory after a database was written to: what a read of it alone gives
+    /// (messages and counts), with `rows` rows asked of SQLite, from `resumed` on.
+    fn db_read(f: &Path, memory: &BagMemory, resumed: u64, rows: u64, first: i64, to: u64) {
+        let before = memory.stats(f).map_or(0, |s| s.rows_read);
+        read_remembering(f, memory, false);
+        let s = memory.stats(f).expect("read with the memory");
+        assert_eq!(
+            (
+                s.resumed_at,
+                s.rows_read - before,
+                s.first_row_read,
+                s.kept_to
+            ),
+            (resumed, rows, Some(first), to),
+            "{s:?}"
+        );
+        same_as_alone(f, memory);
+        assert_eq!(declared(f, Some(memory)), declared(f, None));
+        // The reads after it asked for nothing more.
+        assert_eq!(memory.stats(f).expect("read").rows_read - before, rows);
+    }
+
+    #[test]
+    fn an_sqlite3_database_written_to_is_read_on_from_the_last_row_kept() {
+        let src = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("sample_data/bags/stereo_sqlite3/stereo_sqlite3.db3");
+        let dir = std::env::temp_dir().join(format!("dvlcal-mem-db3-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("folder");
+        let f = dir.join("run.db3");
+        let memory = BagMemory::default();
+        // 392 rows, ids 1 to 392, images longer than HEAD among them: written in three
+        // batches, each read with the memory asks SQLite only for the rows above those kept.
+        db_upto(&src, &f, 150);
+        db_read(&f, &memory, 0, 150, 1, 150);
+        db_append(&src, &f, 150, 270);
+        db_read(&f, &memory, 150, 120, 151, 270);
+        db_append(&src, &f, 270, 392);
+        db_read(&f, &memory, 270, 122, 271, 392);
+        // Fewer rows (the last one kept is gone): read from the start.
+        db_upto(&src, &f, 100);
+        db_read(&f, &memory, 0, 100, 1, 100);
+        // Its topics changed: read from the start.
+        std::fs::copy(&src, &f).expect("copy");
+        db_read(&f, &memory, 100, 292, 101, 392);
+        let db = rusqlite::Connection::open(&f).expect("open");
+        db.execute("UPDATE topics SET name = name || '_2' WHERE id = 2", [])
+            .expect("update");
+        drop(db);
+        db_read(&f, &memory, 0, 392, 1, 392);
+        // Its first row differs: read from the start.
+        let db = rusqlite::Connection::open(&f).expect("open");
+        db.execute("DELETE FROM messages WHERE id = 1", [])
+            .expect("delete");
+        drop(db);
+        db_read(&f, &memory, 0, 391, 2, 392);
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]

@@ -210,7 +210,7 @@ impl Bag {
                 })
             }
             Inner::Mcap(b) => b.messages(wanted, whole, f),
-            Inner::Sqlite(b) => b.messages(wanted, f),
+            Inner::Sqlite(b) => b.messages(wanted, whole, f),
         }
     }
 }

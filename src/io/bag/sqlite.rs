@@ -8,13 +8,24 @@
 //! holds one message at a time. SQLite itself checks the file's structure: a damaged page
 //! gives an error, after which the file's remaining rows are read one at a time by id, stepping
 //! past each row that cannot be read, and the loss is counted in the summary.
+//!
+//! While the bag is followed as it is recorded ([`super::memory`]), each file's slot keeps its
+//! `topics` rows, the message counts per topic up to a row id, and the messages read so far
+//! (a long one as its head and its row id) up to the largest row id read: an opening counts
+//! only the rows above the counted id, and a pass asks SQLite only for the rows above the
+//! largest id kept, merges them into what is kept in record order and hands over the lot. A
+//! database whose topics, first row or last kept row are no longer what was kept (replaced,
+//! shortened) is read from the start; a damaged one, or one with a row of unexpected types, is
+//! read as without the memory.
 
 use std::collections::{BTreeMap, HashSet};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 use rusqlite::types::ValueRef;
 use rusqlite::{Connection, OpenFlags};
 
+use super::memory::{self, Kept, SlotRef};
 use super::types::{BagMessage, BagReadSummary, Serialization, Topic};
 use crate::error::{Error, Result};
 
@@ -24,6 +35,8 @@ struct DbFile {
     path: PathBuf,
     /// topic id → (index into the bag's topics, whether its messages are read).
     topics: BTreeMap<i64, (usize, bool)>,
+    /// Where the reads of a bag followed while recorded keep their place ([`memory`]).
+    slot: Option<SlotRef>,
 }
 
 /// The storage files of one ROS 2 bag, opened.
@@ -58,6 +71,7 @@ fn text(v: ValueRef<'_>) -> String {
 }
 
 /// One row of the `topics` table.
+#[derive(Clone, Debug, PartialEq, Eq)]
 struct TopicRow {
     id: i64,
     name: String,
@@ -69,7 +83,11 @@ struct TopicRow {
 type Counts = std::result::Result<BTreeMap<i64, u64>, String>;
 
 /// The rows of `topics` and the number of messages per topic id.
-fn read_tables(path: &Path, db: &Connection) -> Result<(Vec<TopicRow>, Counts)> {
+fn read_tables(
+    path: &Path,
+    db: &Connection,
+    slot: Option<&SlotRef>,
+) -> Result<(Vec<TopicRow>, Counts)> {
     let tables: Vec<String> = db
         .prepare("SELECT name FROM sqlite_master WHERE type = 'table'")
         .and_then(|mut s| {
@@ -103,26 +121,20 @@ fn read_tables(path: &Path, db: &Connection) -> Result<(Vec<TopicRow>, Counts)> 
             .collect::<rusqlite::Result<Vec<TopicRow>>>()
         })
         .map_err(|e| db_err(path, e))?;
-    // One pass over the table's rows (the message data is not read). A damaged table fails
-    // here; the messages are still read past the damage, so the counts are left unknown.
-    let counts = db
-        .prepare("SELECT topic_id, COUNT(*) FROM messages GROUP BY topic_id")
-        .and_then(|mut s| {
-            s.query_map([], |r| Ok((r.get::<_, i64>(0)?, r.get::<_, i64>(1)?)))?
-                .collect::<rusqlite::Result<Vec<(i64, i64)>>>()
-        })
-        .map(|c| {
-            c.into_iter()
-                .map(|(id, n)| (id, u64::try_from(n).unwrap_or(0)))
-                .collect()
-        })
-        .map_err(|e| {
-            format!(
-                "{}: the messages table could not be counted ({e}): it is damaged, and its \
-                 messages are read row by row past the damage",
-                path.display()
-            )
-        });
+    // One pass over the table's rows (the message data is not read), or over those above the
+    // rows counted before when the file is followed. A damaged table fails here; the messages
+    // are still read past the damage, so the counts are left unknown.
+    let counts = match slot {
+        Some(slot) => remembered_counts(db, &rows, slot),
+        None => count_rows(db, None).map(|(c, _)| c),
+    }
+    .map_err(|e| {
+        format!(
+            "{}: the messages table could not be counted ({e}): it is damaged, and its \
+             messages are read row by row past the damage",
+            path.display()
+        )
+    });
     Ok((rows, counts))
 }
 
@@ -183,7 +195,8 @@ impl SqliteBag {
                 )));
             }
             let db = open_db(path)?;
-            let (rows, counts) = read_tables(path, &db)?;
+            let slot = super::growing::slot_of(path);
+            let (rows, counts) = read_tables(path, &db, slot.as_ref())?;
             let counts = match counts {
                 Ok(c) => Some(c),
                 Err(problem) => {
@@ -196,6 +209,7 @@ impl SqliteBag {
             let mut file = DbFile {
                 path: path.clone(),
                 topics: BTreeMap::new(),
+                slot,
             };
             for row in rows {
                 let ser = match row.format.as_str() {
@@ -282,10 +296,14 @@ impl SqliteBag {
 
     /// See [`super::Bag::messages`]. Each file is read in one pass in record order; when SQLite
     /// meets a damaged page, the file's remaining rows are read one by one past it (see
-    /// [`salvage_keys`]), and what could not be read is counted in the summary.
+    /// [`salvage_keys`]), and what could not be read is counted in the summary. While the bag
+    /// is followed ([`memory`]), only the rows above those kept are read, and a long message
+    /// kept from before is read again only when `whole(topic, index)` says so (see
+    /// [`super::Bag::messages_with`]).
     pub fn messages(
         &self,
         wanted: &dyn Fn(usize) -> bool,
+        whole: &dyn Fn(usize, u64) -> bool,
         f: &mut dyn FnMut(BagMessage<'_>) -> Result<()>,
     ) -> Result<BagReadSummary> {
         let mut summary = BagReadSummary::default();
@@ -302,6 +320,19 @@ impl SqliteBag {
             }
             let path = &file.path;
             let db = open_db(path)?;
+            if let Some(kept) = file.slot.as_ref().and_then(|s| read_on(&db, s)) {
+                let mut pass = Pass {
+                    file,
+                    counts: &mut counts,
+                    f: &mut *f,
+                    read: 0,
+                    bad_rows: 0,
+                    delivered: HashSet::new(),
+                };
+                pass.replay(&db, &kept, wanted, whole)?;
+                summary.messages += pass.read;
+                continue;
+            }
             // The ids are integers read from the database, so they can be written into the
             // statement; the filter keeps SQLite from loading other topics' data.
             let sql = format!(
@@ -358,6 +389,224 @@ impl SqliteBag {
     }
 }
 
+/// A row's key: (row id, topic id, time stamp).
+type RowKey = (i64, i64, i64);
+
+/// One message kept of a database followed while recorded.
+#[derive(Clone, Debug)]
+struct KeptRow {
+    t: i64,
+    id: i64,
+    topic: i64,
+    /// Its data; a long message's place is its row id.
+    data: Kept,
+}
+
+/// What the reads of an sqlite3 database being recorded keep ([`memory`]).
+#[derive(Debug)]
+pub(crate) struct SqliteKept {
+    /// The `topics` table.
+    topics: Vec<TopicRow>,
+    /// The first row of `messages` when this was begun.
+    first: Option<RowKey>,
+    /// Messages per topic id of the rows up to `counted_to`.
+    counts: BTreeMap<i64, u64>,
+    counted_to: Option<RowKey>,
+    /// The rows up to `read_to`, in record order (time stamp, then row id).
+    messages: Arc<Vec<KeptRow>>,
+    read_to: Option<RowKey>,
+}
+
+/// The key of the row `id`, if there is one.
+fn key_of(db: &Connection, id: i64) -> rusqlite::Result<Option<RowKey>> {
+    db.prepare_cached("SELECT id, topic_id, timestamp FROM messages WHERE id = ?1")?
+        .query([id])?
+        .next()?
+        .map(|r| Ok((r.get(0)?, r.get(1)?, r.get(2)?)))
+        .transpose()
+}
+
+/// The key of the first row of `messages`, if there is one.
+fn first_row(db: &Connection) -> rusqlite::Result<Option<RowKey>> {
+    db.prepare("SELECT id, topic_id, timestamp FROM messages ORDER BY id LIMIT 1")?
+        .query([])?
+        .next()?
+        .map(|r| Ok((r.get(0)?, r.get(1)?, r.get(2)?)))
+        .transpose()
+}
+
+/// The messages per topic id of the rows above `above` (all when `None`), and the largest
+/// row id counted.
+fn count_rows(
+    db: &Connection,
+    above: Option<i64>,
+) -> rusqlite::Result<(BTreeMap<i64, u64>, Option<i64>)> {
+    let sql = match above {
+        Some(_) => {
+            "SELECT topic_id, COUNT(*), MAX(id) FROM messages WHERE id > ?1 GROUP BY topic_id"
+        }
+        None => "SELECT topic_id, COUNT(*), MAX(id) FROM messages GROUP BY topic_id",
+    };
+    let mut stmt = db.prepare(sql)?;
+    let rows = match above {
+        Some(a) => stmt.query([a])?,
+        None => stmt.query([])?,
+    };
+    let c = rows
+        .mapped(|r| {
+            Ok((
+                r.get::<_, i64>(0)?,
+                r.get::<_, i64>(1)?,
+                r.get::<_, i64>(2)?,
+            ))
+        })
+        .collect::<rusqlite::Result<Vec<(i64, i64, i64)>>>()?;
+    let last = c.iter().map(|&(_, _, m)| m).max();
+    let counts = c
+        .into_iter()
+        .map(|(id, n, _)| (id, u64::try_from(n).unwrap_or(0)))
+        .collect();
+    Ok((counts, last))
+}
+
+impl SqliteKept {
+    /// Whether the database `db`, whose topics are `topics` and first row `first`, still
+    /// holds what is kept.
+    fn holds(&self, db: &Connection, topics: &[TopicRow], first: Option<RowKey>) -> bool {
+        self.topics == topics
+            && self.first == first
+            && [self.counted_to, self.read_to]
+                .into_iter()
+                .flatten()
+                .all(|k| key_of(db, k.0).is_ok_and(|now| now == Some(k)))
+    }
+}
+
+/// The message counts per topic id of a database followed while recorded, kept in `slot`:
+/// only the rows above those counted before are counted (all of them when the database is
+/// new to the slot or no longer holds what it kept, which then empties it).
+fn remembered_counts(
+    db: &Connection,
+    topics: &[TopicRow],
+    slot: &SlotRef,
+) -> rusqlite::Result<BTreeMap<i64, u64>> {
+    let mut slot = memory::lock(slot);
+    let first = first_row(db);
+    let held = first.as_ref().is_ok_and(|first| {
+        slot.kept::<SqliteKept>()
+            .is_some_and(|k| k.holds(db, topics, *first))
+    });
+    if !held {
+        slot.take::<SqliteKept>();
+        slot.keep(
+            SqliteKept {
+                topics: topics.to_vec(),
+                first: first.as_ref().ok().copied().flatten(),
+                counts: BTreeMap::new(),
+                counted_to: None,
+                messages: Arc::new(Vec::new()),
+                read_to: None,
+            },
+            0,
+        );
+    }
+    let at = slot
+        .kept::<SqliteKept>()
+        .and_then(|k| k.read_to)
+        .map_or(0, |k| k.0 as u64);
+    slot.resumed(at);
+    let counted = first.and_then(|_| {
+        let above = slot.kept::<SqliteKept>().and_then(|k| k.counted_to);
+        let (more, last) = count_rows(db, above.map(|k| k.0))?;
+        let to = match last {
+            Some(id) => key_of(db, id)?,
+            None => above,
+        };
+        Ok((more, to))
+    });
+    let Some(k) = slot.kept_mut::<SqliteKept>() else {
+        return counted.map(|(c, _)| c);
+    };
+    match counted {
+        Ok((more, to)) => {
+            for (id, n) in more {
+                *k.counts.entry(id).or_insert(0) += n;
+            }
+            k.counted_to = to;
+            Ok(k.counts.clone())
+        }
+        Err(e) => {
+            // Damaged: read as without the memory.
+            slot.take::<SqliteKept>();
+            Err(e)
+        }
+    }
+}
+
+/// The rows above `above` (all when `None`) of `messages`, in row id order; `None` when one
+/// cannot be read or is not (integer topic id, integer time stamp, blob of data).
+fn read_rows(db: &Connection, above: Option<i64>) -> Option<Vec<KeptRow>> {
+    let sql = match above {
+        Some(_) => "SELECT id, topic_id, timestamp, data FROM messages WHERE id > ?1 ORDER BY id",
+        None => "SELECT id, topic_id, timestamp, data FROM messages ORDER BY id",
+    };
+    let mut stmt = db.prepare(sql).ok()?;
+    let mut rows = match above {
+        Some(a) => stmt.query([a]),
+        None => stmt.query([]),
+    }
+    .ok()?;
+    let mut out = Vec::new();
+    while let Some(row) = rows.next().ok()? {
+        match (
+            row.get_ref(0),
+            row.get_ref(1),
+            row.get_ref(2),
+            row.get_ref(3),
+        ) {
+            (
+                Ok(ValueRef::Integer(id)),
+                Ok(ValueRef::Integer(topic)),
+                Ok(ValueRef::Integer(t)),
+                Ok(ValueRef::Blob(data)),
+            ) => out.push(KeptRow {
+                t,
+                id,
+                topic,
+                data: Kept::of(data, id as u64),
+            }),
+            _ => return None,
+        }
+    }
+    Some(out)
+}
+
+/// The rows of the database followed in `slot`, read on from those kept: SQLite is asked only
+/// for the rows above the largest id kept, which are added to what is kept. `None` when the
+/// slot keeps nothing, or the rows could not be read (then it is emptied, and the database is
+/// read as without the memory).
+fn read_on(db: &Connection, slot: &SlotRef) -> Option<Arc<Vec<KeptRow>>> {
+    let mut slot = memory::lock(slot);
+    let above = slot.kept::<SqliteKept>()?.read_to;
+    let Some(new) = read_rows(db, above.map(|k| k.0)) else {
+        slot.take::<SqliteKept>();
+        return None;
+    };
+    let n = new.len() as u64;
+    let first = new.first().map(|r| r.id);
+    let k = slot.kept_mut::<SqliteKept>()?;
+    if let Some(last) = new.last() {
+        k.read_to = Some((last.id, last.topic, last.t));
+        let m = Arc::make_mut(&mut k.messages);
+        m.extend(new);
+        m.sort_by_key(|r| (r.t, r.id));
+    }
+    let (kept, to) = (k.messages.clone(), k.read_to.map_or(0, |r| r.0 as u64));
+    slot.rows_read(n, first);
+    slot.kept_to(to);
+    Some(kept)
+}
+
 /// Largest number of row ids in a row that cannot be read before the rest of a damaged table
 /// is given up (each costs one lookup; a destroyed interior page can hide many rows).
 const MAX_UNREADABLE_IN_A_ROW: u64 = 100_000;
@@ -395,6 +644,69 @@ impl Pass<'_> {
             index: *n,
             whole: true,
         })
+    }
+
+    /// Hands over the kept rows `kept` (in record order) of the topics read and `wanted`; a
+    /// long message is read again by its row id when `whole` asks for it.
+    fn replay(
+        &mut self,
+        db: &Connection,
+        kept: &[KeptRow],
+        wanted: &dyn Fn(usize) -> bool,
+        whole: &dyn Fn(usize, u64) -> bool,
+    ) -> Result<()> {
+        let path = &self.file.path;
+        let mut fetch = None;
+        for row in kept {
+            let Some(&(topic, true)) = self.file.topics.get(&row.topic) else {
+                continue;
+            };
+            if !wanted(topic) {
+                continue;
+            }
+            let Some(n) = self.counts.get(topic).map(|n| n + 1) else {
+                continue;
+            };
+            let again;
+            let (data, is_whole) = match &row.data {
+                Kept::Whole(b) => (b.as_slice(), true),
+                Kept::Head { len, .. } if whole(topic, n) => {
+                    let stmt = match &mut fetch {
+                        Some(s) => s,
+                        None => fetch.insert(
+                            db.prepare("SELECT data FROM messages WHERE id = ?1")
+                                .map_err(|e| db_err(path, e))?,
+                        ),
+                    };
+                    again = stmt
+                        .query_row([row.id], |r| r.get::<_, Vec<u8>>(0))
+                        .ok()
+                        .filter(|d| d.len() == *len)
+                        .ok_or_else(|| {
+                            Error::Input(format!(
+                                "{}: the message in row {} changed while the database was \
+                                 followed",
+                                path.display(),
+                                row.id
+                            ))
+                        })?;
+                    (again.as_slice(), true)
+                }
+                Kept::Head { head, .. } => (head.as_slice(), false),
+            };
+            if let Some(c) = self.counts.get_mut(topic) {
+                *c = n;
+            }
+            self.read += 1;
+            (self.f)(BagMessage {
+                topic,
+                log_time_ns: row.t,
+                data,
+                index: n,
+                whole: is_whole,
+            })?;
+        }
+        Ok(())
     }
 
     /// Streams the rows of `stmt` (id, topic id, time stamp, data); returns SQLite's error when
