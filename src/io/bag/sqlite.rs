@@ -543,6 +543,25 @@ fn remembered_counts(
     }
 }
 
+/// A `messages` row selected as (id, topic id, time stamp, data); `None` when a column is not of
+/// its type.
+fn message_row<'r>(row: &'r rusqlite::Row<'_>) -> Option<(i64, i64, i64, &'r [u8])> {
+    match (
+        row.get_ref(0),
+        row.get_ref(1),
+        row.get_ref(2),
+        row.get_ref(3),
+    ) {
+        (
+            Ok(ValueRef::Integer(id)),
+            Ok(ValueRef::Integer(topic)),
+            Ok(ValueRef::Integer(t)),
+            Ok(ValueRef::Blob(data)),
+        ) => Some((id, topic, t, data)),
+        _ => None,
+    }
+}
+
 /// The rows above `above` (all when `None`) of `messages`, in row id order; `None` when one
 /// cannot be read or is not (integer topic id, integer time stamp, blob of data).
 fn read_rows(db: &Connection, above: Option<i64>) -> Option<Vec<KeptRow>> {
@@ -558,25 +577,13 @@ fn read_rows(db: &Connection, above: Option<i64>) -> Option<Vec<KeptRow>> {
     .ok()?;
     let mut out = Vec::new();
     while let Some(row) = rows.next().ok()? {
-        match (
-            row.get_ref(0),
-            row.get_ref(1),
-            row.get_ref(2),
-            row.get_ref(3),
-        ) {
-            (
-                Ok(ValueRef::Integer(id)),
-                Ok(ValueRef::Integer(topic)),
-                Ok(ValueRef::Integer(t)),
-                Ok(ValueRef::Blob(data)),
-            ) => out.push(KeptRow {
-                t,
-                id,
-                topic,
-                data: Kept::of(data, id as u64),
-            }),
-            _ => return None,
-        }
+        let (id, topic, t, data) = message_row(row)?;
+        out.push(KeptRow {
+            t,
+            id,
+            topic,
+            data: Kept::of(data, id as u64),
+        });
     }
     Some(out)
 }
@@ -722,19 +729,9 @@ impl Pass<'_> {
                 Ok(None) => return Ok(None),
                 Err(e) => return Ok(Some(e)),
             };
-            match (
-                row.get_ref(0),
-                row.get_ref(1),
-                row.get_ref(2),
-                row.get_ref(3),
-            ) {
-                (
-                    Ok(ValueRef::Integer(row_id)),
-                    Ok(ValueRef::Integer(id)),
-                    Ok(ValueRef::Integer(t)),
-                    Ok(ValueRef::Blob(data)),
-                ) => self.deliver(row_id, id, t, data)?,
-                _ => self.bad_rows += 1,
+            match message_row(row) {
+                Some((row_id, id, t, data)) => self.deliver(row_id, id, t, data)?,
+                None => self.bad_rows += 1,
             }
         }
     }
