@@ -162,6 +162,12 @@ fn watch_asks_for_rotation_then_says_done_and_ends_as_calibrate() {
     assert!(first_at.is_some_and(|f| f < done_at));
     assert!(updates[done_at..].iter().all(|(_, u)| u["done"] == true));
     assert!(advice(&updates[done_at].1).is_empty());
+    // Updates after one that passed its checks start from its solution.
+    let warm = updates
+        .iter()
+        .filter(|(_, u)| u["started_from_last"] == true)
+        .count();
+    assert!(warm >= 2, "{warm} updates started from the last solution");
     let last = &updates.last().expect("updates").1;
     assert_eq!(last["counts"]["poses"], 601, "{last}");
     // The end: the same result as calibrate on the finished folder.
@@ -324,6 +330,7 @@ fn a_long_recording_is_calibrated_in_stretches() {
     assert!(w.changed().expect("listing"));
     let first = w.update(&opts).expect("update");
     assert_eq!(first.status, "ok", "{:?}", first.reason);
+    assert!(!first.started_from_last, "no update before the first");
     // (200 - 2) / 40: three closed stretches and the open one, solved at the first update.
     assert_eq!(first.counts.stretches, 4);
     assert_eq!(first.counts.stretches_failed, 0);
@@ -383,6 +390,8 @@ fn a_long_recording_is_calibrated_in_stretches() {
     std::fs::write(&poses, text).expect("rewrite");
     assert!(w.changed().expect("listing"));
     let second = w.update(&opts).expect("update");
+    // The open stretch starts from the first update's solution and ends where UIC ends.
+    assert!(second.started_from_last, "{}", second.text());
     assert!(
         second.counts.solved_s <= 2.0 * STRETCH + 2.5,
         "{:?}",

@@ -7,9 +7,9 @@ use nalgebra::Vector3;
 
 use super::closed_form::{ClosedForm, ClosedFormRow, closed_form, search_rotation};
 use super::model::{DvlObs, predict};
-use super::offset::estimate_offset;
-use super::options::{CalibOptions, Method};
-use super::outcome::InitReport;
+use super::offset::{OffsetOptions, OffsetResult, estimate_offset};
+use super::options::{CalibOptions, Method, WARM_WINDOW_S};
+use super::outcome::{InitReport, WarmStartUse};
 use super::robust::{self, Loss};
 use super::samples::usable;
 use crate::error::{Error, Result};
@@ -44,7 +44,15 @@ pub fn initialise(
     let obs = &screened[..];
     let (params, init) = match &opts.method {
         Method::Uic => {
-            let mut off = estimate_offset(traj, obs, &opts.offset, opts.names)?;
+            let near = match &opts.warm_start {
+                Some(w) => offset_near(traj, obs, opts, w.time_offset_s),
+                None => None,
+            };
+            let searched_again = opts.warm_start.is_some() && near.is_none();
+            let mut off = match near {
+                Some(off) => off,
+                None => estimate_offset(traj, obs, &opts.offset, opts.names)?,
+            };
             warnings.extend(off.notes.iter().cloned());
             for c in off.calm.iter_mut() {
                 *c = keep[*c];
@@ -67,9 +75,31 @@ pub fn initialise(
                     s.rms
                 ));
             }
-            let params = CalibrationParams {
+            let uic = CalibrationParams {
                 time_offset_s: off.offset,
                 ..searched.as_ref().map_or(cf.params, |s| s.params)
+            };
+            // The last solution starts the refinement unless it fits the velocities clearly
+            // worse than the data's own start (a solution gone astray is not carried on). The
+            // closed form minimises nearly this cost, so the warm start always costs a little
+            // more; an estimate within its std of the closed form's costs some eight noise
+            // variances more over thousands of rows, far inside the margin.
+            let (params, warm) = match &opts.warm_start {
+                Some(w) => {
+                    let warm = CalibrationParams {
+                        time_offset_s: off.offset,
+                        ..*w
+                    };
+                    let better =
+                        rows_cost(&rows, &warm) <= WARM_COST_MARGIN * rows_cost(&rows, &uic);
+                    let used = match (searched_again, better) {
+                        (true, _) => WarmStartUse::SearchedAgain,
+                        (false, true) => WarmStartUse::Started,
+                        (false, false) => WarmStartUse::OffsetOnly,
+                    };
+                    (if better { warm } else { uic }, used)
+                }
+                None => (uic, WarmStartUse::None),
             };
             (
                 params,
@@ -78,6 +108,7 @@ pub fn initialise(
                     closed_form: cf,
                     rotation_search: searched,
                     params,
+                    warm,
                 }),
             )
         }
@@ -89,6 +120,46 @@ pub fn initialise(
         Method::Fixed { guess, .. } => (*guess, None),
     };
     Ok((params, init, spikes_screened))
+}
+
+/// The clock offset searched within [`WARM_WINDOW_S`] of `offset` (and inside the offsets
+/// allowed); `None` when that search fails or ends within a coarse step of the window's edge, where
+/// the right offset may lie outside it (the whole search is then needed).
+fn offset_near(
+    traj: &Trajectory,
+    obs: &[DvlObs],
+    opts: &CalibOptions,
+    offset: f64,
+) -> Option<OffsetResult> {
+    let (mut lo, mut hi) = (offset - WARM_WINDOW_S, offset + WARM_WINDOW_S);
+    if let Some((a, b)) = opts.offset.range {
+        (lo, hi) = (lo.max(a), hi.min(b));
+    }
+    if lo >= hi {
+        return None;
+    }
+    let search = OffsetOptions {
+        range: Some((lo, hi)),
+        ..opts.offset.clone()
+    };
+    let off = estimate_offset(traj, obs, &search, opts.names).ok()?;
+    // The edges the user's range imposes are real bounds; only the window's own are not.
+    let step = opts.offset.coarse_step;
+    let clear_of_lo = lo > offset - WARM_WINDOW_S || off.offset > lo + step;
+    let clear_of_hi = hi < offset + WARM_WINDOW_S || off.offset < hi - step;
+    (clear_of_lo && clear_of_hi).then_some(off)
+}
+
+/// A warm start starts the refinement when its velocity residuals' sum of squares is at most
+/// this factor times the closed form's.
+const WARM_COST_MARGIN: f64 = 1.1;
+
+/// Sum of squared differences between the DVL velocities of `rows` and those `p` predicts from
+/// their twists.
+fn rows_cost(rows: &[ClosedFormRow], p: &CalibrationParams) -> f64 {
+    rows.iter()
+        .map(|r| (r.v_dvl - predict(p, &r.twist)).norm_squared())
+        .sum()
 }
 
 /// Most twist covariances the closed form's rows are given from (see [`closed_form_rows`]).

@@ -60,10 +60,11 @@ pub use analysis::{cramer_rao, jerk_density_evidence};
 pub use cosensor::CoSensor;
 pub use init::initialise;
 pub use model::PARAM_NAMES;
-pub use options::{CalibOptions, Method, SanityLimits, WeakThresholds};
+pub use options::{CalibOptions, Method, SanityLimits, WARM_WINDOW_S, WeakThresholds};
 pub use outcome::{
     CalibrationOutcome, ClockDrift, Counts, DeterminedBy, DriftCheck, Excitation, HalvesCheck,
-    InitReport, IterationRecord, ParamStd, Robustness, Status, Verdict, Verdicts, WeakCause,
+    InitReport, IterationRecord, ParamStd, Robustness, Status, Verdict, Verdicts, WarmStartUse,
+    WeakCause,
 };
 pub use samples::{pose_gap_threshold_s, pose_gaps, usable_covariance};
 pub use setting::{Setting, SettingNames};

@@ -176,10 +176,22 @@ pub struct CalibOptions {
     /// Let the motion prior's jerk density vary along the recording, chosen by the evidence of
     /// poses and DVL ([`super::motion_prior`]); on by default.
     pub varying_motion_prior: bool,
+    /// A solution of the same rig on overlapping data to start UIC from (a watched recording's
+    /// last update; `None` by default). UIC's rules stay: the clock offset is still searched, in
+    /// [`WARM_WINDOW_S`] around the solution's (the whole search again when it ends on that
+    /// window's edge), and the closed form is still solved and still decides which directions of
+    /// the lever arm the motion observes; the refinement starts from the solution, at the offset
+    /// found, unless it fits the DVL velocities clearly worse than the closed form. Ignored by
+    /// the other methods.
+    pub warm_start: Option<CalibrationParams>,
     /// The words for the settings in warnings, verdicts and errors ([`Setting::field`] by
     /// default).
     pub names: SettingNames,
 }
+
+/// Half-width, seconds, of the clock-offset search around a warm start's offset
+/// ([`CalibOptions::warm_start`]).
+pub const WARM_WINDOW_S: f64 = 0.5;
 
 impl Default for CalibOptions {
     fn default() -> Self {
@@ -204,6 +216,7 @@ impl Default for CalibOptions {
             honest_covariance: true,
             clock_drift: false,
             varying_motion_prior: true,
+            warm_start: None,
             names: Setting::field,
         }
     }
@@ -236,6 +249,19 @@ impl CalibOptions {
                 self.name(Setting::DefaultDvlSigma),
                 "must be a positive number of m/s",
             ));
+        }
+        if let Some(w) = &self.warm_start {
+            let m = w.t_cam_dvl.to_matrix();
+            if !(m.iter().all(|x| x.is_finite())
+                && w.time_offset_s.is_finite()
+                && w.velocity_scale.is_finite()
+                && w.velocity_scale > 0.0)
+            {
+                return Err(Error::option(
+                    "warm_start",
+                    "must be finite, with a positive velocity scale",
+                ));
+            }
         }
         Ok(())
     }

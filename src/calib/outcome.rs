@@ -358,8 +358,27 @@ pub struct InitReport {
     /// The minimum of the DVL residuals over rotations, when it lies far from the closed form's
     /// rotation and the refinement started from it instead.
     pub rotation_search: Option<RotationSearch>,
-    /// Parameters after initialisation (closed form with the searched offset).
+    /// Parameters after initialisation (closed form with the searched offset, or the warm
+    /// start's at that offset).
     pub params: CalibrationParams,
+    /// How [`CalibOptions::warm_start`](super::options::CalibOptions::warm_start) was used.
+    pub warm: WarmStartUse,
+}
+
+/// What became of a warm start ([`CalibOptions::warm_start`](super::options::CalibOptions)).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum WarmStartUse {
+    /// None was given.
+    #[default]
+    None,
+    /// The offset was searched near it and the refinement started from it.
+    Started,
+    /// The offset was searched near it, but it fitted the velocities clearly worse than the
+    /// closed form, which started the refinement.
+    OffsetOnly,
+    /// The offset search near it ended on its window's edge: the whole search was run, and the
+    /// better-fitting of the two starts the refinement.
+    SearchedAgain,
 }
 
 /// Each half of the recording calibrated on its own (the trajectory held at the result) and

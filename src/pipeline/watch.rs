@@ -28,12 +28,12 @@ use super::dataset::{Dataset, dataset_files_checked};
 use super::exports::state;
 use super::vision::VisionOptions;
 use super::watch_bag::{FollowedBag, Signature, signature};
-use crate::calib::CalibOptions;
 use crate::calib::advice::{Recording, advise, group_std};
 use crate::calib::fusion::{StretchEstimate, fuse};
 use crate::calib::outcome::{CalibrationOutcome, Status};
 use crate::calib::segments::calibrate_segments;
 use crate::calib::update::ParamMat;
+use crate::calib::{CalibOptions, WarmStartUse};
 use crate::error::{Error, Result};
 use crate::io::calib_yaml::Observability;
 use crate::io::dataset::DatasetOverrides;
@@ -155,6 +155,10 @@ pub struct WatchUpdate {
     pub status: String,
     /// Why the data so far could not be calibrated, or why the calibration failed.
     pub reason: Option<String>,
+    /// Whether the latest data's calibration started from the last update's solution (its clock
+    /// offset searched near the last one's), rather than from the data alone: the last update
+    /// passed its checks, and its solution fitted the new data better than the closed form.
+    pub started_from_last: bool,
     /// Seconds this update took (staging, reading and calibrating).
     pub update_s: f64,
 }
@@ -173,6 +177,9 @@ pub struct Watcher {
     closed: BTreeMap<usize, StretchRun>,
     /// The clock offset of the last update, to pick a stretch's DVL reports by.
     offset_guess: f64,
+    /// The last update's solution when it passed its checks: the next update's calibrations
+    /// start from it ([`CalibOptions::warm_start`]).
+    last_solution: Option<CalibrationParams>,
     /// The images' detections, so that each image is detected once over all updates.
     cache: DetectionCache,
 }
@@ -229,6 +236,7 @@ impl Watcher {
             updates: 0,
             closed: BTreeMap::new(),
             offset_guess: 0.0,
+            last_solution: None,
             cache: DetectionCache::default(),
         })
     }
@@ -378,27 +386,30 @@ impl Watcher {
         };
         let solved = match self.stretch_plan(&data, opts) {
             Some(stretches) => self.solve_stretches(&data, opts, &stretches),
-            None => calibrate_dataset(&data, &opts.calib, opts.threads).and_then(|run| {
-                let run = StretchRun::of(Ok(run.outcome));
-                let est = run
-                    .estimate
-                    .clone()
-                    .ok_or_else(|| Error::Input("the calibration gave no estimate".into()))?;
-                Ok(Solved {
-                    params: est.params,
-                    covariance: est.covariance,
-                    run,
-                    stretches: 1,
-                    stretches_failed: 0,
-                    solved_s: u.counts.span_s,
+            None => {
+                calibrate_dataset(&data, &self.calib_options(opts), opts.threads).and_then(|run| {
+                    let run = StretchRun::of(Ok(run.outcome));
+                    let est = run
+                        .estimate
+                        .clone()
+                        .ok_or_else(|| Error::Input("the calibration gave no estimate".into()))?;
+                    Ok(Solved {
+                        params: est.params,
+                        covariance: est.covariance,
+                        run,
+                        stretches: 1,
+                        stretches_failed: 0,
+                        solved_s: u.counts.span_s,
+                    })
                 })
-            }),
+            }
         };
         let s = match solved {
             Ok(s) => s,
             Err(e) => return Ok(self.not_yet(u, &e, clock)),
         };
         self.offset_guess = s.params.time_offset_s;
+        u.started_from_last = s.run.warm == WarmStartUse::Started;
         u.estimate = Some(WatchEstimate::of(&s.params));
         u.counts.dvl_used = s.run.dvl_used;
         u.counts.dvl_without_pose = s.run.dvl_in_pose_gaps;
@@ -419,6 +430,8 @@ impl Watcher {
             );
         }
         let failed = s.run.failed.is_some();
+        // A solution that failed its checks is not carried on, and neither is the one before it.
+        self.last_solution = (!failed).then_some(s.params);
         u.status = if failed { "failed" } else { "ok" }.into();
         u.reason = s.run.failed.clone();
         u.done = all_ok && !failed;
@@ -499,6 +512,7 @@ impl Watcher {
             counts: WatchCounts::default(),
             status: "not yet".into(),
             reason: None,
+            started_from_last: false,
             update_s: 0.0,
         }
     }
@@ -609,6 +623,8 @@ struct StretchRun {
     residual_rms: Vector3<f64>,
     /// Why it failed, when it did.
     failed: Option<String>,
+    /// What became of the last update's solution as its start.
+    warm: WarmStartUse,
 }
 
 /// The verdicts of `o` as the result file states them.
@@ -641,6 +657,7 @@ impl StretchRun {
                     dvl_in_pose_gaps: o.counts.dvl_in_pose_gaps,
                     residual_rms: o.residual_rms,
                     failed,
+                    warm: o.init.as_ref().map_or(WarmStartUse::None, |i| i.warm),
                 }
             }
             Err(e) => StretchRun {
@@ -651,6 +668,7 @@ impl StretchRun {
                 dvl_in_pose_gaps: 0,
                 residual_rms: Vector3::zeros(),
                 failed: Some(e.to_string()),
+                warm: WarmStartUse::None,
             },
         }
     }
@@ -662,6 +680,15 @@ impl StretchRun {
 type Stretches = (Vec<(f64, f64)>, (f64, f64));
 
 impl Watcher {
+    /// The calibration's options for this update: `opts`' own, started from the last update's
+    /// solution when there is one.
+    fn calib_options(&self, opts: &WatchOptions) -> CalibOptions {
+        CalibOptions {
+            warm_start: self.last_solution,
+            ..opts.calib.clone()
+        }
+    }
+
     fn stretch_plan(&self, data: &Dataset, opts: &WatchOptions) -> Option<Stretches> {
         let len = opts.stretch_s.unwrap_or(STRETCH_S);
         let one_clock = data.camera_segments.len() <= 1
@@ -707,7 +734,8 @@ impl Watcher {
                 b - first
             );
             let pool = crate::parallel::worker_pool(opts.threads)?;
-            pool.install(|| calibrate_segments(&poses, &[&samples], &[name], &opts.calib))
+            let calib = self.calib_options(opts);
+            pool.install(|| calibrate_segments(&poses, &[&samples], &[name], &calib))
                 .map(|(o, _)| o)
         });
         StretchRun::of(run)
@@ -795,6 +823,7 @@ impl Watcher {
                 dvl_in_pose_gaps: runs.iter().map(|r| r.dvl_in_pose_gaps).sum(),
                 residual_rms: reference_run.residual_rms,
                 failed,
+                warm: latest.warm,
             },
             stretches: estimates.len(),
             stretches_failed: runs.len() - estimates.len(),
