@@ -363,3 +363,66 @@ fn a_trolley_moving_only_forward_is_calibrated_from_the_best_rotation() {
         assert!(z.abs() < 3.0, "parameter {k}: err/std {z}");
     }
 }
+
+/// DVL noise correlated over 1 s on the trolley: weighed as independent reports, the DVL bent
+/// the trajectory's small pitch and roll rates, the lever arm's only regressors along the yaw
+/// axis, and its z error was twice the spline estimator's. Refined again with the reports
+/// weighed by the information they carry, the error falls by a third (10 seeds: 100 to 66 mm RMS
+/// against the splines' 50), with the same std. The run without it is `honest_covariance:
+/// false`, which neither reweighs nor inflates.
+#[test]
+fn correlated_dvl_noise_is_weighed_by_the_information_it_carries() {
+    use dvlcal::sim::{Corruption, corrupt};
+    let track = replay(TROLLEY, 1.0);
+    let (mut reweighed, mut independent, mut z2) = (0.0, 0.0, 0.0);
+    let seeds = 4;
+    for seed in 0..seeds {
+        let cfg = SimConfig {
+            seed: 3000 + seed,
+            duration_s: track.duration_s,
+            pose_sigma_rot_rad: 0.1f64.to_radians(),
+            ..SimConfig::default()
+        };
+        let mut ds = simulate_with(&cfg, &track.motion).expect("simulate");
+        let ar1 = Corruption {
+            dvl_ar1_tau_s: Some(1.0),
+            ..Corruption::default()
+        };
+        corrupt(&mut ds, &ar1, cfg.dvl_sigma, 7000 + seed).expect("corrupt");
+        let o = calibrate(&ds.poses, &ds.dvl, &CalibOptions::default()).expect("dvlcal");
+        assert!(o.status.is_ok(), "seed {seed}: {:?}", o.status);
+        assert!(
+            o.warnings
+                .iter()
+                .any(|w| w.contains("correlated in time") && w.contains("refined again")),
+            "seed {seed}: {:?}",
+            o.warnings
+        );
+        let plain = CalibOptions {
+            honest_covariance: false,
+            ..CalibOptions::default()
+        };
+        let p = calibrate(&ds.poses, &ds.dvl, &plain).expect("dvlcal");
+        let (d, e) = (
+            difference(&o.params, &ds.truth),
+            difference(&p.params, &ds.truth),
+        );
+        reweighed += d[5] * d[5];
+        independent += e[5] * e[5];
+        for k in 3..6 {
+            z2 += d[k] * d[k] / o.covariance[(k, k)];
+        }
+    }
+    let (a, b) = (
+        (reweighed / seeds as f64).sqrt(),
+        (independent / seeds as f64).sqrt(),
+    );
+    eprintln!(
+        "lever arm z RMS: {:.1} mm reweighed, {:.1} mm as independent",
+        1e3 * a,
+        1e3 * b
+    );
+    assert!(a < 0.75 * b, "{a} m reweighed against {b} m");
+    let z = (z2 / (3 * seeds) as f64).sqrt();
+    assert!(z < 2.5, "lever arm err/std {z}");
+}

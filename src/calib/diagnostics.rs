@@ -19,19 +19,21 @@ use super::outcome::{
     WeakCause,
 };
 use super::prior::{LeverArmPrior, Priors};
-use super::refinement::{PartialLeverHold, unobserved_why, whitened_residuals};
+use super::refinement::{PartialLeverHold, residual_whiteness, unobserved_why, whitened_residuals};
 use super::robust::RobustSummary;
 use super::setting::Setting;
 use super::update::{FreeParams, ParamMat, calibration_update};
-use super::whiteness::{self, Whiteness};
+use super::whiteness::Whiteness;
 use crate::error::Result;
 use crate::trajectory::Trajectory;
 use crate::types::CalibrationParams;
 
-/// The DVL cost per degree of freedom over the inliers, and the residuals' whiteness. When the
-/// residuals are correlated in time (and `opts` asks for honest standard deviations), the
-/// information of each used observation in `weighted` is divided by the integrated
-/// autocorrelation time, with a warning.
+/// The DVL cost per degree of freedom over the inliers (at the stated noise `obs`), and the
+/// residuals' whiteness. When the residuals are correlated in time (and `opts` asks for honest
+/// standard deviations), the information of each used observation in `weighted` is divided by
+/// the integrated autocorrelation time, with a warning; `applied` is the correlation the
+/// refinement already weighed `weighted` by ([`super::refinement::refine_for_correlation`]), not
+/// divided again.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn noise(
     traj: &Trajectory,
@@ -41,26 +43,37 @@ pub(crate) fn noise(
     robust: &RobustSummary,
     weights: &[f64],
     weighted: &mut [DvlObs],
+    applied: Option<Whiteness>,
     opts: &CalibOptions,
     warnings: &mut Vec<String>,
 ) -> Result<(f64, Whiteness)> {
     let normalized_cost = inlier_normalized_cost(traj, obs, idx, params, robust)?;
-    let whiteness = residual_whiteness(traj, obs, idx, params, weights)?;
+    let whiteness = match applied.clone() {
+        Some(w) => w,
+        None => residual_whiteness(traj, obs, idx, params, weights)?,
+    };
     if opts.honest_covariance && whiteness.correlated {
         // Correlated residuals carry the information of fewer independent ones: the DVL
         // factors' information divided by the integrated autocorrelation time.
-        for i in idx.iter().copied() {
-            weighted[i].cov *= whiteness.inflation;
+        if applied.is_none() {
+            for i in idx.iter().copied() {
+                weighted[i].cov *= whiteness.inflation;
+            }
         }
         warnings.push(format!(
             "the DVL residuals are correlated in time (integrated autocorrelation time {:.1} \
              samples, {:.2} s; white noise would give 1 +- {:.2}): they carry the information of \
-             {:.0} independent reports, not {}, and the standard deviations account for that",
+             {:.0} independent reports, not {}, and {} account for that",
             whiteness.inflation,
             whiteness.inflation * whiteness.sample_interval_s,
             whiteness.tau_noise,
             idx.len() as f64 / whiteness.inflation,
-            idx.len()
+            idx.len(),
+            if applied.is_some() {
+                "the estimate (refined again with them weighted so) and its standard deviations"
+            } else {
+                "the standard deviations"
+            }
         ));
     }
     Ok((normalized_cost, whiteness))
@@ -750,33 +763,6 @@ fn inlier_normalized_cost(
         .fold((0.0, 0usize), |(a, n), &x| (a + x, n + 1));
     let dof = (3 * n).saturating_sub(NPARAM).max(1) as f64;
     Ok(sum / dof)
-}
-
-/// The autocorrelation of the DVL residuals of the samples `idx` that kept at least half their
-/// weight, each axis divided by its stated standard deviation.
-fn residual_whiteness(
-    traj: &Trajectory,
-    obs: &[DvlObs],
-    idx: &[usize],
-    params: &CalibrationParams,
-    weights: &[f64],
-) -> Result<Whiteness> {
-    let mut kept: Vec<usize> = idx.iter().copied().filter(|&i| weights[i] >= 0.5).collect();
-    kept.sort_by(|&a, &b| obs[a].t.total_cmp(&obs[b].t));
-    let r: Vec<Vector3<f64>> = crate::parallel::map_indices(kept.len(), 2048, |j| {
-        let o = &obs[kept[j]];
-        let twist = traj.twist(o.t + params.time_offset_s)?;
-        let r = o.v - predict(params, &twist);
-        Ok(Vector3::new(
-            r.x / o.cov[(0, 0)].max(1e-300).sqrt(),
-            r.y / o.cov[(1, 1)].max(1e-300).sqrt(),
-            r.z / o.cov[(2, 2)].max(1e-300).sqrt(),
-        ))
-    })
-    .into_iter()
-    .collect::<Result<_>>()?;
-    let t: Vec<f64> = kept.iter().map(|&i| obs[i].t).collect();
-    Ok(whiteness::whiteness(&t, &r))
 }
 
 /// The clock offset of the first and the last third of the samples `idx` (by DVL time), each

@@ -223,6 +223,23 @@ fn calibrate_stages(
     } else {
         None
     };
+    // DVL residuals correlated in time: refined again with the reports weighed by the
+    // information they carry (for the same reasons as above, only where the misfit is noise).
+    let correlation = if trusted && opts.honest_covariance {
+        let (again, found) = refinement::refine_for_correlation(
+            &fit,
+            pass,
+            &obs,
+            &idx,
+            init.as_ref(),
+            opts,
+            &mut clock,
+        )?;
+        pass = again;
+        found
+    } else {
+        None
+    };
     let refinement::Pass {
         setup:
             refinement::Setup {
@@ -254,6 +271,7 @@ fn calibrate_stages(
         &dvl_robust,
         &dvl_weights,
         &mut weighted,
+        correlation,
         opts,
         &mut warnings,
     )?;

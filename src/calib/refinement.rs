@@ -11,12 +11,14 @@ use super::joint::covariance::joint_covariance;
 use super::joint::problem::{JointProblem, JointStorage};
 use super::joint::steps::{joint_cost, joint_step, state_update};
 use super::model::{DvlObs, predict};
+use super::noise;
 use super::options::CalibOptions;
 use super::outcome::{InitReport, IterationRecord, StageClock};
 use super::prior::{HeldLeverAxes, LeverArmPrior, Priors};
-use super::robust::{self, RobustSummary};
+use super::robust::{self, Loss, RobustSummary};
 use super::setting::Setting;
 use super::update::{self, FreeParams, calibration_update};
+use super::whiteness::{self, Whiteness};
 use crate::error::Result;
 use crate::trajectory::Trajectory;
 use crate::types::CalibrationParams;
@@ -323,6 +325,92 @@ pub(crate) fn run(
         reweighted,
         storage: jp.take_storage(),
     })
+}
+
+/// DVL residuals correlated in time carry the information of fewer independent reports than
+/// they number ([`super::whiteness`]). Weighed as independent, they also pull the trajectory
+/// with that excess weight: its rates, through which the lever arm is seen, follow the DVL's
+/// slowly wandering errors instead of the poses (on a motion-captured trolley track with noise
+/// correlated over 1 s, a lever-arm error twice the spline estimator's along the yaw axis).
+///
+/// When the residuals at `pass` are correlated, the refinement runs again from where `pass`
+/// ended with each report's information divided by the integrated autocorrelation time. The
+/// robust weights `pass` found are kept, and the rerun is least squares: judged against the
+/// divided noise, outliers would pass for inliers. Returns the pass and the correlation it was
+/// weighed by (`None`: white residuals, `pass` unchanged).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn refine_for_correlation(
+    cos: &CoSensorFit,
+    pass: Pass,
+    obs: &[DvlObs],
+    idx: &[usize],
+    init: Option<&InitReport>,
+    opts: &CalibOptions,
+    clock: &mut StageClock,
+) -> Result<(Pass, Option<Whiteness>)> {
+    let r = &pass.reweighted;
+    let w = residual_whiteness(
+        &r.refined.trajectory,
+        obs,
+        idx,
+        &r.refined.params,
+        &r.weights,
+    )?;
+    if !w.correlated {
+        return Ok((pass, None));
+    }
+    let scaled = noise::scaled(&r.weighted, w.inflation);
+    let Pass {
+        setup, reweighted, ..
+    } = pass;
+    let least_squares = CalibOptions {
+        loss: Loss::L2,
+        ..opts.clone()
+    };
+    let mut again = run(
+        cos,
+        reweighted.refined.trajectory,
+        &scaled,
+        idx,
+        reweighted.refined.params,
+        init,
+        &least_squares,
+        clock,
+        &mut Vec::new(),
+    )?;
+    again.setup.start = setup.start;
+    again.setup.pose_only = setup.pose_only;
+    // Least squares left every weight at one: the observations weighed are `scaled`.
+    again.reweighted.weights = reweighted.weights;
+    again.reweighted.robust = reweighted.robust;
+    Ok((again, Some(w)))
+}
+
+/// The autocorrelation of the DVL residuals of the samples `idx` that kept at least half their
+/// weight, each axis divided by its stated standard deviation.
+pub(crate) fn residual_whiteness(
+    traj: &Trajectory,
+    obs: &[DvlObs],
+    idx: &[usize],
+    params: &CalibrationParams,
+    weights: &[f64],
+) -> Result<Whiteness> {
+    let mut kept: Vec<usize> = idx.iter().copied().filter(|&i| weights[i] >= 0.5).collect();
+    kept.sort_by(|&a, &b| obs[a].t.total_cmp(&obs[b].t));
+    let r: Vec<Vector3<f64>> = crate::parallel::map_indices(kept.len(), 2048, |j| {
+        let o = &obs[kept[j]];
+        let twist = traj.twist(o.t + params.time_offset_s)?;
+        let r = o.v - predict(params, &twist);
+        Ok(Vector3::new(
+            r.x / o.cov[(0, 0)].max(1e-300).sqrt(),
+            r.y / o.cov[(1, 1)].max(1e-300).sqrt(),
+            r.z / o.cov[(2, 2)].max(1e-300).sqrt(),
+        ))
+    })
+    .into_iter()
+    .collect::<Result<_>>()?;
+    let t: Vec<f64> = kept.iter().map(|&i| obs[i].t).collect();
+    Ok(whiteness::whiteness(&t, &r))
 }
 
 /// The offset of `p` kept inside `range`, when given.
