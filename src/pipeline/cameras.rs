@@ -56,7 +56,7 @@ impl Default for CameraCalOptions {
 }
 
 /// What a camera calibration run found.
-#[derive(Debug)]
+#[derive(Clone, Debug)]
 pub struct CameraCalRun {
     /// The image folder or bag.
     pub images: PathBuf,

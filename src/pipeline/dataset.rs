@@ -16,6 +16,7 @@ use crate::io::camchain::read_camchain;
 use crate::io::dataset::{DatasetFiles, DatasetOverrides, discover};
 use crate::io::dvl::{DvlLog, DvlReadOptions, read_dvl_log};
 use crate::io::frames_csv::{frames_csv_path, read_tum_with_covariances};
+use crate::io::images::camera_count;
 use crate::io::imu::noise::{ImuNoiseFile, read_imu_noise};
 use crate::io::imu::{ImuLog, read_imu_csv};
 use crate::io::tum::{CameraClockStep, CameraSegment};
@@ -222,6 +223,14 @@ fn read_dvl(
     Ok(log)
 }
 
+/// The note of a dataset whose poses were solved with the earlier camera calibration `k`.
+fn reused_note(k: &CameraCalRun) -> String {
+    format!(
+        "no camchain: the cameras as calibrated earlier from this recording's images ({}), reused",
+        k.one_line()
+    )
+}
+
 /// The DVL + IMU mode in words ([`super::dvl_imu`]), as the notes and the summary say it.
 pub const DVL_IMU_MODE: &str = "DVL + IMU: no camera data given";
 
@@ -237,6 +246,9 @@ pub struct Dataset {
     /// The camera calibration run from the same images, when the dataset had images but no
     /// camchain (its chain is the one the poses were solved with).
     pub cameras: Option<CameraCalRun>,
+    /// Whether [`Dataset::cameras`] is an earlier calibration passed to
+    /// [`Dataset::load_reusing_cameras`] and reused, rather than one made from these images.
+    pub cameras_reused: bool,
     /// The DVL log, read on the poses' epoch; `None` in a camera + IMU dataset (no DVL log
     /// given: [`super::imu_only`]).
     pub log: Option<DvlLog>,
@@ -371,7 +383,36 @@ impl Dataset {
         on_cameras: &mut dyn FnMut(&CameraCalRun),
         on_vision: &mut dyn FnMut(&VisionRun),
     ) -> Result<Dataset> {
+        Self::load_inner(files, vision, read, None, on_cameras, on_vision)
+    }
+
+    /// [`Dataset::load`], except that a dataset with images but no camchain has its poses
+    /// solved with `cameras`, an earlier calibration of the same cameras (of a recording that
+    /// has grown since: `dvlcal watch`), instead of a calibration from its images. `cameras` is
+    /// reused when it has as many cameras as the images (and, in a bag, the same image sizes);
+    /// when it has not, the cameras are calibrated from the images as [`Dataset::load`] does.
+    /// [`Dataset::cameras_reused`] says which happened. Datasets with a camchain or a pose file
+    /// load as with [`Dataset::load`].
+    pub fn load_reusing_cameras(
+        files: DatasetFiles,
+        vision: &VisionOptions,
+        read: &DvlReadOptions,
+        cameras: &CameraCalRun,
+    ) -> Result<Dataset> {
+        Self::load_inner(files, vision, read, Some(cameras), &mut |_| {}, &mut |_| {})
+    }
+
+    /// [`Dataset::load_observed`], reusing `kept` as [`Dataset::load_reusing_cameras`] says.
+    fn load_inner(
+        files: DatasetFiles,
+        vision: &VisionOptions,
+        read: &DvlReadOptions,
+        kept: Option<&CameraCalRun>,
+        on_cameras: &mut dyn FnMut(&CameraCalRun),
+        on_vision: &mut dyn FnMut(&VisionRun),
+    ) -> Result<Dataset> {
         let mut cameras = None;
+        let mut cameras_reused = false;
         let mut notes = Vec::new();
         let mut camera_frame = None;
         let (mut camera_clock_steps, mut camera_segments) = (Vec::new(), Vec::new());
@@ -404,17 +445,29 @@ impl Dataset {
                 let mut run = match &files.camchain {
                     Some(chain) => poses_from_images(dir, chain, target, vision)?,
                     None => {
-                        let opts = CameraCalOptions {
-                            vision: vision.clone(),
-                            ..CameraCalOptions::default()
+                        let fits = |k: &&CameraCalRun| k.chain().cams.len() == camera_count(dir);
+                        let cal = match kept.filter(fits) {
+                            Some(k) => {
+                                cameras_reused = true;
+                                notes.push(reused_note(k));
+                                k.clone()
+                            }
+                            None => {
+                                let opts = CameraCalOptions {
+                                    vision: vision.clone(),
+                                    ..CameraCalOptions::default()
+                                };
+                                let cal = calibrate_cameras_from_images(dir, target, &opts)
+                                    .map_err(|e| {
+                                        e.during(
+                                            "no camchain: calibrating the cameras from the same \
+                                             images",
+                                        )
+                                    })?;
+                                on_cameras(&cal);
+                                cal
+                            }
                         };
-                        let cal =
-                            calibrate_cameras_from_images(dir, target, &opts).map_err(|e| {
-                                e.during(
-                                    "no camchain: calibrating the cameras from the same images",
-                                )
-                            })?;
-                        on_cameras(&cal);
                         let chain = cal.chain().clone();
                         cameras = Some(cal);
                         poses_from_images_with_chain(dir, chain, target, vision)?
@@ -478,12 +531,24 @@ impl Dataset {
                     let plan = plan_frames(&ob, tol_ns)?;
                     let chain = match &files.camchain {
                         Some(c) => read_camchain(c)?,
-                        None => match (plan.sizes.len(), camera_from_info(&ob, 0)?) {
-                            (1, Some(cam)) => {
+                        None => match (
+                            plan.sizes.len(),
+                            camera_from_info(&ob, 0)?,
+                            kept.filter(|k| k.sizes == plan.sizes),
+                        ) {
+                            (1, Some(cam), _) => {
                                 notes.push(
                                     "no camchain: the camera model is the bag's CameraInfo".into(),
                                 );
                                 Camchain::mono(cam)
+                            }
+                            (_, _, Some(k)) => {
+                                let k = k.clone();
+                                cameras_reused = true;
+                                notes.push(reused_note(&k));
+                                let chain = k.chain().clone();
+                                cameras = Some(k);
+                                chain
                             }
                             _ => {
                                 let opts = CameraCalOptions {
@@ -543,6 +608,7 @@ impl Dataset {
             poses,
             vision: run,
             cameras,
+            cameras_reused,
             dvl_path,
             log,
             camera_source,

@@ -42,6 +42,7 @@ pub mod unused;
 mod vision;
 pub mod watch;
 mod watch_bag;
+mod watch_cameras;
 
 pub use board::write_board_svg;
 pub use calibration::{

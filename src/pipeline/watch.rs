@@ -11,6 +11,10 @@
 //! `.tmp` or `.part` are skipped: writers that rename their files into place write them under
 //! such names first.
 //!
+//! Images without a camchain are calibrated by an update once they can be, and that camera model
+//! is reused by the later updates until the images have grown enough to calibrate them again
+//! ([`super::watch_cameras`]).
+//!
 //! A bag (`NAME.bag.active`, a bare `.mcap`, a ROS 2 bag folder being recorded) is not staged
 //! but read in place, to the length it had when the update began ([`super::watch_bag`]).
 
@@ -24,10 +28,15 @@ use serde::Serialize;
 use nalgebra::Vector3;
 
 use super::calibration::calibrate_dataset;
+use super::cameras::CameraCalRun;
 use super::dataset::{Dataset, dataset_files_checked};
 use super::exports::state;
 use super::vision::VisionOptions;
 use super::watch_bag::{FollowedBag, Signature, signature};
+use super::watch_cameras::WatchCameras;
+pub use super::watch_cameras::{
+    CameraModel, CameraModelSource, GROWTH, GROWTH_WEAK, MIN_NEW_FRAMES,
+};
 use crate::calib::advice::{Recording, advise, group_std};
 use crate::calib::fusion::{StretchEstimate, fuse};
 use crate::calib::outcome::{CalibrationOutcome, Status};
@@ -108,6 +117,9 @@ pub struct WatchCounts {
     /// Seconds of camera data this update calibrated (the rest had been calibrated by earlier
     /// updates).
     pub solved_s: f64,
+    /// Camera calibrations the updates have made so far, this one's included (images without
+    /// a camchain: [`WatchUpdate::cameras`] says whether this update made one; 0 otherwise).
+    pub camera_calibrations: usize,
 }
 
 /// The estimate so far, in the result file's keys.
@@ -161,6 +173,10 @@ pub struct WatchUpdate {
     pub started_from_last: bool,
     /// Seconds this update took (staging, reading and calibrating).
     pub update_s: f64,
+    /// The camera model the poses were solved with, when the images have no camchain: calibrated
+    /// by this update or reused from an earlier one (`null` with a camchain or a pose file, and
+    /// before the data could be read).
+    pub cameras: Option<CameraModel>,
 }
 
 /// A folder, or a bag, followed while it is written.
@@ -182,6 +198,8 @@ pub struct Watcher {
     last_solution: Option<CalibrationParams>,
     /// The images' detections, so that each image is detected once over all updates.
     cache: DetectionCache,
+    /// The camera calibration of images without a camchain, kept across updates.
+    cameras: WatchCameras,
 }
 
 fn skipped(name: &str) -> bool {
@@ -238,6 +256,7 @@ impl Watcher {
             offset_guess: 0.0,
             last_solution: None,
             cache: DetectionCache::default(),
+            cameras: WatchCameras::default(),
         })
     }
 
@@ -368,16 +387,15 @@ impl Watcher {
         let mut u = self.blank_update(opts);
         let limits = &opts.calib.weak;
         let targets = targets(limits);
-        let mut data = self.load(opts);
-        // A bag renamed while it was read (`NAME.bag.active` at its end): read it again under
-        // its new name.
-        if data.is_err() && self.bag.as_mut().is_some_and(|b| b.moved(&mut self.cache)) {
-            data = self.load(opts);
-        }
+        let (data, recalibration_failed) = self.load_data(opts);
         let data = match data {
             Ok(d) => d,
             Err(e) => return Ok(self.not_yet(u, &e, clock)),
         };
+        u.cameras = self
+            .cameras
+            .record(&data, self.updates, recalibration_failed);
+        u.counts.camera_calibrations = self.cameras.calibrations();
         u.counts.poses = data.poses.len();
         u.counts.dvl_reports = data.log.as_ref().map_or(0, |l| l.samples.len());
         u.counts.span_s = match (data.poses.first(), data.poses.last()) {
@@ -469,9 +487,30 @@ impl Watcher {
         Ok(u)
     }
 
+    /// The data as they are now ([`Watcher::load`]), solved with the camera model kept, if
+    /// any, or with one calibrated anew when the images have outgrown it
+    /// ([`WatchCameras::outgrown`]); with why that calibration failed, when it did (the data
+    /// are then those solved with the model kept).
+    fn load_data(&mut self, opts: &WatchOptions) -> (Result<Dataset>, Option<String>) {
+        let mut data = self.load(opts, self.cameras.model());
+        // A bag renamed while it was read (`NAME.bag.active` at its end): read it again under
+        // its new name.
+        if data.is_err() && self.bag.as_mut().is_some_and(|b| b.moved(&mut self.cache)) {
+            data = self.load(opts, self.cameras.model());
+        }
+        if !data.as_ref().is_ok_and(|d| self.cameras.outgrown(d)) {
+            return (data, None);
+        }
+        match self.load(opts, None) {
+            Ok(fresh) => (Ok(fresh), None),
+            Err(e) => (data, Some(self.in_source_words(&e.to_string()))),
+        }
+    }
+
     /// The data as they are now: the staging folder, or the bag read in place, its files'
-    /// lengths fixed while it is read.
-    fn load(&self, opts: &WatchOptions) -> Result<Dataset> {
+    /// lengths fixed while it is read. Images without a camchain are solved with `cameras`
+    /// when it is given, else calibrated first ([`Dataset::load_reusing_cameras`]).
+    fn load(&self, opts: &WatchOptions, cameras: Option<&CameraCalRun>) -> Result<Dataset> {
         let (root, fixed) = match &self.bag {
             Some(bag) => {
                 let (path, fixed) = bag.snapshot().map_err(Error::Input)?;
@@ -483,8 +522,11 @@ impl Watcher {
             cache: Some(self.cache.clone()),
             ..opts.vision.clone()
         };
-        let data = dataset_files_checked(Some(&root), &opts.overrides)
-            .and_then(|files| Dataset::load(files, &vision, &opts.read, &mut |_| {}));
+        let data =
+            dataset_files_checked(Some(&root), &opts.overrides).and_then(|files| match cameras {
+                Some(c) => Dataset::load_reusing_cameras(files, &vision, &opts.read, c),
+                None => Dataset::load(files, &vision, &opts.read, &mut |_| {}),
+            });
         drop(fixed);
         data
     }
@@ -514,6 +556,7 @@ impl Watcher {
             reason: None,
             started_from_last: false,
             update_s: 0.0,
+            cameras: None,
         }
     }
 
@@ -876,6 +919,9 @@ impl WatchUpdate {
             self.update_s,
             if self.done { ": DONE" } else { "" }
         );
+        if let Some(m) = &self.cameras {
+            let _ = writeln!(s, "  {}", m.words());
+        }
         for (name, p) in &self.parameters {
             let (scale, unit) = match *name {
                 "rotation" => (1.0, "deg"),
