@@ -87,7 +87,9 @@ pub fn calibrate_imu(
 
 /// Whether the DVL's camera-only outcome may be refined with the IMU in one problem: it
 /// succeeded on one clock without drift, every parameter was estimated from the data, and no
-/// DVL report was down-weighted as an outlier (the joint problem weighs every report fully).
+/// DVL report was down-weighted as an outlier (the joint problem keeps the camera-only run's
+/// weights, [`CarriedDvl`], and does not judge its own residuals: an outlier the IMU would show
+/// otherwise would stay down-weighted as the camera alone judged it).
 pub fn joint_eligible(o: &CalibrationOutcome, segments: usize) -> bool {
     let v = &o.verdicts;
     matches!(o.status, Status::Ok)
