@@ -103,8 +103,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         println!();
     }
     print!("mean std written/camera-only");
-    for i in 0..8 {
-        print!(" {:5.2}", std_sum[1][i] / std_sum[0][i]);
+    for (w, c) in std_sum[1].iter().zip(&std_sum[0]) {
+        print!(" {:5.2}", w / c);
     }
     println!();
     println!(
