@@ -329,8 +329,7 @@ pub(crate) fn drift(
     Ok(drift)
 }
 
-/// The normalized cost beyond which the covariance is inflated by it.
-const COST_INFLATION_FROM: f64 = 1.5;
+use super::noise::COST_INFLATION_FROM;
 
 /// The factor [`uncertainty`] inflates the covariance by at a normalized cost.
 pub(crate) fn cost_inflation(normalized_cost: f64) -> f64 {
@@ -501,7 +500,9 @@ fn fixed_guess_advice(free: FreeParams, opts: &CalibOptions) -> String {
     }
 }
 
-fn verdicts(
+/// The verdicts by the standard deviations alone (what held or determined a parameter is
+/// [`judge`]'s); the DVL's std from the three sensors together are judged by it too.
+pub(crate) fn verdicts(
     std: &ParamStd,
     opts: &CalibOptions,
     ex: &Excitation,

@@ -29,6 +29,9 @@ pub const APPLIED_OUTSIDE: (f64, f64) = (0.5, 2.0);
 /// range whatever its spread (a group given far too much weight takes nearly all the degrees of
 /// freedom, and its own redundancy is then too small to estimate its scale well).
 pub const SIGNIFICANT_STD: f64 = 3.0;
+/// The DVL's normalized cost beyond which its covariance is inflated by it (below, the
+/// residuals are taken as the stated noise's).
+pub const COST_INFLATION_FROM: f64 = 1.5;
 /// Once started, the rescaling goes on until both scales are within this of one...
 pub const CONVERGED: f64 = 0.1;
 /// ... or this many refinements were run again.

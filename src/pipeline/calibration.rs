@@ -68,7 +68,7 @@ pub fn calibrate_dataset(
     let joint = super::imu::joint_eligible(&outcome, plan.parts.len()).then_some((&outcome, opts));
     let imu = workers.install(|| super::imu::calibrate_imu(data, joint, &mut imu_warnings));
     if let Some(est) = &imu {
-        super::imu::adopt_joint_dvl(&mut outcome, est, &mut imu_warnings, &mut imu_notes);
+        super::imu::adopt_joint_dvl(&mut outcome, est, opts, &mut imu_warnings, &mut imu_notes);
     }
     let elapsed_s = start.elapsed().as_secs_f64();
     let mut file = result_file(&outcome, log);

@@ -8,9 +8,12 @@ use std::fmt::Write as _;
 use nalgebra::Vector3;
 
 use super::dataset::Dataset;
-use crate::calib::diagnostics::{ImuVerdicts, imu_verdicts};
-use crate::calib::imu::{ImuEstimate, ImuOptions, calibrate_camera_imu, calibrate_camera_imu_dvl};
-use crate::calib::model::{NPARAM, difference};
+use crate::calib::diagnostics::{ImuVerdicts, imu_verdicts, param_std, verdicts};
+use crate::calib::halves::flag_inconsistent;
+use crate::calib::imu::{
+    CarriedDvl, ImuEstimate, ImuOptions, calibrate_camera_imu, calibrate_camera_imu_carried,
+};
+use crate::calib::model::{NPARAM, PARAM_NAMES, difference};
 use crate::calib::options::CalibOptions;
 use crate::calib::options::WeakThresholds;
 use crate::calib::outcome::{CalibrationOutcome, DeterminedBy, Status};
@@ -23,9 +26,10 @@ use crate::report::ImuReportInput;
 /// The camera-IMU calibration of `data`, when it has an IMU stream and a noise file; a
 /// warning (and `None`) when it has one without the other, or when the calibration fails (the
 /// DVL's result stands without the IMU's, and the warning says why). With `dvl` (the DVL's
-/// camera-only outcome, when [`joint_eligible`]), the DVL's velocities join the problem and the
-/// estimate's state carries the DVL's parameters from the three sensors together; should that
-/// fail, the camera-IMU calibration alone runs.
+/// camera-only outcome, when [`joint_eligible`]), the DVL's velocities join the problem with
+/// the noise the camera-only run found ([`CarriedDvl`]) and the estimate's state carries the
+/// DVL's parameters from the three sensors together; should that fail, the camera-IMU
+/// calibration alone runs.
 pub fn calibrate_imu(
     data: &Dataset,
     dvl: Option<(&CalibrationOutcome, &CalibOptions)>,
@@ -44,14 +48,13 @@ pub fn calibrate_imu(
         (None, Some(_)) => None,
         (Some(log), Some(noise)) => {
             let opts = ImuOptions::default();
-            let joint = dvl.zip(data.log.as_ref()).map(|((o, c), dvl_log)| {
-                calibrate_camera_imu_dvl(
+            let joint = dvl.map(|(o, c)| {
+                let carried = CarriedDvl::from_outcome(o, c);
+                calibrate_camera_imu_carried(
                     &data.poses,
                     &log.samples,
                     &noise.noise,
-                    &dvl_log.samples,
-                    &o.params,
-                    c,
+                    &carried,
                     &opts,
                 )
             });
@@ -84,7 +87,9 @@ pub fn calibrate_imu(
 
 /// Whether the DVL's camera-only outcome may be refined with the IMU in one problem: it
 /// succeeded on one clock without drift, every parameter was estimated from the data, and no
-/// DVL report was down-weighted as an outlier (the joint problem weighs every report fully).
+/// DVL report was down-weighted as an outlier (the joint problem keeps the camera-only run's
+/// weights, [`CarriedDvl`], and does not judge its own residuals: an outlier the IMU would show
+/// otherwise would stay down-weighted as the camera alone judged it).
 pub fn joint_eligible(o: &CalibrationOutcome, segments: usize) -> bool {
     let v = &o.verdicts;
     matches!(o.status, Status::Ok)
@@ -97,16 +102,22 @@ pub fn joint_eligible(o: &CalibrationOutcome, segments: usize) -> bool {
 }
 
 /// Takes the DVL's values from the three-sensor problem into `o` when they agree with the
-/// camera-only ones (each within 3 of the camera-only std); the std and verdicts stay the
-/// camera-only run's, an upper bound (the joint problem's own std are noted in `notes`). A
-/// disagreement keeps the camera-only values and is a warning.
+/// camera-only ones (each within 3 of the camera-only std); a disagreement keeps the
+/// camera-only values and is a warning. The joint problem carries the camera-only run's findings
+/// on the DVL's noise ([`CarriedDvl`]), so its std of the DVL's parameters are formed as the
+/// camera-only ones are; they replace the camera-only covariance (and the verdicts are judged
+/// again from them, by the same rule, the halves' flags kept) when none is larger than the
+/// camera-only one and nothing makes them doubtful ([`joint_std_doubt`]). Otherwise the
+/// camera-only std stay, an upper bound, and a note gives the joint ones with the reason.
+/// `opts`: the camera-only run's options (its thresholds judge the verdicts).
 pub fn adopt_joint_dvl(
     o: &mut CalibrationOutcome,
     est: &ImuEstimate,
+    opts: &CalibOptions,
     warnings: &mut Vec<String>,
     notes: &mut Vec<String>,
 ) -> bool {
-    let (Some(p), Some(js)) = (est.state.dvl, est.dvl_std()) else {
+    let Some(p) = est.state.dvl else {
         return false;
     };
     let d = difference(&p, &o.params);
@@ -122,21 +133,103 @@ pub fn adopt_joint_dvl(
         return false;
     }
     o.params = p;
-    notes.push(format!(
+    let c0 = est.state.dvl_start();
+    let cov = crate::calib::update::ParamMat::from_fn(|i, j| {
+        est.covariance
+            .get((c0 + i, c0 + j))
+            .copied()
+            .unwrap_or(f64::NAN)
+    });
+    let js: [f64; NPARAM] = std::array::from_fn(|i| cov[(i, i)].max(0.0).sqrt());
+    let cs: [f64; NPARAM] = std::array::from_fn(|i| o.covariance[(i, i)].max(0.0).sqrt());
+    let head = format!(
         "the DVL's values come from the camera, IMU and DVL calibrated together (within \
-         {worst:.1} std of the camera-only values); its std are the camera-only ones, an upper \
-         bound: together they are rotation {:.3} {:.3} {:.3} deg, lever arm {:.1} {:.1} {:.1} \
-         mm, scale {:.5}, offset {:.2} ms",
-        js[0].to_degrees(),
-        js[1].to_degrees(),
-        js[2].to_degrees(),
-        1e3 * js[3],
-        1e3 * js[4],
-        1e3 * js[5],
-        js[6],
-        1e3 * js[7]
-    ));
+         {worst:.1} std of the camera-only values)"
+    );
+    match joint_std_doubt(o, est, opts, &js, &cs) {
+        None => {
+            o.covariance = cov;
+            o.std = param_std(&cov);
+            let mut v = verdicts(
+                &o.std,
+                opts,
+                &o.excitation,
+                o.init.as_ref(),
+                &[true; NPARAM],
+            );
+            if let Some(h) = &o.halves {
+                flag_inconsistent(&mut v, h);
+            }
+            o.verdicts = v;
+            notes.push(format!(
+                "{head}, and so do its std, each at most the camera-only one (the DVL's noise \
+                 as the camera-only run found it): {}; camera-only {}",
+                std_words(&js),
+                std_words(&cs)
+            ));
+        }
+        Some(why) => notes.push(format!(
+            "{head}; its std are the camera-only ones, an upper bound ({why}): together they are \
+             {}",
+            std_words(&js)
+        )),
+    }
     true
+}
+
+/// Why the joint problem's std `js` of the DVL's parameters may not replace the camera-only
+/// ones `cs` (`None`: they may): the joint problem did not converge, a std is not a positive
+/// number, the camera-only run had priors or held lever-arm directions (the joint problem has
+/// neither, so its std are of another problem), or a joint std exceeds the camera-only one (the
+/// IMU cannot make the DVL's parameters less certain: a larger std says the joint problem saw
+/// the DVL's noise otherwise, and the camera-only std stay, the smaller).
+pub fn joint_std_doubt(
+    o: &CalibrationOutcome,
+    est: &ImuEstimate,
+    opts: &CalibOptions,
+    js: &[f64; NPARAM],
+    cs: &[f64; NPARAM],
+) -> Option<String> {
+    if !est.converged {
+        return Some("the joint problem did not converge".into());
+    }
+    if js.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
+        return Some("the joint problem's std are not all positive".into());
+    }
+    if opts.priors.any() || o.priors.held_lever_axes.is_some() {
+        return Some(
+            "the camera-only calibration used priors, which the joint problem lacks".into(),
+        );
+    }
+    let larger: Vec<String> = (0..NPARAM)
+        .filter(|&k| js[k] > cs[k])
+        .map(|k| {
+            let (name, _, _) = PARAM_NAMES[k];
+            format!("{name} {:.2}x", js[k] / cs[k])
+        })
+        .collect();
+    (!larger.is_empty()).then(|| {
+        format!(
+            "the joint std exceed the camera-only ones: {}",
+            larger.join(", ")
+        )
+    })
+}
+
+/// The DVL's std in words: rotation deg, lever arm mm, scale, offset ms.
+fn std_words(s: &[f64; NPARAM]) -> String {
+    format!(
+        "rotation {:.3} {:.3} {:.3} deg, lever arm {:.1} {:.1} {:.1} mm, scale {:.5}, offset \
+         {:.2} ms",
+        s[0].to_degrees(),
+        s[1].to_degrees(),
+        s[2].to_degrees(),
+        1e3 * s[3],
+        1e3 * s[4],
+        1e3 * s[5],
+        s[6],
+        1e3 * s[7]
+    )
 }
 
 /// The IMU's calibration in a run, with its verdicts (for the report).

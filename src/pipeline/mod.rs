@@ -32,7 +32,7 @@ mod dataset;
 pub mod dvl_imu;
 mod evaluate;
 mod exports;
-mod imu;
+pub mod imu;
 mod imu_bag;
 pub mod imu_only;
 pub mod live_dvl;

@@ -26,7 +26,9 @@ pub mod state;
 use nalgebra::{DMatrix, Matrix3, Vector3};
 
 use crate::calib::model::{DvlObs, NPARAM};
+use crate::calib::noise::COST_INFLATION_FROM;
 use crate::calib::options::CalibOptions;
+use crate::calib::outcome::CalibrationOutcome;
 use crate::error::{Error, Result};
 use crate::trajectory::solver::measurement_information;
 use crate::trajectory::{FitOptions, JerkDensity, Knot, Trajectory};
@@ -143,7 +145,8 @@ pub fn calibrate_camera_imu(
 /// IMU's bins and the DVL's velocities on one trajectory, the IMU's and the DVL's parameters
 /// estimated together (the DVL's from `dvl_start`, e.g. its camera-only calibration). The
 /// DVL's result is the state's `dvl`, its covariance the last 8 rows and columns of the
-/// estimate's. The DVL's noise is taken as `dvl_opts` says.
+/// estimate's. The DVL's noise is taken as `dvl_opts` says (each report at its stated noise and
+/// full weight); [`calibrate_camera_imu_carried`] takes it as the camera-only run found it.
 pub fn calibrate_camera_imu_dvl(
     poses: &[PoseMeasurement],
     samples: &[ImuSample],
@@ -153,8 +156,131 @@ pub fn calibrate_camera_imu_dvl(
     dvl_opts: &CalibOptions,
     opts: &ImuOptions,
 ) -> Result<ImuEstimate> {
-    let obs = crate::calib::samples::observe(dvl, dvl_opts)?.obs;
-    camera_imu(poses, samples, noise, opts, Some((&obs, dvl_start)))
+    let carried = CarriedDvl {
+        start: *dvl_start,
+        observations: crate::calib::samples::observe(dvl, dvl_opts)?.obs,
+        information_divided_by: 1.0,
+        std_factor: [1.0; NPARAM],
+        noise_factor_from: 1.0,
+    };
+    calibrate_camera_imu_carried(poses, samples, noise, &carried, opts)
+}
+
+/// The DVL's noise as its camera-only calibration found it, for the joint problem of the three
+/// sensors, so that the DVL's std there rest on the same noise as the camera-only ones.
+///
+/// The camera-only std go beyond the stated noise in three ways, each of which the joint
+/// problem would otherwise lack:
+/// - each report's covariance is the stated one times the variance component the run applied
+///   ([`CalibrationOutcome::noise`]), over the weight the robust loss left it (the camera-only
+///   covariance is formed with those weights): [`CarriedDvl::observations`];
+/// - correlated residuals ([`CalibrationOutcome::whiteness`]) carry the information of fewer
+///   independent reports, so the DVL's information is divided by their integrated
+///   autocorrelation time: [`CarriedDvl::information_divided_by`]. The IMU changes the
+///   trajectory the reports are compared with, not the errors of the reports, so the time found
+///   against the camera-only trajectory stands in the joint problem too (the joint problem's
+///   DVL residuals are the same reports' errors, to the trajectory's error);
+/// - a parameter whose halves of the recording disagree ([`CalibrationOutcome::halves`]) has its
+///   std multiplied by the factor that covers the difference: [`CarriedDvl::std_factor`]. What
+///   the halves show (a calibration that changed, motion the model does not capture) is in the
+///   joint problem's data as well, and the IMU does not remove it.
+///
+/// The first two enter the joint problem's DVL factors, so the IMU's information combines with
+/// the DVL's as it is; the third is a factor on the result's std, as in the camera-only run. The
+/// joint problem's own estimate of the DVL's noise (the chi-square of its residuals over their
+/// redundancy) applies on top of the first, before the second, by the camera-only run's rule
+/// for its normalized cost: only beyond [`COST_INFLATION_FROM`] (the residuals that the
+/// camera-only run took as the stated noise's are not inflated by a percent or two in the joint
+/// one).
+#[derive(Clone, Debug)]
+pub struct CarriedDvl {
+    /// Where the DVL's parameters start (the camera-only result).
+    pub start: CalibrationParams,
+    /// The valid DVL reports, each with the covariance the camera-only run weighed it by.
+    pub observations: Vec<DvlObs>,
+    /// The factor the DVL's information is divided by for correlated residuals (1: white).
+    pub information_divided_by: f64,
+    /// The factor each DVL parameter's std is multiplied by for disagreeing halves (1: none).
+    pub std_factor: [f64; NPARAM],
+    /// The chi-square of the DVL's residuals over their redundancy beyond which the joint
+    /// problem inflates the DVL's noise by it (1: whenever it exceeds one).
+    pub noise_factor_from: f64,
+}
+
+impl CarriedDvl {
+    /// What the camera-only outcome `o` (run with `opts`) found about the DVL's noise: its
+    /// observations (already scaled by the variance component applied) with the robust weights
+    /// of its result, the whiteness inflation when it was applied (`honest_covariance`), and
+    /// the halves' inflation.
+    pub fn from_outcome(o: &CalibrationOutcome, opts: &CalibOptions) -> CarriedDvl {
+        let observations = o
+            .observations
+            .iter()
+            .enumerate()
+            .map(|(i, x)| {
+                let w = o.robust.dvl_weights.get(i).copied().unwrap_or(1.0);
+                let cov = if w.is_finite() && w > 0.0 {
+                    x.cov / w
+                } else {
+                    x.cov
+                };
+                DvlObs { cov, ..*x }
+            })
+            .collect();
+        let tau = o.whiteness.inflation;
+        let applied = opts.honest_covariance && o.whiteness.correlated && tau.is_finite();
+        CarriedDvl {
+            start: o.params,
+            observations,
+            information_divided_by: if applied { tau.max(1.0) } else { 1.0 },
+            std_factor: o.halves.as_ref().map_or([1.0; NPARAM], |h| {
+                h.inflation
+                    .map(|f| if f.is_finite() { f.max(1.0) } else { 1.0 })
+            }),
+            noise_factor_from: COST_INFLATION_FROM,
+        }
+    }
+}
+
+/// [`calibrate_camera_imu_dvl`] with the DVL's reports, their noise and the inflations of its
+/// std as `dvl` carries them from the camera-only run.
+pub fn calibrate_camera_imu_carried(
+    poses: &[PoseMeasurement],
+    samples: &[ImuSample],
+    noise: &ImuNoise,
+    dvl: &CarriedDvl,
+    opts: &ImuOptions,
+) -> Result<ImuEstimate> {
+    let mut est = camera_imu(
+        poses,
+        samples,
+        noise,
+        opts,
+        Some(DvlPart {
+            obs: &dvl.observations,
+            start: &dvl.start,
+            information_divided_by: dvl.information_divided_by,
+            noise_factor_from: dvl.noise_factor_from,
+        }),
+    )?;
+    let c0 = est.state.dvl_start();
+    let n = est.covariance.nrows();
+    for (k, f) in dvl.std_factor.iter().enumerate() {
+        if c0 + k < n && *f != 1.0 {
+            est.covariance.row_mut(c0 + k).scale_mut(*f);
+            est.covariance.column_mut(c0 + k).scale_mut(*f);
+        }
+    }
+    Ok(est)
+}
+
+/// The DVL's part of the joint problem: its reports (with their covariances), where its
+/// parameters start, and how its noise is taken ([`CarriedDvl`]).
+struct DvlPart<'a> {
+    obs: &'a [DvlObs],
+    start: &'a CalibrationParams,
+    information_divided_by: f64,
+    noise_factor_from: f64,
 }
 
 fn camera_imu(
@@ -162,7 +288,7 @@ fn camera_imu(
     samples: &[ImuSample],
     noise: &ImuNoise,
     opts: &ImuOptions,
-    dvl: Option<(&[DvlObs], &CalibrationParams)>,
+    dvl: Option<DvlPart>,
 ) -> Result<ImuEstimate> {
     if samples.len() < 100 {
         return Err(Error::Input(format!(
@@ -202,12 +328,15 @@ fn camera_imu(
     };
     let density = density.scaled(opts.density_factor);
     let stated: Vec<_> = bins.iter().map(|b| bin_information(b, noise)).collect();
-    let (dvl_obs, dvl_stated) = match dvl {
-        Some((obs, start)) => {
-            st.dvl = Some(*start);
-            let info: Vec<Matrix3<f64>> =
-                obs.iter().map(DvlObs::information).collect::<Result<_>>()?;
-            (obs, info)
+    let (dvl_obs, dvl_stated) = match &dvl {
+        Some(d) => {
+            st.dvl = Some(*d.start);
+            let info: Vec<Matrix3<f64>> = d
+                .obs
+                .iter()
+                .map(DvlObs::information)
+                .collect::<Result<_>>()?;
+            (d.obs, info)
         }
         None => (&[][..], Vec::new()),
     };
@@ -231,7 +360,10 @@ fn camera_imu(
             let r = joint.redundancy(&sol.knots, &sol.state)?;
             let (chi_g, red_g, chi_a, red_a) = (r.gyro.0, r.gyro.1, r.accel.0, r.accel.1);
             if !dvl_obs.is_empty() {
-                dvl_factor = (dvl_factor * solve::Redundancy::factor(r.dvl)).max(1.0);
+                // The variance ratio the residuals show, applied beyond `noise_factor_from`.
+                let v = (dvl_factor * solve::Redundancy::factor(r.dvl)).powi(2);
+                let from = dvl.as_ref().map_or(1.0, |d| d.noise_factor_from);
+                dvl_factor = if v > from { v.sqrt() } else { 1.0 };
                 joint.dvl_info = dvl_stated
                     .iter()
                     .map(|w| w / (dvl_factor * dvl_factor))
@@ -258,6 +390,18 @@ fn camera_imu(
                 .collect();
             sol = joint.solve(sol.knots, sol.state, opts.max_iterations)?;
         }
+    }
+    // Correlated DVL residuals: the DVL's information divided by their autocorrelation time,
+    // after its noise factor (estimated from white-noise redundancies, which the division would
+    // hide), and the solution settled under it.
+    if let Some(tau) = dvl
+        .as_ref()
+        .map(|d| d.information_divided_by)
+        .filter(|t| *t > 1.0)
+    {
+        let f2 = dvl_factor * dvl_factor * tau;
+        joint.dvl_info = dvl_stated.iter().map(|w| w / f2).collect();
+        sol = joint.solve(sol.knots, sol.state, opts.max_iterations)?;
     }
     Ok(ImuEstimate {
         state: sol.state,
