@@ -455,9 +455,11 @@ fn an_unobserved_lever_arm_comes_from_the_default_prior() {
             );
         }
         // Without the prior the lever arm runs off: the angular velocity, mostly noise, bends
-        // to fit the DVL noise through a long lever arm.
+        // to fit the DVL noise through a long lever arm. (The residuals of that fit are
+        // correlated, and reweighing the reports by the information they carry slows the run
+        // but does not stop it: 0.8 m on seed 3, against a truth of 0.28 m.)
         assert!(
-            without.params.lever_arm_cam_m().norm() > 1.0,
+            without.params.lever_arm_cam_m().norm() > 0.5,
             "seed {seed}: {:?}",
             without.params.lever_arm_cam_m()
         );
