@@ -321,14 +321,7 @@ impl SqliteBag {
             let path = &file.path;
             let db = open_db(path)?;
             if let Some(kept) = file.slot.as_ref().and_then(|s| read_on(&db, s)) {
-                let mut pass = Pass {
-                    file,
-                    counts: &mut counts,
-                    f: &mut *f,
-                    read: 0,
-                    bad_rows: 0,
-                    delivered: HashSet::new(),
-                };
+                let mut pass = Pass::new(file, &mut counts, &mut *f);
                 pass.replay(&db, &kept, wanted, whole)?;
                 summary.messages += pass.read;
                 continue;
@@ -340,14 +333,7 @@ impl SqliteBag {
                  ORDER BY timestamp, id",
                 ids.join(", ")
             );
-            let mut pass = Pass {
-                file,
-                counts: &mut counts,
-                f: &mut *f,
-                read: 0,
-                bad_rows: 0,
-                delivered: HashSet::new(),
-            };
+            let mut pass = Pass::new(file, &mut counts, &mut *f);
             let failure = match db.prepare(&sql) {
                 Ok(mut stmt) => pass.stream(&mut stmt)?,
                 Err(e) => Some(e),
@@ -632,7 +618,23 @@ struct Pass<'a> {
     delivered: HashSet<i64>,
 }
 
-impl Pass<'_> {
+impl<'a> Pass<'a> {
+    /// A pass over `file` that has handed out nothing yet.
+    fn new(
+        file: &'a DbFile,
+        counts: &'a mut [u64],
+        f: &'a mut dyn FnMut(BagMessage<'_>) -> Result<()>,
+    ) -> Pass<'a> {
+        Pass {
+            file,
+            counts,
+            f,
+            read: 0,
+            bad_rows: 0,
+            delivered: HashSet::new(),
+        }
+    }
+
     /// Hands one row to the callback, numbered within its topic.
     fn deliver(&mut self, row_id: i64, topic_id: i64, t: i64, data: &[u8]) -> Result<()> {
         let Some(&(topic, _)) = self.file.topics.get(&topic_id) else {
