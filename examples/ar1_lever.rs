@@ -6,40 +6,26 @@
 //! reports weighed as independent, no inflation). Printed: each seed's lever-arm error, then the
 //! RMS error per axis and dvlcal's RMS err/std along z.
 
-use std::path::Path;
-
 use dvlcal::calib::model::difference;
 use dvlcal::calib::{CalibOptions, calibrate};
 use dvlcal::eval::spline_baseline::{BaselineOptions, spline_baseline};
-use dvlcal::io::tum::read_tum;
-use dvlcal::sim::{
-    Corruption, CutOptions, SimConfig, TrackOptions, corrupt, cut_track, replay_track,
-    simulate_with,
-};
+use dvlcal::sim::{Corruption, TrackOptions, corrupt, replay_track, simulate_with};
 
-const TRACK: &str = "tests/fixtures/real_motion/uwb_trolley_slow_mocap.txt";
+#[path = "common/trolley.rs"]
+mod trolley;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let seeds: u64 = std::env::args()
         .nth(1)
         .and_then(|s| s.parse().ok())
         .unwrap_or(10);
-    let recorded = read_tum(Path::new(TRACK), None)?.poses;
-    let cut = cut_track(&recorded, &CutOptions::default())?;
-    let piece = cut.longest().ok_or("no usable piece")?.to_vec();
+    let piece = trolley::trolley_piece()?;
     let track = replay_track(&piece, &TrackOptions::default())?;
     let names = ["splines", "dvlcal", "dvlcal, reports as independent"];
     let mut squares = [[0.0f64; 3]; 3];
     let mut z2 = 0.0;
     for seed in 0..seeds {
-        let cfg = SimConfig {
-            seed: 3000 + seed,
-            duration_s: track.duration_s,
-            dvl_sigma: 0.01,
-            pose_sigma_pos_m: 0.002,
-            pose_sigma_rot_rad: 0.1f64.to_radians(),
-            ..SimConfig::default()
-        };
+        let cfg = trolley::bench_config(seed, &track);
         let mut ds = simulate_with(&cfg, &track.motion)?;
         let ar1 = Corruption {
             dvl_ar1_tau_s: Some(1.0),

@@ -8,25 +8,21 @@
 //! the fit chooses; the spline estimator gives the reference. Printed: each seed's offset error
 //! (and dvlcal's std), then the RMS error of each.
 
-use std::path::Path;
-
 use dvlcal::calib::model::difference;
 use dvlcal::calib::robust::Loss;
 use dvlcal::calib::{CalibOptions, calibrate};
 use dvlcal::eval::spline_baseline::{BaselineOptions, spline_baseline};
-use dvlcal::io::tum::read_tum;
-use dvlcal::sim::{CutOptions, SimConfig, TrackOptions, cut_track, replay_track, simulate_with};
+use dvlcal::sim::{TrackOptions, replay_track, simulate_with};
 
-const TRACK: &str = "tests/fixtures/real_motion/uwb_trolley_slow_mocap.txt";
+#[path = "common/trolley.rs"]
+mod trolley;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let seeds: u64 = std::env::args()
         .nth(1)
         .and_then(|s| s.parse().ok())
         .unwrap_or(6);
-    let recorded = read_tum(Path::new(TRACK), None)?.poses;
-    let cut = cut_track(&recorded, &CutOptions::default())?;
-    let piece = cut.longest().ok_or("no usable piece")?.to_vec();
+    let piece = trolley::trolley_piece()?;
     let steps: f64 = std::env::args()
         .nth(2)
         .and_then(|s| s.parse().ok())
@@ -51,14 +47,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     ];
     let mut squares = [0.0f64; 6];
     for seed in 0..seeds {
-        let cfg = SimConfig {
-            seed: 3000 + seed,
-            duration_s: track.duration_s,
-            dvl_sigma: 0.01,
-            pose_sigma_pos_m: 0.002,
-            pose_sigma_rot_rad: 0.1f64.to_radians(),
-            ..SimConfig::default()
-        };
+        let cfg = trolley::bench_config(seed, &track);
         let ds = simulate_with(&cfg, &track.motion)?;
         let own = calibrate(&ds.poses, &ds.dvl, &CalibOptions::default())?;
         let spline = spline_baseline(&ds.poses, &ds.dvl, &BaselineOptions::default())?;
