@@ -173,17 +173,22 @@ struct Figures {
 const GROUPS: [std::ops::Range<usize>; 4] = [0..3, 3..6, 6..7, 7..8];
 const GROUP_NAMES: [&str; 4] = ["rotation", "lever arm", "scale", "clock offset"];
 
+/// Seed `seed`'s settings on `track` (the simulator's noise, rotations of 0.1 deg).
+fn seed_config(seed: u64, track: &TrackMotion) -> SimConfig {
+    SimConfig {
+        seed: 3000 + seed,
+        duration_s: track.duration_s,
+        pose_sigma_rot_rad: 0.1f64.to_radians(),
+        ..SimConfig::default()
+    }
+}
+
 fn accuracy(track: &TrackMotion, seeds: u64) -> Figures {
     let (mut ours, mut spline, mut z2) = ([0.0f64; 4], [0.0f64; 4], [0.0f64; 4]);
     let mut twist_err = (0.0, 0.0, 0usize);
     let (mut lever_held, mut spline_split, mut failed) = (0, 0, 0);
     for seed in 0..seeds {
-        let cfg = SimConfig {
-            seed: 3000 + seed,
-            duration_s: track.duration_s,
-            pose_sigma_rot_rad: 0.1f64.to_radians(),
-            ..SimConfig::default()
-        };
+        let cfg = seed_config(seed, track);
         let ds = simulate_with(&cfg, &track.motion).expect("simulate");
         let o = calibrate(&ds.poses, &ds.dvl, &CalibOptions::default()).expect("dvlcal");
         lever_held += usize::from(o.lever_arm_from_default_prior);
@@ -282,12 +287,7 @@ fn on_the_other_tracks_dvlcal_succeeds_with_honest_std() {
 #[test]
 fn the_poses_and_the_dvl_together_prefer_the_jerk_density_chosen_from_the_poses() {
     let track = replay(EUROC, 1.0);
-    let cfg = SimConfig {
-        seed: 3000,
-        duration_s: track.duration_s,
-        pose_sigma_rot_rad: 0.1f64.to_radians(),
-        ..SimConfig::default()
-    };
+    let cfg = seed_config(0, &track);
     let ds = simulate_with(&cfg, &track.motion).expect("simulate");
     let o = calibrate(&ds.poses, &ds.dvl, &CalibOptions::default()).expect("dvlcal");
     let ev = |f: f64| jerk_density_evidence(&ds.poses, &o, f).expect("evidence");
@@ -377,12 +377,7 @@ fn correlated_dvl_noise_is_weighed_by_the_information_it_carries() {
     let (mut reweighed, mut independent, mut z2) = (0.0, 0.0, 0.0);
     let seeds = 4;
     for seed in 0..seeds {
-        let cfg = SimConfig {
-            seed: 3000 + seed,
-            duration_s: track.duration_s,
-            pose_sigma_rot_rad: 0.1f64.to_radians(),
-            ..SimConfig::default()
-        };
+        let cfg = seed_config(seed, &track);
         let mut ds = simulate_with(&cfg, &track.motion).expect("simulate");
         let ar1 = Corruption {
             dvl_ar1_tau_s: Some(1.0),
