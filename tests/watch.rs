@@ -13,10 +13,9 @@ use std::path::Path;
 use std::process::Command;
 use std::time::{Duration, Instant};
 
-use dvlcal::io::calib_yaml::read_calib_yaml;
 use serde_json::Value;
 use tmp_common::{TmpDir, dvlcal_ok, s};
-use watch_common::Watching;
+use watch_common::{Watching, assert_same_result};
 
 const SPEED: f64 = 6.0;
 
@@ -173,14 +172,7 @@ fn watch_asks_for_rotation_then_says_done_and_ends_as_calibrate() {
     // The end: the same result as calibrate on the finished folder.
     let reference = tmp.path("calibrate.yaml");
     dvlcal_ok(&["calibrate", s(&dir), "--out", s(&reference)]);
-    let (w, c) = (
-        read_calib_yaml(&out).expect("watch's result"),
-        read_calib_yaml(&reference).expect("calibrate's result"),
-    );
-    assert_eq!(w.t_cam_dvl, c.t_cam_dvl);
-    assert_eq!(w.time_offset_s, c.time_offset_s);
-    assert_eq!(w.velocity_scale, c.velocity_scale);
-    assert_eq!(format!("{:?}", w.std), format!("{:?}", c.std));
+    assert_same_result(&out, &reference);
     assert!(tmp.path("watch-tf.txt").exists());
 }
 
@@ -498,10 +490,6 @@ fn images_renamed_into_place_are_followed_and_end_as_calibrate() {
     assert!(stderr.contains("reuses the tags of 502 images"), "{stderr}");
     let reference = tmp.path("calibrate.yaml");
     dvlcal_ok(&["calibrate", s(&dir), "--out", s(&reference)]);
-    let (w, c) = (
-        read_calib_yaml(&out).expect("watch's result"),
-        read_calib_yaml(&reference).expect("calibrate's result"),
-    );
     let whole: serde_yaml::Value =
         serde_yaml::from_str(&std::fs::read_to_string(&reference).expect("result")).expect("yaml");
     assert_eq!(
@@ -509,8 +497,5 @@ fn images_renamed_into_place_are_followed_and_end_as_calibrate() {
         whole["info"]["poses"].as_u64(),
         "{last}"
     );
-    assert_eq!(w.t_cam_dvl, c.t_cam_dvl);
-    assert_eq!(w.time_offset_s, c.time_offset_s);
-    assert_eq!(w.velocity_scale, c.velocity_scale);
-    assert_eq!(format!("{:?}", w.std), format!("{:?}", c.std));
+    assert_same_result(&out, &reference);
 }

@@ -2,10 +2,12 @@
 //! with the time it arrived, and the run's end.
 
 use std::io::{BufRead, BufReader};
+use std::path::Path;
 use std::process::{Child, Command, Output, Stdio};
 use std::thread::JoinHandle;
 use std::time::Instant;
 
+use dvlcal::io::calib_yaml::read_calib_yaml;
 use serde_json::Value;
 
 /// Updates of a running watch, each with the time it arrived.
@@ -48,4 +50,17 @@ impl Watching {
         let out = self.child.wait_with_output().expect("the watch ends");
         (self.reader.join().expect("reader"), out)
     }
+}
+
+/// Asserts that the result file `watched` holds `calibrate`'s result `reference` to the bit:
+/// the extrinsics, the clock offset, the scale and the std.
+pub fn assert_same_result(watched: &Path, reference: &Path) {
+    let (w, c) = (
+        read_calib_yaml(watched).expect("watch's result"),
+        read_calib_yaml(reference).expect("calibrate's result"),
+    );
+    assert_eq!(w.t_cam_dvl, c.t_cam_dvl);
+    assert_eq!(w.time_offset_s, c.time_offset_s);
+    assert_eq!(w.velocity_scale, c.velocity_scale);
+    assert_eq!(format!("{:?}", w.std), format!("{:?}", c.std));
 }
