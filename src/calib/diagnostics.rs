@@ -19,7 +19,9 @@ use super::outcome::{
     WeakCause,
 };
 use super::prior::{LeverArmPrior, Priors};
-use super::refinement::{PartialLeverHold, residual_whiteness, unobserved_why, whitened_residuals};
+use super::refinement::{
+    Correlation, PartialLeverHold, residual_whiteness, unobserved_why, whitened_residuals,
+};
 use super::robust::RobustSummary;
 use super::setting::Setting;
 use super::update::{FreeParams, ParamMat, calibration_update};
@@ -29,11 +31,11 @@ use crate::trajectory::Trajectory;
 use crate::types::CalibrationParams;
 
 /// The DVL cost per degree of freedom over the inliers (at the stated noise `obs`), and the
-/// residuals' whiteness. When the residuals are correlated in time (and `opts` asks for honest
-/// standard deviations), the information of each used observation in `weighted` is divided by
-/// the integrated autocorrelation time, with a warning; `applied` is the correlation the
-/// refinement already weighed `weighted` by ([`super::refinement::refine_for_correlation`]), not
-/// divided again.
+/// residuals' whiteness (`measured` when the refinement measured it already at `params`:
+/// [`super::refinement::refine_for_correlation`]). When the residuals are correlated in time (and
+/// `opts` asks for honest standard deviations), the information of each used observation in
+/// `weighted` is divided by the integrated autocorrelation time, with a warning, unless the
+/// refinement already weighed them so.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn noise(
     traj: &Trajectory,
@@ -43,19 +45,19 @@ pub(crate) fn noise(
     robust: &RobustSummary,
     weights: &[f64],
     weighted: &mut [DvlObs],
-    applied: Option<Whiteness>,
+    measured: Option<Correlation>,
     opts: &CalibOptions,
     warnings: &mut Vec<String>,
 ) -> Result<(f64, Whiteness)> {
     let normalized_cost = inlier_normalized_cost(traj, obs, idx, params, robust)?;
-    let whiteness = match applied.clone() {
-        Some(w) => w,
-        None => residual_whiteness(traj, obs, idx, params, weights)?,
+    let (whiteness, reweighed) = match measured {
+        Some(c) => (c.whiteness, c.reweighed),
+        None => (residual_whiteness(traj, obs, idx, params, weights)?, false),
     };
     if opts.honest_covariance && whiteness.correlated {
         // Correlated residuals carry the information of fewer independent ones: the DVL
         // factors' information divided by the integrated autocorrelation time.
-        if applied.is_none() {
+        if !reweighed {
             for i in idx.iter().copied() {
                 weighted[i].cov *= whiteness.inflation;
             }
@@ -69,7 +71,7 @@ pub(crate) fn noise(
             whiteness.tau_noise,
             idx.len() as f64 / whiteness.inflation,
             idx.len(),
-            if applied.is_some() {
+            if reweighed {
                 "the estimate (refined again with them weighted so) and its standard deviations"
             } else {
                 "the standard deviations"

@@ -226,7 +226,7 @@ fn calibrate_stages(
     // DVL residuals correlated in time: refined again with the reports weighed by the
     // information they carry (for the same reasons as above, only where the misfit is noise).
     let correlation = if trusted && opts.honest_covariance {
-        let (again, found) = refinement::refine_for_correlation(
+        let (again, measured) = refinement::refine_for_correlation(
             &fit,
             pass,
             &obs,
@@ -236,7 +236,7 @@ fn calibrate_stages(
             &mut clock,
         )?;
         pass = again;
-        found
+        Some(measured)
     } else {
         None
     };

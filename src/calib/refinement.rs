@@ -327,6 +327,16 @@ pub(crate) fn run(
     })
 }
 
+/// The DVL residuals' whiteness measured after the refinement, and whether the refinement was
+/// run again with the reports weighed by it ([`refine_for_correlation`]).
+#[derive(Clone, Debug)]
+pub(crate) struct Correlation {
+    pub whiteness: Whiteness,
+    /// The reports' covariances were multiplied by the autocorrelation time for the estimate
+    /// (so the covariance formed from them needs no further division).
+    pub reweighed: bool,
+}
+
 /// DVL residuals correlated in time carry the information of fewer independent reports than
 /// they number ([`super::whiteness`]). Weighed as independent, they also pull the trajectory
 /// with that excess weight: its rates, through which the lever arm is seen, follow the DVL's
@@ -336,8 +346,8 @@ pub(crate) fn run(
 /// When the residuals at `pass` are correlated, the refinement runs again from where `pass`
 /// ended with each report's information divided by the integrated autocorrelation time. The
 /// robust weights `pass` found are kept, and the rerun is least squares: judged against the
-/// divided noise, outliers would pass for inliers. Returns the pass and the correlation it was
-/// weighed by (`None`: white residuals, `pass` unchanged).
+/// divided noise, outliers would pass for inliers. Returns the pass and the whiteness measured
+/// at `pass` ([`Correlation`]).
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn refine_for_correlation(
     cos: &CoSensorFit,
@@ -347,7 +357,7 @@ pub(crate) fn refine_for_correlation(
     init: Option<&InitReport>,
     opts: &CalibOptions,
     clock: &mut StageClock,
-) -> Result<(Pass, Option<Whiteness>)> {
+) -> Result<(Pass, Correlation)> {
     let r = &pass.reweighted;
     let w = residual_whiteness(
         &r.refined.trajectory,
@@ -357,7 +367,11 @@ pub(crate) fn refine_for_correlation(
         &r.weights,
     )?;
     if !w.correlated {
-        return Ok((pass, None));
+        let white = Correlation {
+            whiteness: w,
+            reweighed: false,
+        };
+        return Ok((pass, white));
     }
     let scaled = noise::scaled(&r.weighted, w.inflation);
     let Pass {
@@ -383,7 +397,11 @@ pub(crate) fn refine_for_correlation(
     // Least squares left every weight at one: the observations weighed are `scaled`.
     again.reweighted.weights = reweighted.weights;
     again.reweighted.robust = reweighted.robust;
-    Ok((again, Some(w)))
+    let found = Correlation {
+        whiteness: w,
+        reweighed: true,
+    };
+    Ok((again, found))
 }
 
 /// The autocorrelation of the DVL residuals of the samples `idx` that kept at least half their
