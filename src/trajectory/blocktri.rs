@@ -246,6 +246,23 @@ pub struct Factored {
     w: Vec<V18>,
 }
 
+/// A [`Factored`]'s blocks, read by forward substitutions written outside this module: the
+/// top sweep eliminates blocks `0..middle` (knot `k` hands on through `gain[k]`), the bottom
+/// sweep blocks `n - 1` down to `middle + 1` (knot `k` through `gain[k - 1]`), and the middle
+/// block takes both. `w` is `L^-1` of the system's right-hand side.
+pub(crate) struct ForwardParts<'a> {
+    pub middle: usize,
+    pub chol: &'a [M18],
+    pub gain: &'a [M18],
+    pub w: &'a [V18],
+}
+
+/// `x <- L^-1 x` for one column and a block's factor `l` from [`ForwardParts::chol`].
+#[inline]
+pub(crate) fn forward_in_place(l: &M18, x: &mut V18) {
+    forward_substitute(cols(l), &mut x.data.0[0]);
+}
+
 /// Diagonal and first off-diagonal blocks of `A^-1`.
 #[derive(Clone, Debug, Default)]
 pub struct BandedInverse {
@@ -657,6 +674,16 @@ pub fn streamed_quadratic_forms<const C: usize>(
 impl Factored {
     fn middle(&self) -> usize {
         middle(self.chol.len())
+    }
+
+    /// What a forward substitution written elsewhere needs, laid out as the type's doc says.
+    pub(crate) fn forward_parts(&self) -> ForwardParts<'_> {
+        ForwardParts {
+            middle: self.middle(),
+            chol: &self.chol,
+            gain: &self.gain,
+            w: &self.w,
+        }
     }
 
     /// `L^-1 R` for other right-hand sides (one 18 x C block per knot, missing blocks are zero):

@@ -8,16 +8,15 @@
 //! of bias nodes. Dense, the coupling took `18 N p` numbers and its solution as many again.
 //!
 //! The Schur complement `S = H_theta - H_x theta^T A^-1 H_x theta` and the reduced right-hand
-//! side need `H_x theta^T A^-1 H_x theta` and `H_x theta^T A^-1 r`: `A^-1 H_x theta` is solved
-//! six columns at a time and multiplied by the stored blocks at once ([`schur_forms`]), so
-//! nothing of the recording's length is stored beyond the system, its factor, the coupling and
-//! six columns.
+//! side need `H_x theta^T A^-1 H_x theta` and `H_x theta^T A^-1 r`: both come from the forward
+//! half of a solve, carried knot by knot ([`schur_forms`]), so nothing of the recording's
+//! length is stored beyond the system, its factor and the coupling.
 
 use nalgebra::{DMatrix, DVector, SMatrix};
 
 use super::state::NFIXED;
 use crate::calib::model::NPARAM;
-use crate::trajectory::blocktri::{Factored, V18};
+use crate::trajectory::blocktri::{Factored, ForwardParts, V18, forward_in_place};
 
 /// Knot rows.
 const R: usize = 18;
@@ -112,23 +111,6 @@ impl Coupling {
         }
     }
 
-    /// Knot `k`'s rows on the columns `from..from + width` of `theta`, written to the columns
-    /// `to..to + width` of `out` (columns beyond `theta` are left alone).
-    pub fn put<const C: usize>(
-        &self,
-        k: usize,
-        from: usize,
-        width: usize,
-        to: usize,
-        out: &mut SMatrix<f64, R, C>,
-    ) {
-        self.for_each_column(k, |c, col| {
-            if (from..from + width).contains(&c) {
-                out.column_mut(to + c - from).copy_from_slice(col);
-            }
-        });
-    }
-
     /// `H_k d`: knot `k`'s rows times a step of `theta`.
     pub fn times(&self, k: usize, d: &DVector<f64>) -> V18 {
         let mut out = V18::zeros();
@@ -173,44 +155,114 @@ impl Coupling {
     }
 }
 
-/// Columns of `H_x theta` solved for at once in [`schur_forms`].
-const CHUNK: usize = 6;
+/// One sweep's share of [`schur_forms`], on the columns of `theta` in the order the sweep met
+/// them (`order`): the lower triangle of `(L^-1 H)^T (L^-1 H)` over its knots, `(L^-1 H)^T w`,
+/// and what its last knot hands to the middle block (`-Y^T (L^-1 H)`, one column each).
+struct SweepForms {
+    order: Vec<usize>,
+    gram: DMatrix<f64>,
+    rhs: Vec<f64>,
+    to_mid: Vec<V18>,
+}
+
+/// The forward substitution of `H` along one sweep of the factor: `knots` in the sweep's order
+/// and, for each, the gain it hands on through. Only the columns the sweep has met are carried
+/// (a bias node's columns are zero before its first bin), so the work per knot grows with the
+/// nodes behind it, not with all of `theta`.
+fn sweep(
+    parts: &ForwardParts,
+    cross: &Coupling,
+    knots: impl Iterator<Item = (usize, usize)>,
+) -> SweepForms {
+    let p = cross.columns();
+    let mut at = vec![usize::MAX; p];
+    let mut order = Vec::new();
+    let mut z: Vec<V18> = Vec::new();
+    let mut gram = DMatrix::zeros(p, p);
+    let mut rhs = vec![0.0; p];
+    for (k, gain) in knots {
+        // z holds minus what the previous knot handed on: adding this knot's rows gives
+        // `H_k - Y^T z_prev`, bit for bit the difference.
+        cross.for_each_column(k, |c, col| {
+            if at[c] == usize::MAX {
+                at[c] = order.len();
+                order.push(c);
+                z.push(V18::zeros());
+            }
+            z[at[c]] += V18::from_column_slice(col);
+        });
+        for col in z.iter_mut() {
+            forward_in_place(&parts.chol[k], col);
+        }
+        let w = &parts.w[k];
+        for (a, za) in z.iter().enumerate() {
+            rhs[a] += za.dot(w);
+            for (b, zb) in z[..=a].iter().enumerate() {
+                gram[(a, b)] += za.dot(zb);
+            }
+        }
+        let g = &parts.gain[gain];
+        for col in z.iter_mut() {
+            *col = -(g * *col);
+        }
+    }
+    SweepForms {
+        order,
+        gram,
+        rhs,
+        to_mid: z,
+    }
+}
 
 /// `H^T A^-1 H` and `H^T A^-1 r` for the factored system `factor` (`A`, `r`) and the coupling
-/// `H`, with `A^-1 r` (knot by knot). `A^-1 H` is solved for a few columns at a time and
-/// multiplied by the coupling's stored blocks at once, so only those columns are ever held.
+/// `H`, with `A^-1 r` (knot by knot). A Schur complement needs only the forward half of a
+/// solve: with `A = L L^T` in the factor's elimination order, `H^T A^-1 H = (L^-1 H)^T (L^-1 H)`
+/// and `H^T A^-1 r = (L^-1 H)^T (L^-1 r)`. Each of the factor's two sweeps carries one knot's
+/// block of `L^-1 H` to the next and adds its products as it goes (the two on two cores), and
+/// the middle block takes both; the sums are the top sweep's, the bottom sweep's, then the
+/// middle's, an order fixed by the system's length. Nothing of the recording's length is
+/// stored.
 pub fn schur_forms(factor: &Factored, cross: &Coupling) -> (DMatrix<f64>, DVector<f64>, Vec<V18>) {
     let p = cross.columns();
     let xr = factor.solve();
+    let n = xr.len();
+    let parts = factor.forward_parts();
+    let m = parts.middle;
+    let (top, bottom) = rayon::join(
+        || sweep(&parts, cross, (0..m).map(|k| (k, k))),
+        || sweep(&parts, cross, (m + 1..n).rev().map(|k| (k, k - 1))),
+    );
+    // The middle block: its own rows less both sweeps' hand-overs, in `theta`'s order.
+    let mut zm = vec![V18::zeros(); p];
+    cross.for_each_column(m, |c, col| zm[c] = V18::from_column_slice(col));
+    for half in [&top, &bottom] {
+        for (c, z) in half.order.iter().zip(&half.to_mid) {
+            zm[*c] += z;
+        }
+    }
+    for col in zm.iter_mut() {
+        forward_in_place(&parts.chol[m], col);
+    }
     let mut hah = DMatrix::zeros(p, p);
     let mut har = DVector::zeros(p);
-    for (k, x) in xr.iter().enumerate() {
-        cross.for_each_column(k, |c, col| {
-            har[c] += x.iter().zip(col).map(|(a, b)| a * b).sum::<f64>();
-        });
+    let mut add = |ca: usize, cb: usize, v: f64| {
+        hah[(ca, cb)] += v;
+        if ca != cb {
+            hah[(cb, ca)] += v;
+        }
+    };
+    for half in [&top, &bottom] {
+        for (a, &ca) in half.order.iter().enumerate() {
+            har[ca] += half.rhs[a];
+            for (b, &cb) in half.order[..=a].iter().enumerate() {
+                add(ca, cb, half.gram[(a, b)]);
+            }
+        }
     }
-    for c0 in (0..p).step_by(CHUNK) {
-        let width = CHUNK.min(p - c0);
-        let rhs: Vec<SMatrix<f64, R, CHUNK>> = (0..xr.len())
-            .map(|k| {
-                let mut m = SMatrix::zeros();
-                cross.put(k, c0, width, 0, &mut m);
-                m
-            })
-            .collect();
-        let x = factor.solve_many::<CHUNK>(&rhs);
-        drop(rhs);
-        for (k, xk) in x.iter().enumerate() {
-            cross.for_each_column(k, |c, col| {
-                for j in 0..width {
-                    hah[(c, c0 + j)] += xk
-                        .column(j)
-                        .iter()
-                        .zip(col)
-                        .map(|(a, b)| a * b)
-                        .sum::<f64>();
-                }
-            });
+    for a in 0..p {
+        har[a] += zm[a].dot(&parts.w[m]);
+        for b in 0..=a {
+            add(a, b, zm[a].dot(&zm[b]));
         }
     }
     (hah, har, xr)
