@@ -10,6 +10,7 @@
 use std::ops::{AddAssign, SubAssign};
 
 use nalgebra::{DMatrix, DVector, Matrix3, SMatrix, Vector6};
+use rayon::prelude::*;
 
 use super::bins::ImuBin;
 use super::coupling::{Coupling, schur_forms};
@@ -158,6 +159,28 @@ pub struct Solution {
     pub bins_used: usize,
 }
 
+/// Bins whose terms are computed at once (in parallel) before they are summed in order.
+const BLOCK: usize = 256;
+/// Bins one task computes in turn, sharing their intervals' local states.
+const TASK: usize = 32;
+
+/// A bin's share of the normal equations, computed apart from the sums it goes into.
+#[derive(Clone, Default)]
+struct BinNormal {
+    k: usize,
+    node: usize,
+    cost: f64,
+    d1: M18,
+    d2: M18,
+    up: M18,
+    r1: V18,
+    r2: V18,
+    c1: SMatrix<f64, 18, 21>,
+    c2: SMatrix<f64, 18, 21>,
+    hl: SMatrix<f64, 21, 21>,
+    gl: SMatrix<f64, 21, 1>,
+}
+
 impl ImuJoint<'_> {
     fn problem(&self) -> Problem<'_> {
         Problem {
@@ -184,6 +207,38 @@ impl ImuJoint<'_> {
             out.push((j, k, tau - self.times[k]));
         }
         out
+    }
+
+    /// `f` of every bin of `placed`, with what `interval` gives for its interval (computed once
+    /// for the bins of one interval), handed to `sink` in the bins' order. The terms are
+    /// computed in parallel a block at a time, into one buffer (`zero` fills it), and summed by
+    /// the caller in order, so the sums are those of a plain loop on any number of cores.
+    fn map_bins<C, T: Send + Sync + Clone>(
+        &self,
+        placed: &[(usize, usize, f64)],
+        zero: T,
+        interval: impl Fn(usize) -> C + Sync,
+        f: impl Fn(&C, usize, usize, f64) -> T + Sync,
+        mut sink: impl FnMut(&T),
+    ) {
+        let mut buf = vec![zero; BLOCK.min(placed.len())];
+        for block in placed.chunks(BLOCK) {
+            let out = &mut buf[..block.len()];
+            out.par_chunks_mut(TASK)
+                .zip(block.par_chunks(TASK))
+                .for_each(|(out, task)| {
+                    let mut at: Option<(usize, C)> = None;
+                    for (o, &(j, k, s)) in out.iter_mut().zip(task) {
+                        if at.as_ref().is_none_or(|(kk, _)| *kk != k) {
+                            at = Some((k, interval(k)));
+                        }
+                        if let Some((_, c)) = &at {
+                            *o = f(c, j, k, s);
+                        }
+                    }
+                });
+            out.iter().for_each(&mut sink);
+        }
     }
 
     /// For each DVL velocity inside the span at the DVL's clock offset: its index, the
@@ -276,20 +331,14 @@ impl ImuJoint<'_> {
     /// The whole cost at `knots` and `st`.
     pub fn cost(&self, knots: &[Knot], st: &ImuState) -> f64 {
         let mut cost = self.problem().cost(knots) + self.walk_cost(st) + self.dvl_cost(knots, st);
-        let mut last: Option<(usize, V18)> = None;
-        for (j, k, s) in self.placed(st.time_offset_s) {
-            let gamma2 = match &last {
-                Some((kk, g)) if *kk == k => *g,
-                _ => {
-                    let g = local_gamma(&knots[k], &knots[k + 1]);
-                    last = Some((k, g));
-                    g
-                }
-            };
+        let placed = self.placed(st.time_offset_s);
+        let gamma2 = |k: usize| local_gamma(&knots[k], &knots[k + 1]);
+        let term = |g2: &V18, j: usize, k: usize, s: f64| {
             let dt = self.times[k + 1] - self.times[k];
-            let e = bin_residual(&knots[k], &gamma2, s, dt, &self.bins[j], st);
-            cost += e.dot(&self.info[j].component_mul(&e));
-        }
+            let e = bin_residual(&knots[k], g2, s, dt, &self.bins[j], st);
+            e.dot(&self.info[j].component_mul(&e))
+        };
+        self.map_bins(&placed, 0.0, gamma2, term, |c| cost += c);
         cost
     }
 
@@ -301,41 +350,51 @@ impl ImuJoint<'_> {
         let mut cross = Coupling::zeros(n, p, st.dvl.map(|_| st.dvl_start()));
         let mut hth = DMatrix::<f64>::zeros(p, p);
         let mut gth = DVector::<f64>::zeros(p);
-        let mut ls = None;
-        for (j, k, s) in self.placed(st.time_offset_s) {
-            if ls.as_ref().is_none_or(|(kk, _)| *kk != k) {
-                ls = Some((k, local_state(&knots[k], &knots[k + 1])));
-            }
-            let Some((_, l)) = &ls else { continue };
+        let placed = self.placed(st.time_offset_s);
+        let normal = |l: &LocalState, j: usize, k: usize, s: f64| {
             let dt = self.times[k + 1] - self.times[k];
             let t = bin_terms(&knots[k], l, s, dt, &self.bins[j], st);
             let w = &self.info[j];
             let we = w.component_mul(&t.e);
-            cost += t.e.dot(&we);
-            let cols = theta_columns(t.node.0);
             let mut jl = theta_jacobian(&t);
             self.hold_bin(&mut jl);
             let wj1 = SMatrix::<f64, 6, 18>::from_fn(|r, c| w[r] * t.j1[(r, c)]);
             let wj2 = SMatrix::<f64, 6, 18>::from_fn(|r, c| w[r] * t.j2[(r, c)]);
             let wjl = SMatrix::<f64, 6, 21>::from_fn(|r, c| w[r] * jl[(r, c)]);
-            sys.diag[k] += t.j1.transpose() * wj1;
-            sys.diag[k + 1] += t.j2.transpose() * wj2;
-            sys.upper[k] += t.j1.transpose() * wj2;
-            sys.rhs[k] -= t.j1.transpose() * we;
-            sys.rhs[k + 1] -= t.j2.transpose() * we;
-            let c1 = t.j1.transpose() * wjl;
-            let c2 = t.j2.transpose() * wjl;
-            let hl = jl.transpose() * wjl;
-            let gl = jl.transpose() * we;
-            cross.add_bin(k, t.node.0, &c1);
-            cross.add_bin(k + 1, t.node.0, &c2);
+            BinNormal {
+                k,
+                node: t.node.0,
+                cost: t.e.dot(&we),
+                d1: t.j1.transpose() * wj1,
+                d2: t.j2.transpose() * wj2,
+                up: t.j1.transpose() * wj2,
+                r1: t.j1.transpose() * we,
+                r2: t.j2.transpose() * we,
+                c1: t.j1.transpose() * wjl,
+                c2: t.j2.transpose() * wjl,
+                hl: jl.transpose() * wjl,
+                gl: jl.transpose() * we,
+            }
+        };
+        let local = |k: usize| local_state(&knots[k], &knots[k + 1]);
+        self.map_bins(&placed, BinNormal::default(), local, normal, |b| {
+            let k = b.k;
+            cost += b.cost;
+            sys.diag[k] += b.d1;
+            sys.diag[k + 1] += b.d2;
+            sys.upper[k] += b.up;
+            sys.rhs[k] -= b.r1;
+            sys.rhs[k + 1] -= b.r2;
+            cross.add_bin(k, b.node, &b.c1);
+            cross.add_bin(k + 1, b.node, &b.c2);
+            let cols = theta_columns(b.node);
             for (a, &ca) in cols.iter().enumerate() {
-                gth[ca] -= gl[a];
-                for (b, &cb) in cols.iter().enumerate() {
-                    hth[(ca, cb)] += hl[(a, b)];
+                gth[ca] -= b.gl[a];
+                for (c, &cb) in cols.iter().enumerate() {
+                    hth[(ca, cb)] += b.hl[(a, c)];
                 }
             }
-        }
+        });
         // The random walks between nodes.
         for i in 0..st.bias.values.len() - 1 {
             let (wg, wa) = self.walk_information(i, st);
@@ -485,12 +544,10 @@ impl ImuJoint<'_> {
                 if c < width { g[(cols[a], c0 + c)] } else { 0.0 }
             })
         };
-        let mut ls = None;
-        for (j, k, s) in self.placed(st.time_offset_s) {
-            if ls.as_ref().is_none_or(|(kk, _)| *kk != k) {
-                ls = Some((k, local_state(&knots[k], &knots[k + 1])));
-            }
-            let Some((_, l)) = &ls else { continue };
+        let placed = self.placed(st.time_offset_s);
+        let local = |k: usize| local_state(&knots[k], &knots[k + 1]);
+        // Per row: `w |u|^2`, and with the band `w e^2` and `1 - w (J_x A^-1 J_x^T)`.
+        let terms = |l: &LocalState, j: usize, k: usize, s: f64| {
             let dt = self.times[k + 1] - self.times[k];
             let t = bin_terms(&knots[k], l, s, dt, &self.bins[j], st);
             let mut jl = theta_jacobian(&t);
@@ -501,15 +558,21 @@ impl ImuJoint<'_> {
             let u = t.j1 * xg[k] + t.j2 * xg[k + 1] - jl * gl;
             let w = &self.info[j];
             let proj = band.map(|b| local_projection(b, k, &t.j1, &t.j2));
-            for r in 0..6 {
+            std::array::from_fn::<_, 6, _>(|r| {
+                let own = proj.map(|pr| (w[r] * t.e[r] * t.e[r], 1.0 - w[r] * pr[(r, r)]));
+                (w[r] * u.row(r).norm_squared(), own)
+            })
+        };
+        self.map_bins(&placed, [(0.0, None); 6], local, terms, |rows| {
+            for (r, &(projected, own)) in rows.iter().enumerate() {
                 let part = if r < 3 { &mut out.gyro } else { &mut out.accel };
-                part.1 -= w[r] * u.row(r).norm_squared();
-                if let Some(pr) = &proj {
-                    part.0 += w[r] * t.e[r] * t.e[r];
-                    part.1 += 1.0 - w[r] * pr[(r, r)];
+                part.1 -= projected;
+                if let Some((chi, red)) = own {
+                    part.0 += chi;
+                    part.1 += red;
                 }
             }
-        }
+        });
         if let Some(pd) = &st.dvl {
             let c = st.dvl_start();
             let cols: Vec<usize> = (c..c + NPARAM).collect();
