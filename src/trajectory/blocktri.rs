@@ -690,9 +690,16 @@ impl Factored {
     /// the forward half of a solve, in the elimination order of the factor.
     fn forward_many<const C: usize>(&self, rhs: &[SMatrix<f64, N, C>]) -> Vec<SMatrix<f64, N, C>> {
         let n = self.chol.len();
-        let m = self.middle();
         let block = |k: usize| rhs.get(k).copied().unwrap_or_else(SMatrix::zeros);
         let mut w: Vec<SMatrix<f64, N, C>> = (0..n).map(block).collect();
+        self.forward_in_place(&mut w);
+        w
+    }
+
+    /// [`Factored::forward_many`] on one block per knot, in place.
+    fn forward_in_place<const C: usize>(&self, w: &mut [SMatrix<f64, N, C>]) {
+        let n = self.chol.len();
+        let m = self.middle();
         let (top, bottom) = w.split_at_mut(m + 1);
         let (mid_top, mid_bottom) = both(
             n >= PARALLEL_MIN,
@@ -727,7 +734,6 @@ impl Factored {
         w[m] -= mid_top;
         w[m] -= mid_bottom;
         forward_columns(cols(&self.chol[m]), &mut w[m]);
-        w
     }
 
     /// `L^-T W` in place: the backward half of a solve, from the middle block outwards
@@ -765,6 +771,14 @@ impl Factored {
         let mut x: Vec<SMatrix<f64, N, 1>> = self.w.clone();
         self.backward_many(&mut x);
         x
+    }
+
+    /// [`Factored::solve_many`] in the storage of its right-hand sides (one block per knot, all
+    /// of them), which hold the solutions after: half the memory of a solve that keeps both.
+    pub fn solve_many_in_place<const C: usize>(&self, x: &mut [SMatrix<f64, N, C>]) {
+        debug_assert_eq!(x.len(), self.chol.len(), "one block per knot");
+        self.forward_in_place(x);
+        self.backward_many(x);
     }
 
     /// The solutions of `A X = R` for `C` right-hand sides at once (one 18 x C block per knot).

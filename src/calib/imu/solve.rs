@@ -507,10 +507,11 @@ impl ImuJoint<'_> {
             .solve_upper_triangular(&DMatrix::identity(p, p))
             .ok_or_else(singular)?;
         let solved = |c0: usize| {
-            let rhs: Vec<SMatrix<f64, 18, CHUNK>> = (0..n)
+            let mut x: Vec<SMatrix<f64, 18, CHUNK>> = (0..n)
                 .map(|k| lin.cross.times_matrix::<CHUNK>(k, &g, c0))
                 .collect();
-            factor.solve_many::<CHUNK>(&rhs)
+            factor.solve_many_in_place::<CHUNK>(&mut x);
+            x
         };
         let starts: Vec<usize> = (0..p).step_by(CHUNK).collect();
         let mut out = Redundancy::default();
