@@ -346,3 +346,66 @@ fn the_streamed_schur_and_the_chunked_redundancy_match_the_dense_problem() {
         assert!(got.gyro.1 > 0.0 && got.gyro.1 < 3.0 * bins.len() as f64);
     }
 }
+
+/// The bins' terms are computed in parallel and summed in their order: the normal equations,
+/// the cost and the redundancy are the same to the bit on one thread as on two or three, over
+/// enough bins for several blocks of work.
+#[test]
+fn the_sums_do_not_depend_on_the_number_of_threads() {
+    let (times, ks) = knots(400);
+    let many: Vec<ImuBin> = (0..600)
+        .map(|j| ImuBin {
+            t: 0.003 + 0.016 * j as f64,
+            gyro: Vector3::new(0.1, -0.3 + 1e-3 * j as f64, 0.2),
+            accel: Vector3::new(0.5, 9.0, -2.0 + 1e-2 * (j % 7) as f64),
+            n: 3,
+        })
+        .collect();
+    let dvl = dvl_obs();
+    let mut joint = joint(&times, &ks, &many, &dvl);
+    for (k, pose) in joint.poses.poses.iter_mut().enumerate().step_by(4) {
+        *pose = Some((ks[k].pose, Matrix6::identity() * 1e6));
+    }
+    let mut st = state(true);
+    st.bias = BiasNodes::spanning(0.0, 10.0, 3.0, st.bias.values[0]);
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("pool");
+        pool.install(|| {
+            let mut sys = BlockTridiagonal::zeros(ks.len());
+            let lin = joint.linearise(&ks, &st, &mut sys);
+            let red = joint.redundancy(&ks, &st).expect("redundancy");
+            let blocks: Vec<f64> = sys
+                .diag
+                .iter()
+                .chain(&sys.upper)
+                .flat_map(|m| m.iter().copied())
+                .chain(sys.rhs.iter().flat_map(|v| v.iter().copied()))
+                .collect();
+            (
+                blocks,
+                lin.cross.dense(),
+                lin.hth,
+                lin.gth,
+                lin.cost,
+                joint.cost(&ks, &st),
+                [red.gyro, red.accel, red.dvl],
+            )
+        })
+    };
+    let one = run(1);
+    assert!(one.1.iter().any(|x| *x != 0.0) && one.6[0].1 > 0.0);
+    for threads in [2, 3] {
+        let other = run(threads);
+        let same = one.0 == other.0
+            && one.1 == other.1
+            && one.2 == other.2
+            && one.3 == other.3
+            && one.4.to_bits() == other.4.to_bits()
+            && one.5.to_bits() == other.5.to_bits()
+            && one.6 == other.6;
+        assert!(same, "{threads} threads give other sums than one");
+    }
+}
