@@ -135,20 +135,28 @@ fn median_interval(t: &[f64]) -> Option<f64> {
 
 /// Circular cross-correlations `c[k] = sum_j a[(j + k) mod m] b[j]` of several pairs, through
 /// one forward transform per distinct series.
-struct Correlator {
+pub(crate) struct Correlator {
     m: usize,
     planner: FftPlanner<f64>,
 }
 
 impl Correlator {
-    fn forward(&mut self, x: &[f64]) -> Vec<Complex<f64>> {
+    /// Correlations of length `m` (series are zero-padded to it).
+    pub(crate) fn new(m: usize) -> Correlator {
+        Correlator {
+            m,
+            planner: FftPlanner::new(),
+        }
+    }
+
+    pub(crate) fn forward(&mut self, x: &[f64]) -> Vec<Complex<f64>> {
         let mut buf: Vec<Complex<f64>> = x.iter().map(|&v| Complex::new(v, 0.0)).collect();
         buf.resize(self.m, Complex::new(0.0, 0.0));
         self.planner.plan_fft_forward(self.m).process(&mut buf);
         buf
     }
 
-    fn correlate(&mut self, fa: &[Complex<f64>], fb: &[Complex<f64>]) -> Vec<f64> {
+    pub(crate) fn correlate(&mut self, fa: &[Complex<f64>], fb: &[Complex<f64>]) -> Vec<f64> {
         let mut buf: Vec<Complex<f64>> = fa.iter().zip(fb).map(|(a, b)| a * b.conj()).collect();
         self.planner.plan_fft_inverse(self.m).process(&mut buf);
         let scale = 1.0 / self.m as f64;
@@ -262,10 +270,7 @@ pub fn align_clocks(
     let x: Vec<f64> = cam.iter().map(|c| c.map_or(0.0, |(v, _)| v)).collect();
 
     let m = (nc + nd).next_power_of_two();
-    let mut cor = Correlator {
-        m,
-        planner: FftPlanner::new(),
-    };
+    let mut cor = Correlator::new(m);
     let sq = |v: &[f64], w: &[f64]| -> Vec<f64> { v.iter().zip(w).map(|(a, b)| a * b).collect() };
     let a1 = cor.forward(&mc);
     let a2 = cor.forward(&sq(&mc, &x));
