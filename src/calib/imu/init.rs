@@ -258,3 +258,40 @@ fn coarse_offset(grid: &[f64], a: f64, step: f64, bins: &[ImuBin], mags: &[f64])
     // t_cam = t_imu + offset: camera index j + l at a + (j + l) res, IMU index j at c + j res.
     best.map(|(l, _)| a + l * res - c)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A rate magnitude with no period in the span.
+    fn rate(t: f64) -> f64 {
+        1.0 + 0.5 * (0.7 * t).sin() + 0.3 * (2.3 * t + 0.4 * (0.11 * t).sin()).sin()
+    }
+
+    #[test]
+    fn the_coarse_search_finds_the_lag_whichever_clock_is_ahead() {
+        let (a, step) = (1000.0, 0.002);
+        let grid: Vec<f64> = (0..50_000).map(|i| rate(a + i as f64 * step)).collect();
+        for offset in [1000.0 - 2.0 + 0.013, 1000.0 + 37.5] {
+            // The IMU covers 60 s of the camera's 100 s; every fifth bin is missing.
+            let bins: Vec<ImuBin> = (0..3000)
+                .filter(|j| j % 5 != 3)
+                .map(|j| {
+                    let t = 20.0 + 0.02 * j as f64;
+                    ImuBin {
+                        t,
+                        gyro: Vector3::new(rate(t + offset), 0.0, 0.0),
+                        accel: Vector3::zeros(),
+                        n: 4,
+                    }
+                })
+                .collect();
+            let mags: Vec<f64> = bins.iter().map(|b| b.gyro.norm()).collect();
+            let found = coarse_offset(&grid, a, step, &bins, &mags).expect("a lag");
+            assert!(
+                (found - offset).abs() <= 0.0051,
+                "offset {offset}: found {found}"
+            );
+        }
+    }
+}
