@@ -19,9 +19,7 @@
 //! lag's uniqueness: periodic motion repeats the speed pattern and gives a second peak almost as
 //! high, which is reported as ambiguous.
 
-use rustfft::FftPlanner;
-use rustfft::num_complex::Complex;
-
+use super::correlate::Correlator;
 use super::model::DvlObs;
 use super::setting::Setting;
 use crate::error::{Error, Result};
@@ -131,37 +129,6 @@ fn median_interval(t: &[f64]) -> Option<f64> {
     }
     d.sort_by(f64::total_cmp);
     Some(d[d.len() / 2])
-}
-
-/// Circular cross-correlations `c[k] = sum_j a[(j + k) mod m] b[j]` of several pairs, through
-/// one forward transform per distinct series.
-pub(crate) struct Correlator {
-    m: usize,
-    planner: FftPlanner<f64>,
-}
-
-impl Correlator {
-    /// Correlations of length `m` (series are zero-padded to it).
-    pub(crate) fn new(m: usize) -> Correlator {
-        Correlator {
-            m,
-            planner: FftPlanner::new(),
-        }
-    }
-
-    pub(crate) fn forward(&mut self, x: &[f64]) -> Vec<Complex<f64>> {
-        let mut buf: Vec<Complex<f64>> = x.iter().map(|&v| Complex::new(v, 0.0)).collect();
-        buf.resize(self.m, Complex::new(0.0, 0.0));
-        self.planner.plan_fft_forward(self.m).process(&mut buf);
-        buf
-    }
-
-    pub(crate) fn correlate(&mut self, fa: &[Complex<f64>], fb: &[Complex<f64>]) -> Vec<f64> {
-        let mut buf: Vec<Complex<f64>> = fa.iter().zip(fb).map(|(a, b)| a * b.conj()).collect();
-        self.planner.plan_fft_inverse(self.m).process(&mut buf);
-        let scale = 1.0 / self.m as f64;
-        buf.iter().map(|c| c.re * scale).collect()
-    }
 }
 
 /// Finds the lag between the DVL clock and the camera clock over every lag at which the DVL

@@ -26,6 +26,7 @@ pub mod align;
 pub mod analysis;
 pub mod clock_drift;
 pub mod closed_form;
+pub(crate) mod correlate;
 pub mod cosensor;
 pub mod diagnostics;
 pub mod fusion;

@@ -13,7 +13,7 @@ use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 
 use super::bins::ImuBin;
 use super::state::{BiasNodes, ImuState};
-use crate::calib::align::Correlator;
+use crate::calib::correlate::Correlator;
 use crate::error::{Error, Result};
 use crate::lie::{Se3, hat};
 use crate::trajectory::Trajectory;
