@@ -58,7 +58,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             &imu.samples,
             &imu_cfg.noise,
             &carried,
-            &ImuOptions::default(),
+            &ImuOptions {
+                preintegrate: std::env::var("PREINT").ok().map(|v| v != "0"),
+                ..ImuOptions::default()
+            },
         )?;
         let mut out = cam.clone();
         let (mut warnings, mut notes) = (Vec::new(), Vec::new());

@@ -43,6 +43,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 .ok()
                 .and_then(|s| s.parse().ok())
                 .unwrap_or(1.0),
+            preintegrate: std::env::var("PREINT").ok().map(|v| v != "0"),
             ..ImuOptions::default()
         };
         let est = calibrate_camera_imu(&data.poses, &imu.samples, &imu_cfg.noise, &opts)?;

@@ -170,6 +170,7 @@ pub fn calibrate_dvl_imu(
         held: (0..7).collect(),
         dvl: &obs,
         dvl_info: dvl_stated.clone(),
+        windows: None,
     };
     let mut sol = joint.solve(knots, st, opts.max_iterations)?;
     let mut factor = (1.0, 1.0, 1.0);

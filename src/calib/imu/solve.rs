@@ -15,6 +15,7 @@ use rayon::prelude::*;
 use super::bins::ImuBin;
 use super::coupling::{Coupling, schur_forms};
 use super::factors::{BinTerms, SparsePoseFactors, bin_residual, bin_terms};
+use super::preint::{WindowTerms, Windows, residual as window_residual, window_terms};
 use super::state::{ImuState, NFIXED};
 use crate::calib::model::{DvlObs, NPARAM, d_predict_d_params, d_predict_d_twist, predict};
 use crate::error::{Error, Result};
@@ -38,6 +39,9 @@ pub struct ImuJoint<'a> {
     /// DVL velocities (with a DVL in the state), and their information.
     pub dvl: &'a [DvlObs],
     pub dvl_info: Vec<Matrix3<f64>>,
+    /// The IMU preintegrated between consecutive knots: when given, its windows replace the
+    /// bins as the IMU's factors (the bins then only count what the windows cover).
+    pub windows: Option<Windows>,
 }
 
 /// Each sensor's chi-square and its share of the redundancy at a solution (see
@@ -181,6 +185,24 @@ struct BinNormal {
     gl: SMatrix<f64, 21, 1>,
 }
 
+/// A window's share of the normal equations (its terms already whitened).
+fn window_normal(k: usize, t: &WindowTerms) -> BinNormal {
+    BinNormal {
+        k,
+        node: t.node,
+        cost: t.e.norm_squared(),
+        d1: t.j1.tr_mul(&t.j1),
+        d2: t.j2.tr_mul(&t.j2),
+        up: t.j1.tr_mul(&t.j2),
+        r1: t.j1.tr_mul(&t.e),
+        r2: t.j2.tr_mul(&t.e),
+        c1: t.j1.tr_mul(&t.jl),
+        c2: t.j2.tr_mul(&t.jl),
+        hl: t.jl.tr_mul(&t.jl),
+        gl: t.jl.tr_mul(&t.e),
+    }
+}
+
 impl ImuJoint<'_> {
     fn problem(&self) -> Problem<'_> {
         Problem {
@@ -207,6 +229,30 @@ impl ImuJoint<'_> {
             out.push((j, k, tau - self.times[k]));
         }
         out
+    }
+
+    /// The bins the IMU's factors use: those inside the span at the state's clock offset, or
+    /// with windows, those inside a window.
+    fn bins_used(&self, st: &ImuState) -> usize {
+        let Some(w) = &self.windows else {
+            return self.placed(st.time_offset_s).len();
+        };
+        let mut spans = w
+            .list
+            .iter()
+            .flatten()
+            .map(|(p, _)| (p.t0, p.t0 + p.dt))
+            .peekable();
+        let mut used = 0;
+        for b in self.bins {
+            while spans.peek().is_some_and(|s| s.1 < b.t) {
+                spans.next();
+            }
+            if spans.peek().is_some_and(|s| s.0 <= b.t) {
+                used += 1;
+            }
+        }
+        used
     }
 
     /// `f` of every bin of `placed`, with what `interval` gives for its interval (computed once
@@ -304,6 +350,23 @@ impl ImuJoint<'_> {
         cost
     }
 
+    /// Window `k`'s whitened terms at `knots` and `st`, held columns zeroed (`None`: no
+    /// window there, or one whose covariance is not positive definite).
+    fn window_at(
+        &self,
+        w: &Windows,
+        knots: &[Knot],
+        k: usize,
+        st: &ImuState,
+    ) -> Option<WindowTerms> {
+        let (pre, white) = w.list.get(k)?.as_ref()?;
+        let mut t = window_terms(&knots[k], &knots[k + 1], pre, w.offset0, st, white);
+        for &c in self.held.iter().filter(|&&c| c < NFIXED) {
+            t.jl.column_mut(c).fill(0.0);
+        }
+        Some(t)
+    }
+
     /// Zeroes the columns of a bin's calibration Jacobian that are held.
     fn hold_bin(&self, jl: &mut SMatrix<f64, 6, 21>) {
         for &c in self.held.iter().filter(|&&c| c < NFIXED) {
@@ -331,6 +394,16 @@ impl ImuJoint<'_> {
     /// The whole cost at `knots` and `st`.
     pub fn cost(&self, knots: &[Knot], st: &ImuState) -> f64 {
         let mut cost = self.problem().cost(knots) + self.walk_cost(st) + self.dvl_cost(knots, st);
+        if let Some(w) = &self.windows {
+            let term = |_: &(), _: usize, k: usize, _: f64| {
+                w.list[k].as_ref().map_or(0.0, |(pre, white)| {
+                    let e = window_residual(&knots[k], &knots[k + 1], pre, w.offset0, st);
+                    (white * e).norm_squared()
+                })
+            };
+            self.map_bins(&w.placed(), 0.0, |_| (), term, |c| cost += c);
+            return cost;
+        }
         let placed = self.placed(st.time_offset_s);
         let gamma2 = |k: usize| local_gamma(&knots[k], &knots[k + 1]);
         let term = |g2: &V18, j: usize, k: usize, s: f64| {
@@ -377,7 +450,7 @@ impl ImuJoint<'_> {
             }
         };
         let local = |k: usize| local_state(&knots[k], &knots[k + 1]);
-        self.map_bins(&placed, BinNormal::default(), local, normal, |b| {
+        let add = |b: &BinNormal| {
             let k = b.k;
             cost += b.cost;
             sys.diag[k] += b.d1;
@@ -394,7 +467,17 @@ impl ImuJoint<'_> {
                     hth[(ca, cb)] += b.hl[(a, c)];
                 }
             }
-        });
+        };
+        match &self.windows {
+            Some(w) => {
+                let normal = |_: &(), _: usize, k: usize, _: f64| {
+                    self.window_at(w, knots, k, st)
+                        .map_or_else(BinNormal::default, |t| window_normal(k, &t))
+                };
+                self.map_bins(&w.placed(), BinNormal::default(), |_| (), normal, add);
+            }
+            None => self.map_bins(&placed, BinNormal::default(), local, normal, add),
+        }
         // The random walks between nodes.
         for i in 0..st.bias.values.len() - 1 {
             let (wg, wa) = self.walk_information(i, st);
@@ -564,7 +647,7 @@ impl ImuJoint<'_> {
                 (w[r] * u.row(r).norm_squared(), own)
             })
         };
-        self.map_bins(&placed, [(0.0, None); 6], local, terms, |rows| {
+        let mut sink = |rows: &[(f64, Option<(f64, f64)>)]| {
             for (r, &(projected, own)) in rows.iter().enumerate() {
                 let part = if r < 3 { &mut out.gyro } else { &mut out.accel };
                 part.1 -= projected;
@@ -573,7 +656,28 @@ impl ImuJoint<'_> {
                     part.1 += red;
                 }
             }
-        });
+        };
+        match &self.windows {
+            // Whitened rows: the first three the gyro's, the rest the accelerometer's.
+            Some(w) => {
+                let terms = |_: &(), _: usize, k: usize, _: f64| {
+                    let Some(t) = self.window_at(w, knots, k, st) else {
+                        return [(0.0, None); 9];
+                    };
+                    let gl = SMatrix::<f64, 21, CHUNK>::from_iterator(
+                        g_rows(&theta_columns(t.node)).iter().copied(),
+                    );
+                    let u = t.j1 * xg[k] + t.j2 * xg[k + 1] - t.jl * gl;
+                    let proj = band.map(|b| local_projection(b, k, &t.j1, &t.j2));
+                    std::array::from_fn::<_, 9, _>(|r| {
+                        let own = proj.map(|pr| (t.e[r] * t.e[r], 1.0 - pr[(r, r)]));
+                        (u.row(r).norm_squared(), own)
+                    })
+                };
+                self.map_bins(&w.placed(), [(0.0, None); 9], |_| (), terms, |r| sink(r));
+            }
+            None => self.map_bins(&placed, [(0.0, None); 6], local, terms, |r| sink(r)),
+        }
         if let Some(pd) = &st.dvl {
             let c = st.dvl_start();
             let cols: Vec<usize> = (c..c + NPARAM).collect();
@@ -623,7 +727,7 @@ impl ImuJoint<'_> {
             if converged || decrement < STOP_DECREMENT || iterations >= max_iterations {
                 converged = converged || decrement < STOP_DECREMENT;
                 let covariance = schur.clone().try_inverse().ok_or_else(singular)?;
-                let bins_used = self.placed(st.time_offset_s).len();
+                let bins_used = self.bins_used(&st);
                 return Ok(Solution {
                     knots,
                     state: st,

@@ -107,6 +107,7 @@ fn joint<'a>(times: &[f64], ks: &[Knot], bins: &'a [ImuBin], dvl: &'a [DvlObs]) 
         held: vec![3, 6],
         dvl,
         dvl_info: dvl.iter().map(|o| o.information().expect("info")).collect(),
+        windows: None,
     }
 }
 
