@@ -48,7 +48,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             &imu.samples,
             &imu_cfg.noise,
             &CalibOptions::default(),
-            &ImuOptions::default(),
+            &ImuOptions {
+                preintegrate: std::env::var("PREINT").ok().map(|v| v != "0"),
+                ..ImuOptions::default()
+            },
         )?;
         let dt = t0.elapsed().as_secs_f64();
         let e = difference(&est.params, &truth);

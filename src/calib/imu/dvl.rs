@@ -14,6 +14,7 @@ use nalgebra::{Matrix3, Matrix6, SMatrix, Vector3, Vector6};
 use super::bins::{ImuBin, make_bins};
 use super::dvl_init::{DeadReckoning, initial_dvl_imu};
 use super::factors::{SparsePoseFactors, bin_information};
+use super::preint::Windows;
 use super::solve::{ImuJoint, Redundancy};
 use super::state::{BiasNodes, ImuState};
 use super::{ImuOptions, bias_spacing};
@@ -32,6 +33,9 @@ const MISFIT_FACTOR: f64 = 8.0;
 
 /// Knot spacing of the IMU's trajectory, s.
 const KNOT_SPACING_S: f64 = 0.025;
+
+/// Knot spacing with the IMU preintegrated between knots, s (the camera modes' 10 Hz).
+const WINDOW_SPACING_S: f64 = 0.1;
 
 /// The DVL's calibration against the IMU.
 #[derive(Clone, Debug)]
@@ -116,7 +120,15 @@ pub fn calibrate_dvl_imu(
             start.offset
         )));
     }
-    let n = ((t1 - t0) / KNOT_SPACING_S).ceil() as usize + 1;
+    let preintegrate = opts
+        .preintegrate
+        .unwrap_or(t1 - t0 > super::PREINTEGRATE_FROM_S);
+    let spacing = if preintegrate {
+        WINDOW_SPACING_S
+    } else {
+        KNOT_SPACING_S
+    };
+    let n = ((t1 - t0) / spacing).ceil() as usize + 1;
     let times: Vec<f64> = (0..n)
         .map(|i| t0 + (t1 - t0) * i as f64 / (n - 1) as f64)
         .collect();
@@ -172,6 +184,12 @@ pub fn calibrate_dvl_imu(
         dvl_info: dvl_stated.clone(),
         windows: None,
     };
+    let var = (
+        noise.gyro_sample_std().powi(2),
+        noise.accel_sample_std().powi(2),
+    );
+    // The offset is held at zero: the windows never move.
+    joint.windows = preintegrate.then(|| Windows::new(samples, &joint.times, &st, noise, var));
     let mut sol = joint.solve(knots, st, opts.max_iterations)?;
     let mut factor = (1.0, 1.0, 1.0);
     if opts.estimate_noise {
@@ -197,6 +215,9 @@ pub fn calibrate_dvl_imu(
                 .iter()
                 .map(|w| w / (factor.2 * factor.2))
                 .collect();
+            if let Some(w) = &mut joint.windows {
+                w.reweigh((var.0 * factor.0 * factor.0, var.1 * factor.1 * factor.1));
+            }
             sol = joint.solve(sol.knots, sol.state, opts.max_iterations)?;
         }
     }

@@ -382,6 +382,7 @@ fn camera_imu(
     if opts.estimate_noise {
         // Two rounds: the first factor moves the solution a little, the second settles it.
         for _ in 0..2 {
+            let before = (factor, dvl_factor);
             let r = joint.redundancy(&sol.knots, &sol.state)?;
             let (chi_g, red_g, chi_a, red_a) = (r.gyro.0, r.gyro.1, r.accel.0, r.accel.1);
             if !dvl_obs.is_empty() {
@@ -402,6 +403,10 @@ fn camera_imu(
                 (factor.1 * (chi_a / red_a.max(1.0)).sqrt()).max(1.0),
             );
             factor = (fg, fa);
+            if (factor, dvl_factor) == before {
+                // The weights stay as they were: so does the solution.
+                break;
+            }
             joint.info = stated
                 .iter()
                 .map(|w| {
