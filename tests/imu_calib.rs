@@ -113,6 +113,57 @@ fn twenty_seeds(opts: &ImuOptions, factor_tolerance: f64) {
     assert!(std_sum[0] / n < 0.05 && std_sum[1] / n < 0.005 && std_sum[2] / n < 0.001);
 }
 
+/// A recording longer than ten minutes is preintegrated without being asked: its knots are the
+/// pose times alone (the bins would put three more between each pair), every window between
+/// them is used, and the estimate lies within 4 of its std of the truth with the noise factors
+/// near one (11 minutes: 6600 poses, 132,000 IMU samples).
+#[test]
+fn a_recording_over_ten_minutes_is_preintegrated_and_at_its_std() {
+    let cfg = SimConfig {
+        seed: 4,
+        duration_s: 660.0,
+        motion: MotionKind::CalmThenRotate,
+        ..SimConfig::default()
+    };
+    let motion = build_motion(&cfg).expect("motion");
+    let data = simulate_with(&cfg, motion.as_ref()).expect("data");
+    let imu_cfg = ImuSimConfig::default_truth();
+    let imu = simulate_imu(motion.as_ref(), &imu_cfg, 0.0, cfg.duration_s, 4).expect("imu");
+    let est = calibrate_camera_imu(
+        &data.poses,
+        &imu.samples,
+        &imu_cfg.noise,
+        &ImuOptions::default(),
+    )
+    .expect("calibration");
+    assert!(est.converged);
+    assert_eq!(est.times.len(), data.poses.len());
+    // Bins are still counted (those the windows cover): all but the ends'.
+    assert!(
+        est.bins_used + 4 >= est.bins_total,
+        "{} of {}",
+        est.bins_used,
+        est.bins_total
+    );
+    let (s_rot, s_lever, s_off) = est.std();
+    let rot = so3::log(&(imu_cfg.t_cam_imu.rot.transpose() * est.state.t_cam_imu.rot));
+    let lever = est.state.t_cam_imu.trans - imu_cfg.t_cam_imu.trans;
+    let off = est.state.time_offset_s - imu_cfg.time_offset_s;
+    for i in 0..3 {
+        assert!(rot[i].abs() < 4.0 * s_rot[i], "rotation {rot} std {s_rot}");
+        assert!(
+            lever[i].abs() < 4.0 * s_lever[i],
+            "lever arm {lever} std {s_lever}"
+        );
+    }
+    assert!(off.abs() < 4.0 * s_off, "offset {off} std {s_off}");
+    assert!(
+        est.noise_factor.0 < 1.25 && est.noise_factor.1 < 1.25,
+        "{:?}",
+        est.noise_factor
+    );
+}
+
 /// Rows of a 4x4 matrix under `key:` in a small YAML file, read as text (the test's own
 /// reading of a fixture: no dvlcal code involved).
 fn matrix_rows(text: &str, key: &str) -> [[f64; 4]; 4] {
