@@ -16,7 +16,7 @@
 //! accelerometer parts per unit sample variance, so that scaling either sensor's noise costs
 //! nothing.
 
-use nalgebra::{Cholesky, Matrix3, SMatrix, SVector, Vector3};
+use nalgebra::{Cholesky, Matrix3, SMatrix, SVector, Vector3, Vector6};
 
 use super::state::{ImuState, NFIXED};
 use crate::lie::{Se3, hat, se3_right_jacobian, so3};
@@ -254,6 +254,14 @@ impl Windows {
         }
     }
 
+    /// The gyro's and the accelerometer's sample variances `noise` states.
+    pub fn stated_variances(noise: &ImuNoise) -> (f64, f64) {
+        (
+            noise.gyro_sample_std().powi(2),
+            noise.accel_sample_std().powi(2),
+        )
+    }
+
     /// The same windows weighed by the sample variances `var`.
     pub fn reweigh(&mut self, var: (f64, f64)) {
         self.var = var;
@@ -277,42 +285,71 @@ impl Windows {
 }
 
 /// The IMU's attitude, position and velocity in the world at `eps` after knot `k` (camera
-/// clock), from the knot's state alone.
-fn imu_state(k: &Knot, eps: f64, st: &ImuState) -> (Matrix3<f64>, Vector3<f64>, Vector3<f64>) {
+/// clock), from the knot's state alone, with what [`end`] derives them from: the extrapolated
+/// camera pose, its local step `xi` and twist.
+struct ImuAt {
+    r: Matrix3<f64>,
+    p: Vector3<f64>,
+    v: Vector3<f64>,
+    pose: Se3,
+    xi: Vector6<f64>,
+    twist: Vector6<f64>,
+}
+
+fn imu_state(k: &Knot, eps: f64, st: &ImuState) -> ImuAt {
     let xi = k.twist * eps + k.rate * (0.5 * eps * eps);
     let pose = k.pose * Se3::exp(&xi);
-    let tw = k.twist + k.rate * eps;
-    let v = tw.fixed_rows::<3>(0).into_owned();
-    let w = tw.fixed_rows::<3>(3).into_owned();
+    let twist = k.twist + k.rate * eps;
+    let v = twist.fixed_rows::<3>(0).into_owned();
+    let w = twist.fixed_rows::<3>(3).into_owned();
     let p = &st.t_cam_imu.trans;
-    (
-        pose.rot * st.t_cam_imu.rot,
-        pose.trans + pose.rot * p,
-        pose.rot * (v + w.cross(p)),
-    )
+    ImuAt {
+        r: pose.rot * st.t_cam_imu.rot,
+        p: pose.trans + pose.rot * p,
+        v: pose.rot * (v + w.cross(p)),
+        pose,
+        xi,
+        twist,
+    }
+}
+
+/// A window's residual at the IMU's states `a` and `b` at its ends, and the parts its
+/// Jacobians reuse: the rotation's residual `er`, `y_v = R_a^T (v_b - v_a - g T)`, `y_p = R_a^T
+/// (p_b - p_a - v_a T - g T^2 / 2)` and the gyro bias's rotation correction `x`.
+struct Misfit {
+    e: V9,
+    er: Vector3<f64>,
+    yv: Vector3<f64>,
+    yp: Vector3<f64>,
+    x: Vector3<f64>,
+}
+
+fn misfit(a: &ImuAt, b: &ImuAt, pre: &Preintegrated, st: &ImuState) -> Misfit {
+    let bias = st.bias.at(pre.t_mid());
+    let dbg = bias.gyro - pre.bias.gyro;
+    let dba = bias.accel - pre.bias.accel;
+    let g = st.gravity_world();
+    let t = pre.dt;
+    let x = pre.dr_dbg * dbg;
+    let rc = pre.rot * so3::exp(&x);
+    let er = so3::log(&(rc.transpose() * a.r.transpose() * b.r));
+    let rat = a.r.transpose();
+    let yv = rat * (b.v - a.v - g * t);
+    let yp = rat * (b.p - a.p - a.v * t - g * (0.5 * t * t));
+    let mut e = V9::zeros();
+    e.fixed_rows_mut::<3>(0).copy_from(&er);
+    e.fixed_rows_mut::<3>(3)
+        .copy_from(&(yv - (pre.vel + pre.dv_dbg * dbg + pre.dv_dba * dba)));
+    e.fixed_rows_mut::<3>(6)
+        .copy_from(&(yp - (pre.pos + pre.dp_dbg * dbg + pre.dp_dba * dba)));
+    Misfit { e, er, yv, yp, x }
 }
 
 /// The residual of window `pre` between knots `k1` and `k2`, unwhitened: the measured
 /// increments (corrected to the biases of `st`) against those of the knots' states.
 pub fn residual(k1: &Knot, k2: &Knot, pre: &Preintegrated, offset0: f64, st: &ImuState) -> V9 {
     let eps = st.time_offset_s - offset0;
-    let (ra, pa, va) = imu_state(k1, eps, st);
-    let (rb, pb, vb) = imu_state(k2, eps, st);
-    let b = st.bias.at(pre.t_mid());
-    let dbg = b.gyro - pre.bias.gyro;
-    let dba = b.accel - pre.bias.accel;
-    let g = st.gravity_world();
-    let t = pre.dt;
-    let rc = pre.rot * so3::exp(&(pre.dr_dbg * dbg));
-    let er = so3::log(&(rc.transpose() * ra.transpose() * rb));
-    let ev = ra.transpose() * (vb - va - g * t) - (pre.vel + pre.dv_dbg * dbg + pre.dv_dba * dba);
-    let ep = ra.transpose() * (pb - pa - va * t - g * (0.5 * t * t))
-        - (pre.pos + pre.dp_dbg * dbg + pre.dp_dba * dba);
-    let mut e = V9::zeros();
-    e.fixed_rows_mut::<3>(0).copy_from(&er);
-    e.fixed_rows_mut::<3>(3).copy_from(&ev);
-    e.fixed_rows_mut::<3>(6).copy_from(&ep);
-    e
+    misfit(&imu_state(k1, eps, st), &imu_state(k2, eps, st), pre, st).e
 }
 
 /// The window's covariance with the gyro's and the accelerometer's sample variances `var`.
@@ -341,9 +378,7 @@ pub fn whitening(pre: &Preintegrated, var: (f64, f64)) -> Option<M9> {
 /// (rows `[dphi (right, IMU frame); dp; dv]`) with respect to the knot it is extrapolated from,
 /// the clock offset and the extrinsics.
 struct End {
-    r: Matrix3<f64>,
-    p: Vector3<f64>,
-    v: Vector3<f64>,
+    at: ImuAt,
     d_knot: SMatrix<f64, 9, 18>,
     d_eps: SVector<f64, 9>,
     /// On `R_cam_imu` (right) and `p_cam_imu`.
@@ -354,19 +389,17 @@ struct End {
 /// extrapolated pose `T Exp(xi)` moves by `Ad(Exp(-xi)) d`, and by `J_r(xi) d xi` when `xi`
 /// does; the IMU's pose `T T_cam_imu` and velocity `R (v + w x p_cam_imu)` follow.
 fn end(k: &Knot, eps: f64, st: &ImuState) -> End {
-    let xi = k.twist * eps + k.rate * (0.5 * eps * eps);
-    let ex = Se3::exp(&xi);
-    let pose = k.pose * ex;
-    let tw = k.twist + k.rate * eps;
+    let at = imu_state(k, eps, st);
+    let (xi, tw) = (&at.xi, &at.twist);
     let v = tw.fixed_rows::<3>(0).into_owned();
     let w = tw.fixed_rows::<3>(3).into_owned();
     let (rci, pci) = (&st.t_cam_imu.rot, &st.t_cam_imu.trans);
-    let r = pose.rot;
-    let jr = se3_right_jacobian(&xi);
+    let r = at.pose.rot;
+    let jr = se3_right_jacobian(xi);
     let mut dpose = SMatrix::<f64, 6, 18>::zeros();
     dpose
         .fixed_view_mut::<6, 6>(0, 0)
-        .copy_from(&ex.inverse().adjoint());
+        .copy_from(&Se3::exp(&-xi).adjoint());
     dpose.fixed_view_mut::<6, 6>(0, 6).copy_from(&(jr * eps));
     dpose
         .fixed_view_mut::<6, 6>(0, 12)
@@ -394,9 +427,7 @@ fn end(k: &Knot, eps: f64, st: &ImuState) -> End {
     d_ext.fixed_view_mut::<3, 3>(3, 3).copy_from(&r);
     d_ext.fixed_view_mut::<3, 3>(6, 3).copy_from(&(r * hat(&w)));
     End {
-        r: r * rci,
-        p: pose.trans + r * pci,
-        v: r * u,
+        at,
         d_knot,
         d_eps,
         d_ext,
@@ -419,29 +450,15 @@ pub fn window_terms(
 ) -> WindowTerms {
     let eps = st.time_offset_s - offset0;
     let (a, b) = (end(k1, eps, st), end(k2, eps, st));
-    let bias = st.bias.at(pre.t_mid());
-    let dbg = bias.gyro - pre.bias.gyro;
-    let dba = bias.accel - pre.bias.accel;
-    let g = st.gravity_world();
+    let Misfit { e, er, yv, yp, x } = misfit(&a.at, &b.at, pre, st);
     let t = pre.dt;
-    let x = pre.dr_dbg * dbg;
-    let rc = pre.rot * so3::exp(&x);
-    let er = so3::log(&(rc.transpose() * a.r.transpose() * b.r));
-    let rat = a.r.transpose();
-    let yv = rat * (b.v - a.v - g * t);
-    let yp = rat * (b.p - a.p - a.v * t - g * (0.5 * t * t));
-    let mut e = V9::zeros();
-    e.fixed_rows_mut::<3>(0).copy_from(&er);
-    e.fixed_rows_mut::<3>(3)
-        .copy_from(&(yv - (pre.vel + pre.dv_dbg * dbg + pre.dv_dba * dba)));
-    e.fixed_rows_mut::<3>(6)
-        .copy_from(&(yp - (pre.pos + pre.dp_dbg * dbg + pre.dp_dba * dba)));
+    let rat = a.at.r.transpose();
     // The residual against each end's `[dphi; dp; dv]`.
     let jri = so3::right_jacobian_inv(&er);
     let mut ea = M9::zeros();
     let mut eb = M9::zeros();
     ea.fixed_view_mut::<3, 3>(0, 0)
-        .copy_from(&(-jri * b.r.transpose() * a.r));
+        .copy_from(&(-jri * b.at.r.transpose() * a.at.r));
     eb.fixed_view_mut::<3, 3>(0, 0).copy_from(&jri);
     ea.fixed_view_mut::<3, 3>(3, 0).copy_from(&hat(&yv));
     ea.fixed_view_mut::<3, 3>(3, 6).copy_from(&-rat);
