@@ -59,7 +59,7 @@ pub struct DvlImuEstimate {
     pub dvl_used: usize,
     /// Valid DVL reports in all.
     pub dvl_total: usize,
-    /// IMU bins used (inside the trajectory's span).
+    /// IMU bins used (inside the trajectory's span; preintegrated, inside a window).
     pub bins_used: usize,
     /// IMU bins in all.
     pub bins_total: usize,
@@ -184,40 +184,36 @@ pub fn calibrate_dvl_imu(
         dvl_info: dvl_stated.clone(),
         windows: None,
     };
-    let var = (
-        noise.gyro_sample_std().powi(2),
-        noise.accel_sample_std().powi(2),
-    );
     // The offset is held at zero: the windows never move.
-    joint.windows = preintegrate.then(|| Windows::new(samples, &joint.times, &st, noise, var));
+    joint.windows = preintegrate.then(|| {
+        Windows::new(
+            samples,
+            &joint.times,
+            &st,
+            noise,
+            Windows::stated_variances(noise),
+        )
+    });
     let mut sol = joint.solve(knots, st, opts.max_iterations)?;
     let mut factor = (1.0, 1.0, 1.0);
     if opts.estimate_noise {
         for _ in 0..2 {
+            let before = factor;
             let r = joint.redundancy(&sol.knots, &sol.state)?;
             factor = (
                 (factor.0 * Redundancy::factor(r.gyro)).max(1.0),
                 (factor.1 * Redundancy::factor(r.accel)).max(1.0),
                 (factor.2 * Redundancy::factor(r.dvl)).max(1.0),
             );
-            joint.info = stated
-                .iter()
-                .map(|w| {
-                    let mut w = *w;
-                    for r in 0..3 {
-                        w[r] /= factor.0 * factor.0;
-                        w[r + 3] /= factor.1 * factor.1;
-                    }
-                    w
-                })
-                .collect();
+            if factor == before {
+                // The weights stay as they were: so does the solution.
+                break;
+            }
+            joint.weigh_imu(&stated, (factor.0, factor.1));
             joint.dvl_info = dvl_stated
                 .iter()
                 .map(|w| w / (factor.2 * factor.2))
                 .collect();
-            if let Some(w) = &mut joint.windows {
-                w.reweigh((var.0 * factor.0 * factor.0, var.1 * factor.1 * factor.1));
-            }
             sol = joint.solve(sol.knots, sol.state, opts.max_iterations)?;
         }
     }

@@ -105,7 +105,7 @@ pub struct ImuEstimate {
     pub iterations: usize,
     /// Whether it converged.
     pub converged: bool,
-    /// IMU bins used (inside the camera's span).
+    /// IMU bins used (inside the camera's span; preintegrated, inside a window).
     pub bins_used: usize,
     /// IMU bins in all.
     pub bins_total: usize,
@@ -371,11 +371,15 @@ fn camera_imu(
         dvl_info: dvl_stated.clone(),
         windows: None,
     };
-    let var = (
-        noise.gyro_sample_std().powi(2),
-        noise.accel_sample_std().powi(2),
-    );
-    joint.windows = preintegrate.then(|| preint::Windows::new(samples, &times, &st, noise, var));
+    joint.windows = preintegrate.then(|| {
+        preint::Windows::new(
+            samples,
+            &times,
+            &st,
+            noise,
+            preint::Windows::stated_variances(noise),
+        )
+    });
     let mut sol = solve_placed(&mut joint, knots, st, opts.max_iterations, samples)?;
     let mut factor = (1.0, 1.0);
     let mut dvl_factor = 1.0;
@@ -407,20 +411,7 @@ fn camera_imu(
                 // The weights stay as they were: so does the solution.
                 break;
             }
-            joint.info = stated
-                .iter()
-                .map(|w| {
-                    let mut w = *w;
-                    for r in 0..3 {
-                        w[r] /= fg * fg;
-                        w[r + 3] /= fa * fa;
-                    }
-                    w
-                })
-                .collect();
-            if let Some(w) = &mut joint.windows {
-                w.reweigh((var.0 * fg * fg, var.1 * fa * fa));
-            }
+            joint.weigh_imu(&stated, factor);
             sol = solve_placed(
                 &mut joint,
                 sol.knots,

@@ -159,7 +159,7 @@ pub struct Solution {
     pub iterations: usize,
     pub converged: bool,
     pub cost: f64,
-    /// Bins inside the trajectory's span at the solution.
+    /// Bins inside the trajectory's span at the solution (with windows: inside one).
     pub bins_used: usize,
 }
 
@@ -350,6 +350,28 @@ impl ImuJoint<'_> {
         cost
     }
 
+    /// The IMU's factors weighed by its stated noise times `f` (gyro, accelerometer): the
+    /// bins' information from `stated` (theirs at the stated noise), or the windows' sample
+    /// variances.
+    pub fn weigh_imu(&mut self, stated: &[Vector6<f64>], f: (f64, f64)) {
+        let (g2, a2) = (f.0 * f.0, f.1 * f.1);
+        self.info = stated
+            .iter()
+            .map(|w| {
+                let mut w = *w;
+                for r in 0..3 {
+                    w[r] /= g2;
+                    w[r + 3] /= a2;
+                }
+                w
+            })
+            .collect();
+        if let Some(w) = &mut self.windows {
+            let (vg, va) = Windows::stated_variances(&self.noise);
+            w.reweigh((vg * g2, va * a2));
+        }
+    }
+
     /// Window `k`'s whitened terms at `knots` and `st`, held columns zeroed (`None`: no
     /// window there, or one whose covariance is not positive definite).
     fn window_at(
@@ -423,7 +445,6 @@ impl ImuJoint<'_> {
         let mut cross = Coupling::zeros(n, p, st.dvl.map(|_| st.dvl_start()));
         let mut hth = DMatrix::<f64>::zeros(p, p);
         let mut gth = DVector::<f64>::zeros(p);
-        let placed = self.placed(st.time_offset_s);
         let normal = |l: &LocalState, j: usize, k: usize, s: f64| {
             let dt = self.times[k + 1] - self.times[k];
             let t = bin_terms(&knots[k], l, s, dt, &self.bins[j], st);
@@ -476,7 +497,10 @@ impl ImuJoint<'_> {
                 };
                 self.map_bins(&w.placed(), BinNormal::default(), |_| (), normal, add);
             }
-            None => self.map_bins(&placed, BinNormal::default(), local, normal, add),
+            None => {
+                let placed = self.placed(st.time_offset_s);
+                self.map_bins(&placed, BinNormal::default(), local, normal, add)
+            }
         }
         // The random walks between nodes.
         for i in 0..st.bias.values.len() - 1 {
@@ -628,7 +652,6 @@ impl ImuJoint<'_> {
                 if c < width { g[(cols[a], c0 + c)] } else { 0.0 }
             })
         };
-        let placed = self.placed(st.time_offset_s);
         let local = |k: usize| local_state(&knots[k], &knots[k + 1]);
         // Per row: `w |u|^2`, and with the band `w e^2` and `1 - w (J_x A^-1 J_x^T)`.
         let terms = |l: &LocalState, j: usize, k: usize, s: f64| {
@@ -676,7 +699,10 @@ impl ImuJoint<'_> {
                 };
                 self.map_bins(&w.placed(), [(0.0, None); 9], |_| (), terms, |r| sink(r));
             }
-            None => self.map_bins(&placed, [(0.0, None); 6], local, terms, |r| sink(r)),
+            None => {
+                let placed = self.placed(st.time_offset_s);
+                self.map_bins(&placed, [(0.0, None); 6], local, terms, |r| sink(r))
+            }
         }
         if let Some(pd) = &st.dvl {
             let c = st.dvl_start();
