@@ -9,7 +9,8 @@
 //!    linear in them once the rotation is known (gravity then scaled to its magnitude and the
 //!    other two solved again).
 
-use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
+use nalgebra::{DMatrix, DVector, Matrix3, SMatrix, SVector, Vector3};
+use rayon::prelude::*;
 
 use super::bins::ImuBin;
 use super::state::{BiasNodes, ImuState};
@@ -30,12 +31,10 @@ pub fn initial_state(
 ) -> Result<ImuState> {
     let offset = search_offset(traj, bins, max_offset)?;
     // Pairs of camera and gyro rates, camera state at each bin.
-    let mut states = Vec::new();
-    for b in bins {
-        if let Ok(s) = traj.state(b.t + offset) {
-            states.push((b, s));
-        }
-    }
+    let states: Vec<_> = bins
+        .par_iter()
+        .filter_map(|b| traj.state(b.t + offset).ok().map(|s| (b, s)))
+        .collect();
     if states.len() < 20 {
         return Err(Error::Input(format!(
             "only {} IMU bins overlap the camera trajectory at the clock offset found ({offset:.3} s)",
@@ -64,29 +63,33 @@ pub fn initial_state(
     let gyro_bias = mean_i - q * mean_c;
 
     // Specific force: Q^T f - a0 = A p - R_wc^T g + Q^T b_a, with A = hat(w') + hat(w)^2.
+    // With gravity given, its three columns are left zero and only the first six solved.
     let solve = |g_fixed: Option<Vector3<f64>>| -> Option<DVector<f64>> {
         let cols = if g_fixed.is_some() { 6 } else { 9 };
-        let mut ata = DMatrix::<f64>::zeros(cols, cols);
-        let mut atb = DVector::<f64>::zeros(cols);
+        let mut ata = SMatrix::<f64, 9, 9>::zeros();
+        let mut atb = SVector::<f64, 9>::zeros();
         for (b, s) in &states {
             let v: Vector3<f64> = s.twist.fixed_rows::<3>(0).into_owned();
             let w = w_cam(s);
             let dv: Vector3<f64> = s.rate.fixed_rows::<3>(0).into_owned();
             let dw: Vector3<f64> = s.rate.fixed_rows::<3>(3).into_owned();
             let mut rhs = q.transpose() * b.accel - (dv + w.cross(&v));
-            let mut a = DMatrix::<f64>::zeros(3, cols);
-            a.view_mut((0, 0), (3, 3))
+            let mut a = SMatrix::<f64, 3, 9>::zeros();
+            a.fixed_view_mut::<3, 3>(0, 0)
                 .copy_from(&(hat(&dw) + hat(&w) * hat(&w)));
-            a.view_mut((0, 3), (3, 3)).copy_from(&Matrix3::identity());
+            a.fixed_view_mut::<3, 3>(0, 3)
+                .copy_from(&Matrix3::identity());
             match g_fixed {
                 Some(g) => rhs += s.pose.rot.transpose() * g,
                 None => a
-                    .view_mut((0, 6), (3, 3))
+                    .fixed_view_mut::<3, 3>(0, 6)
                     .copy_from(&-s.pose.rot.transpose()),
             }
-            ata += a.transpose() * &a;
-            atb += a.transpose() * DVector::from_column_slice(rhs.as_slice());
+            ata += a.tr_mul(&a);
+            atb += a.tr_mul(&rhs);
         }
+        let ata = DMatrix::from_fn(cols, cols, |r, c| ata[(r, c)]);
+        let atb = DVector::from_fn(cols, |r, _| atb[r]);
         ata.cholesky().map(|c| c.solve(&atb))
     };
     let free = solve(None).ok_or_else(|| {
@@ -135,12 +138,13 @@ fn search_offset(traj: &Trajectory, bins: &[ImuBin], max_offset: f64) -> Result<
     // The trajectory's rate magnitude on a fine grid.
     let step = 0.002;
     let n = ((b - a) / step).floor() as usize + 1;
-    let mut grid = Vec::with_capacity(n);
-    for i in 0..n {
-        let t = a + i as f64 * step;
-        let w = traj.twist(t)?;
-        grid.push(w.fixed_rows::<3>(3).norm());
-    }
+    let grid: Vec<f64> = (0..n)
+        .into_par_iter()
+        .map(|i| {
+            let w = traj.twist(a + i as f64 * step)?;
+            Ok(w.fixed_rows::<3>(3).norm())
+        })
+        .collect::<Result<_>>()?;
     let at = |t: f64| -> Option<f64> {
         let x = (t - a) / step;
         if x < 0.0 || x > (n - 1) as f64 {
@@ -169,8 +173,12 @@ fn search_offset(traj: &Trajectory, bins: &[ImuBin], max_offset: f64) -> Result<
     let k = (max_offset / dstep).ceil() as i64;
     let mut best: Option<(i64, f64)> = None;
     let mut scores = std::collections::HashMap::new();
-    for i in -k..=k {
-        if let Some(s) = score(i as f64 * dstep) {
+    let all: Vec<(i64, Option<f64>)> = (-k..=k)
+        .into_par_iter()
+        .map(|i| (i, score(i as f64 * dstep)))
+        .collect();
+    for (i, s) in all {
+        if let Some(s) = s {
             scores.insert(i, s);
             if best.is_none_or(|(_, b)| s < b) {
                 best = Some((i, s));
