@@ -263,6 +263,12 @@ pub(crate) fn forward_in_place(l: &M18, x: &mut V18) {
     forward_substitute(cols(l), &mut x.data.0[0]);
 }
 
+/// [`forward_in_place`] on the 18 numbers of a column held elsewhere.
+#[inline]
+pub(crate) fn forward_in_place_column(l: &M18, x: &mut [f64; N]) {
+    forward_substitute(cols(l), x);
+}
+
 /// Diagonal and first off-diagonal blocks of `A^-1`.
 #[derive(Clone, Debug, Default)]
 pub struct BandedInverse {

@@ -13,10 +13,13 @@
 //! length is stored beyond the system, its factor and the coupling.
 
 use nalgebra::{DMatrix, DVector, SMatrix};
+use rayon::prelude::*;
 
 use super::state::NFIXED;
 use crate::calib::model::NPARAM;
-use crate::trajectory::blocktri::{Factored, ForwardParts, V18, forward_in_place};
+use crate::trajectory::blocktri::{
+    Factored, ForwardParts, M18, V18, forward_in_place, forward_in_place_column,
+};
 
 /// Knot rows.
 const R: usize = 18;
@@ -32,6 +35,36 @@ pub struct Coupling {
     bias: Vec<Vec<(usize, SMatrix<f64, R, 6>)>>,
     /// With a DVL: its first column and, per knot, its columns.
     dvl: Option<(usize, Vec<SMatrix<f64, R, NPARAM>>)>,
+}
+
+/// A run of knots' rows of a [`Coupling`] (from [`Coupling::runs_mut`]), knot `0` its first.
+pub struct Rows<'a> {
+    fixed: &'a mut [SMatrix<f64, R, NFIXED>],
+    bias: &'a mut [Vec<(usize, SMatrix<f64, R, 6>)>],
+}
+
+impl Rows<'_> {
+    /// [`Coupling::add_bin`] on the run's knot `k`.
+    pub fn add_bin(&mut self, k: usize, node: usize, block: &SMatrix<f64, R, 21>) {
+        add_block(&mut self.fixed[k], &mut self.bias[k], node, block);
+    }
+}
+
+/// Adds a block on the 21 columns of `theta_columns(node)` to one knot's rows.
+fn add_block(
+    fixed: &mut SMatrix<f64, R, NFIXED>,
+    bias: &mut Vec<(usize, SMatrix<f64, R, 6>)>,
+    node: usize,
+    block: &SMatrix<f64, R, 21>,
+) {
+    *fixed += block.fixed_columns::<NFIXED>(0);
+    for (i, c) in [(node, NFIXED), (node + 1, NFIXED + 6)] {
+        let part = block.fixed_columns::<6>(c);
+        match bias.iter_mut().find(|(j, _)| *j == i) {
+            Some((_, m)) => *m += part,
+            None => bias.push((i, part.into_owned())),
+        }
+    }
 }
 
 impl Coupling {
@@ -53,15 +86,16 @@ impl Coupling {
     /// Adds a bin's block on knot `k` (the 21 columns of `theta_columns(node)`: the fixed
     /// parameters, then nodes `node` and `node + 1`).
     pub fn add_bin(&mut self, k: usize, node: usize, block: &SMatrix<f64, R, 21>) {
-        self.fixed[k] += block.fixed_columns::<NFIXED>(0);
-        for (i, c) in [(node, NFIXED), (node + 1, NFIXED + 6)] {
-            let part = block.fixed_columns::<6>(c);
-            let list = &mut self.bias[k];
-            match list.iter_mut().find(|(j, _)| *j == i) {
-                Some((_, m)) => *m += part,
-                None => list.push((i, part.into_owned())),
-            }
-        }
+        add_block(&mut self.fixed[k], &mut self.bias[k], node, block);
+    }
+
+    /// The knots' rows in runs of `len` knots, each borrowed apart from the others, so that
+    /// runs can be filled in parallel.
+    pub fn runs_mut(&mut self, len: usize) -> impl IndexedParallelIterator<Item = Rows<'_>> {
+        self.fixed
+            .par_chunks_mut(len)
+            .zip(self.bias.par_chunks_mut(len))
+            .map(|(fixed, bias)| Rows { fixed, bias })
     }
 
     /// Adds a DVL velocity's block on knot `k` (without a DVL in `theta`: nothing).
@@ -156,19 +190,53 @@ impl Coupling {
 }
 
 /// One sweep's share of [`schur_forms`], on the columns of `theta` in the order the sweep met
-/// them (`order`): the lower triangle of `(L^-1 H)^T (L^-1 H)` over its knots, `(L^-1 H)^T w`,
-/// and what its last knot hands to the middle block (`-Y^T (L^-1 H)`, one column each).
+/// them (`order`): `(L^-1 H)^T (L^-1 H)` over its knots, `(L^-1 H)^T w`, and what its last knot
+/// hands to the middle block (`-Y^T (L^-1 H)`, one column each).
 struct SweepForms {
     order: Vec<usize>,
     gram: DMatrix<f64>,
-    rhs: Vec<f64>,
+    rhs: DVector<f64>,
     to_mid: Vec<V18>,
+}
+
+/// Knots whose blocks of `L^-1 H` are stacked before their products are summed: one matrix
+/// product of `18 BATCH` rows per batch rather than a dot product per pair of columns and knot.
+const BATCH: usize = 16;
+
+/// Entries of `L^-1 H` smaller than this are set to zero (see [`sweep`]).
+const TINY: f64 = 1e-200;
+
+/// The knots' stacked blocks of `L^-1 H` and `w`, waiting for their products.
+struct Stack {
+    z: DMatrix<f64>,
+    w: DVector<f64>,
+    filled: usize,
+}
+
+impl Stack {
+    /// Adds the stacked knots' `Z^T Z` and `Z^T w` on the first `m` columns met and empties
+    /// the stack.
+    fn flush(&mut self, m: usize, gram: &mut DMatrix<f64>, rhs: &mut DVector<f64>) {
+        if self.filled == 0 {
+            return;
+        }
+        let z = self.z.columns(0, m);
+        // An explicit transpose: `gemm` on dynamic shapes is the blocked product, `gemm_tr` a
+        // dot product per entry.
+        let zt = z.transpose();
+        gram.view_mut((0, 0), (m, m)).gemm(1.0, &zt, &z, 1.0);
+        rhs.rows_mut(0, m).gemv(1.0, &zt, &self.w, 1.0);
+        self.z.columns_mut(0, m).fill(0.0);
+        self.w.fill(0.0);
+        self.filled = 0;
+    }
 }
 
 /// The forward substitution of `H` along one sweep of the factor: `knots` in the sweep's order
 /// and, for each, the gain it hands on through. Only the columns the sweep has met are carried
 /// (a bias node's columns are zero before its first bin), so the work per knot grows with the
-/// nodes behind it, not with all of `theta`.
+/// nodes behind it, not with all of `theta`. The blocks are one `18 x p` matrix, the first
+/// columns the ones met; the products are summed every [`BATCH`] knots.
 fn sweep(
     parts: &ForwardParts,
     cross: &Coupling,
@@ -176,41 +244,71 @@ fn sweep(
 ) -> SweepForms {
     let p = cross.columns();
     let mut at = vec![usize::MAX; p];
-    let mut order = Vec::new();
-    let mut z: Vec<V18> = Vec::new();
+    let mut order = Vec::with_capacity(p);
+    // z holds minus what the previous knot handed on: adding this knot's rows gives
+    // `H_k - Y^T z_prev`.
+    let mut z = DMatrix::<f64>::zeros(R, p);
+    let mut next = DMatrix::<f64>::zeros(R, p);
+    let mut stack = Stack {
+        z: DMatrix::zeros(R * BATCH, p),
+        w: DVector::zeros(R * BATCH),
+        filled: 0,
+    };
     let mut gram = DMatrix::zeros(p, p);
-    let mut rhs = vec![0.0; p];
+    let mut rhs = DVector::zeros(p);
     for (k, gain) in knots {
-        // z holds minus what the previous knot handed on: adding this knot's rows gives
-        // `H_k - Y^T z_prev`, bit for bit the difference.
         cross.for_each_column(k, |c, col| {
             if at[c] == usize::MAX {
                 at[c] = order.len();
                 order.push(c);
-                z.push(V18::zeros());
             }
-            z[at[c]] += V18::from_column_slice(col);
+            for (a, v) in z.column_mut(at[c]).iter_mut().zip(col) {
+                *a += v;
+            }
         });
-        for col in z.iter_mut() {
-            forward_in_place(&parts.chol[k], col);
-        }
-        let w = &parts.w[k];
-        for (a, za) in z.iter().enumerate() {
-            rhs[a] += za.dot(w);
-            for (b, zb) in z[..=a].iter().enumerate() {
-                gram[(a, b)] += za.dot(zb);
+        let m = order.len();
+        // `L_k^-1` once, then one product for all columns (a substitution per column costs
+        // 18 divisions each).
+        let mut l_inv = M18::identity();
+        for col in l_inv.as_mut_slice().chunks_exact_mut(R) {
+            if let Ok(x) = <&mut [f64; R]>::try_from(col) {
+                forward_in_place_column(&parts.chol[k], x);
             }
         }
-        let g = &parts.gain[gain];
-        for col in z.iter_mut() {
-            *col = -(g * *col);
+        next.columns_mut(0, m)
+            .gemm(1.0, &l_inv, &z.columns(0, m), 0.0);
+        let row = R * stack.filled;
+        stack
+            .z
+            .view_mut((row, 0), (R, m))
+            .copy_from(&next.columns(0, m));
+        stack.w.rows_mut(row, R).copy_from(&parts.w[k]);
+        stack.filled += 1;
+        if stack.filled == BATCH {
+            stack.flush(m, &mut gram, &mut rhs);
+            // A bias node's columns decay once the sweep has passed its knots; left alone they
+            // reach subnormal numbers, whose arithmetic is many times slower (the Schur
+            // complement took twice as long). Below `TINY` they add nothing a sum of products
+            // of realistic size can hold.
+            next.columns_mut(0, m).iter_mut().for_each(|v| {
+                if v.abs() < TINY {
+                    *v = 0.0
+                }
+            });
         }
+        z.columns_mut(0, m)
+            .gemm(-1.0, &parts.gain[gain], &next.columns(0, m), 0.0);
     }
+    let m = order.len();
+    stack.flush(m, &mut gram, &mut rhs);
+    let to_mid = (0..m)
+        .map(|j| V18::from_column_slice(z.column(j).as_slice()))
+        .collect();
     SweepForms {
         order,
         gram,
         rhs,
-        to_mid: z,
+        to_mid,
     }
 }
 

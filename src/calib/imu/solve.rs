@@ -185,6 +185,29 @@ struct BinNormal {
     gl: SMatrix<f64, 21, 1>,
 }
 
+/// Knots per run of [`ImuJoint::linearise_windows`].
+const RUN: usize = 256;
+
+/// A run's cost, what its last window adds to the next run's first knot (the node, then the
+/// knot's diagonal block, right-hand side and coupling), and its sums on `theta`.
+struct RunTail {
+    cost: f64,
+    next: Option<(usize, M18, V18, SMatrix<f64, 18, 21>)>,
+    hth: DMatrix<f64>,
+    gth: DVector<f64>,
+}
+
+/// Adds a bin's or window's blocks on the 21 columns of `theta` it touches.
+fn add_theta(hth: &mut DMatrix<f64>, gth: &mut DVector<f64>, b: &BinNormal) {
+    let cols = theta_columns(b.node);
+    for (a, &ca) in cols.iter().enumerate() {
+        gth[ca] -= b.gl[a];
+        for (c, &cb) in cols.iter().enumerate() {
+            hth[(ca, cb)] += b.hl[(a, c)];
+        }
+    }
+}
+
 /// A window's share of the normal equations (its terms already whitened).
 fn window_normal(k: usize, t: &WindowTerms) -> BinNormal {
     BinNormal {
@@ -481,21 +504,11 @@ impl ImuJoint<'_> {
             sys.rhs[k + 1] -= b.r2;
             cross.add_bin(k, b.node, &b.c1);
             cross.add_bin(k + 1, b.node, &b.c2);
-            let cols = theta_columns(b.node);
-            for (a, &ca) in cols.iter().enumerate() {
-                gth[ca] -= b.gl[a];
-                for (c, &cb) in cols.iter().enumerate() {
-                    hth[(ca, cb)] += b.hl[(a, c)];
-                }
-            }
+            add_theta(&mut hth, &mut gth, b);
         };
         match &self.windows {
             Some(w) => {
-                let normal = |_: &(), _: usize, k: usize, _: f64| {
-                    self.window_at(w, knots, k, st)
-                        .map_or_else(BinNormal::default, |t| window_normal(k, &t))
-                };
-                self.map_bins(&w.placed(), BinNormal::default(), |_| (), normal, add);
+                cost += self.linearise_windows(w, knots, st, sys, &mut cross, (&mut hth, &mut gth));
             }
             None => {
                 let placed = self.placed(st.time_offset_s);
@@ -563,6 +576,77 @@ impl ImuJoint<'_> {
             hth,
             gth,
         }
+    }
+
+    /// The windows' share of [`ImuJoint::linearise`]: their blocks on the knots into `sys` and
+    /// `cross`, on `theta` into `hth` and `gth`; returns their cost. Runs of [`RUN`] knots are
+    /// filled in parallel, each by its own windows (window `k` lies between knots `k` and
+    /// `k + 1`); what a run's last window adds to the next run's first knot, and each run's sums
+    /// on `theta`, are added after, in the runs' order. The order of every sum is fixed by the
+    /// recording, so the result is the same on any number of cores.
+    fn linearise_windows(
+        &self,
+        w: &Windows,
+        knots: &[Knot],
+        st: &ImuState,
+        sys: &mut BlockTridiagonal,
+        cross: &mut Coupling,
+        (hth, gth): (&mut DMatrix<f64>, &mut DVector<f64>),
+    ) -> f64 {
+        let p = hth.nrows();
+        // Knot `n - 1` has no window of its own: a run made of it alone (cut off by the zip
+        // with the `n - 1` upper blocks) would add nothing; the window before it hands it
+        // its share as any run's last window does.
+        let runs: Vec<RunTail> = sys
+            .diag
+            .par_chunks_mut(RUN)
+            .zip(sys.upper.par_chunks_mut(RUN))
+            .zip(sys.rhs.par_chunks_mut(RUN))
+            .zip(cross.runs_mut(RUN))
+            .enumerate()
+            .map(|(run, (((diag, upper), rhs), mut rows))| {
+                let mut tail = RunTail {
+                    cost: 0.0,
+                    next: None,
+                    hth: DMatrix::zeros(p, p),
+                    gth: DVector::zeros(p),
+                };
+                for i in 0..upper.len() {
+                    let k = run * RUN + i;
+                    let Some(t) = self.window_at(w, knots, k, st) else {
+                        continue;
+                    };
+                    let b = window_normal(k, &t);
+                    tail.cost += b.cost;
+                    diag[i] += b.d1;
+                    upper[i] += b.up;
+                    rhs[i] -= b.r1;
+                    rows.add_bin(i, b.node, &b.c1);
+                    if i + 1 < diag.len() {
+                        diag[i + 1] += b.d2;
+                        rhs[i + 1] -= b.r2;
+                        rows.add_bin(i + 1, b.node, &b.c2);
+                    } else {
+                        tail.next = Some((b.node, b.d2, b.r2, b.c2));
+                    }
+                    add_theta(&mut tail.hth, &mut tail.gth, &b);
+                }
+                tail
+            })
+            .collect();
+        let mut cost = 0.0;
+        for (run, tail) in runs.into_iter().enumerate() {
+            cost += tail.cost;
+            if let Some((node, d2, r2, c2)) = tail.next {
+                let k = (run + 1) * RUN;
+                sys.diag[k] += d2;
+                sys.rhs[k] -= r2;
+                cross.add_bin(k, node, &c2);
+            }
+            *hth += &tail.hth;
+            *gth += &tail.gth;
+        }
+        cost
     }
 
     /// The Gauss-Newton step at one linearisation: the knots' and the calibration's, the
