@@ -17,9 +17,7 @@ use rayon::prelude::*;
 
 use super::state::NFIXED;
 use crate::calib::model::NPARAM;
-use crate::trajectory::blocktri::{
-    Factored, ForwardParts, M18, V18, forward_in_place, forward_in_place_column,
-};
+use crate::trajectory::blocktri::{Factored, ForwardParts, V18, forward_in_place, lower_inverse};
 
 /// Knot rows.
 const R: usize = 18;
@@ -189,9 +187,9 @@ impl Coupling {
     }
 }
 
-/// One sweep's share of [`schur_forms`], on the columns of `theta` in the order the sweep met
-/// them (`order`): `(L^-1 H)^T (L^-1 H)` over its knots, `(L^-1 H)^T w`, and what its last knot
-/// hands to the middle block (`-Y^T (L^-1 H)`, one column each).
+/// One sweep's share of [`schur_forms`], on the columns of `theta`: `(L^-1 H)^T (L^-1 H)` over
+/// its knots and `(L^-1 H)^T w`, and what its last knot hands to the middle block
+/// (`-Y^T (L^-1 H)`) on the columns still carried (`order`, one each).
 struct SweepForms {
     order: Vec<usize>,
     gram: DMatrix<f64>,
@@ -203,8 +201,54 @@ struct SweepForms {
 /// product of `18 BATCH` rows per batch rather than a dot product per pair of columns and knot.
 const BATCH: usize = 16;
 
-/// Entries of `L^-1 H` smaller than this are set to zero (see [`sweep`]).
-const TINY: f64 = 1e-200;
+/// A carried column of `L^-1 H` is dropped once its squared norm falls below this fraction of
+/// the largest it had (see [`sweep`]).
+const RETIRE_BELOW: f64 = 1e-40;
+
+/// The columns of `theta` one sweep carries, in its slots: `order[slot]` is the column,
+/// `at[column]` its slot (`usize::MAX`: not carried), `peak[slot]` its largest squared norm.
+struct Slots {
+    order: Vec<usize>,
+    at: Vec<usize>,
+    peak: Vec<f64>,
+}
+
+impl Slots {
+    /// The slot of column `c`, a new one (its entries zero) when it is not carried.
+    fn of(&mut self, c: usize) -> usize {
+        if self.at[c] == usize::MAX {
+            self.at[c] = self.order.len();
+            self.order.push(c);
+            self.peak.push(0.0);
+        }
+        self.at[c]
+    }
+
+    /// Drops the slots whose column of `y` has decayed below [`RETIRE_BELOW`] of its peak,
+    /// moving the last carried column into each one's place.
+    fn retire(&mut self, y: &mut DMatrix<f64>) {
+        let mut j = 0;
+        while j < self.order.len() {
+            let norm2 = y.column(j).norm_squared();
+            self.peak[j] = self.peak[j].max(norm2);
+            if norm2 >= RETIRE_BELOW * self.peak[j] {
+                j += 1;
+                continue;
+            }
+            let last = self.order.len() - 1;
+            self.at[self.order[j]] = usize::MAX;
+            if j != last {
+                y.swap_columns(j, last);
+                self.order.swap(j, last);
+                self.peak.swap(j, last);
+                self.at[self.order[j]] = j;
+            }
+            y.column_mut(last).fill(0.0);
+            self.order.pop();
+            self.peak.pop();
+        }
+    }
+}
 
 /// The knots' stacked blocks of `L^-1 H` and `w`, waiting for their products.
 struct Stack {
@@ -214,18 +258,28 @@ struct Stack {
 }
 
 impl Stack {
-    /// Adds the stacked knots' `Z^T Z` and `Z^T w` on the first `m` columns met and empties
-    /// the stack.
-    fn flush(&mut self, m: usize, gram: &mut DMatrix<f64>, rhs: &mut DVector<f64>) {
-        if self.filled == 0 {
+    /// Adds the stacked knots' `Z^T Z` and `Z^T w` on the carried columns (`order`) to `gram`
+    /// and `rhs` (in `theta`'s columns) and empties the stack.
+    fn flush(&mut self, order: &[usize], gram: &mut DMatrix<f64>, rhs: &mut DVector<f64>) {
+        let m = order.len();
+        if self.filled == 0 || m == 0 {
+            self.filled = 0;
             return;
         }
         let z = self.z.columns(0, m);
         // An explicit transpose: `gemm` on dynamic shapes is the blocked product, `gemm_tr` a
         // dot product per entry.
         let zt = z.transpose();
-        gram.view_mut((0, 0), (m, m)).gemm(1.0, &zt, &z, 1.0);
-        rhs.rows_mut(0, m).gemv(1.0, &zt, &self.w, 1.0);
+        let mut block = DMatrix::<f64>::zeros(m, m);
+        block.gemm(1.0, &zt, &z, 0.0);
+        let mut zw = DVector::<f64>::zeros(m);
+        zw.gemv(1.0, &zt, &self.w, 0.0);
+        for (a, &ca) in order.iter().enumerate() {
+            rhs[ca] += zw[a];
+            for (b, &cb) in order.iter().enumerate() {
+                gram[(ca, cb)] += block[(a, b)];
+            }
+        }
         self.z.columns_mut(0, m).fill(0.0);
         self.w.fill(0.0);
         self.filled = 0;
@@ -233,22 +287,27 @@ impl Stack {
 }
 
 /// The forward substitution of `H` along one sweep of the factor: `knots` in the sweep's order
-/// and, for each, the gain it hands on through. Only the columns the sweep has met are carried
-/// (a bias node's columns are zero before its first bin), so the work per knot grows with the
-/// nodes behind it, not with all of `theta`. The blocks are one `18 x p` matrix, the first
-/// columns the ones met; the products are summed every [`BATCH`] knots.
+/// and, for each, the gain it hands on through. Only the columns the sweep carries take work: a
+/// bias node's columns are zero before its first bin, and once the sweep has passed its knots
+/// they decay knot by knot (through the gains); below [`RETIRE_BELOW`] of their peak (checked
+/// every [`BATCH`] knots) they are dropped, which changes no sum by more than a part in 1e20 of
+/// its column's own. The carried blocks are one `18 x p` matrix, the first columns the carried
+/// ones; their products are summed every [`BATCH`] knots.
 fn sweep(
     parts: &ForwardParts,
     cross: &Coupling,
     knots: impl Iterator<Item = (usize, usize)>,
 ) -> SweepForms {
     let p = cross.columns();
-    let mut at = vec![usize::MAX; p];
-    let mut order = Vec::with_capacity(p);
+    let mut slots = Slots {
+        order: Vec::with_capacity(p),
+        at: vec![usize::MAX; p],
+        peak: Vec::with_capacity(p),
+    };
     // z holds minus what the previous knot handed on: adding this knot's rows gives
-    // `H_k - Y^T z_prev`.
+    // `H_k - Y^T z_prev`; y is `L_k^-1` of that.
     let mut z = DMatrix::<f64>::zeros(R, p);
-    let mut next = DMatrix::<f64>::zeros(R, p);
+    let mut y = DMatrix::<f64>::zeros(R, p);
     let mut stack = Stack {
         z: DMatrix::zeros(R * BATCH, p),
         w: DVector::zeros(R * BATCH),
@@ -258,54 +317,39 @@ fn sweep(
     let mut rhs = DVector::zeros(p);
     for (k, gain) in knots {
         cross.for_each_column(k, |c, col| {
-            if at[c] == usize::MAX {
-                at[c] = order.len();
-                order.push(c);
-            }
-            for (a, v) in z.column_mut(at[c]).iter_mut().zip(col) {
+            let j = slots.of(c);
+            for (a, v) in z.column_mut(j).iter_mut().zip(col) {
                 *a += v;
             }
         });
-        let m = order.len();
+        let m = slots.order.len();
         // `L_k^-1` once, then one product for all columns (a substitution per column costs
         // 18 divisions each).
-        let mut l_inv = M18::identity();
-        for col in l_inv.as_mut_slice().chunks_exact_mut(R) {
-            if let Ok(x) = <&mut [f64; R]>::try_from(col) {
-                forward_in_place_column(&parts.chol[k], x);
-            }
-        }
-        next.columns_mut(0, m)
-            .gemm(1.0, &l_inv, &z.columns(0, m), 0.0);
+        let l_inv = lower_inverse(&parts.chol[k]);
+        y.columns_mut(0, m).gemm(1.0, &l_inv, &z.columns(0, m), 0.0);
         let row = R * stack.filled;
         stack
             .z
             .view_mut((row, 0), (R, m))
-            .copy_from(&next.columns(0, m));
+            .copy_from(&y.columns(0, m));
         stack.w.rows_mut(row, R).copy_from(&parts.w[k]);
         stack.filled += 1;
         if stack.filled == BATCH {
-            stack.flush(m, &mut gram, &mut rhs);
-            // A bias node's columns decay once the sweep has passed its knots; left alone they
-            // reach subnormal numbers, whose arithmetic is many times slower (the Schur
-            // complement took twice as long). Below `TINY` they add nothing a sum of products
-            // of realistic size can hold.
-            next.columns_mut(0, m).iter_mut().for_each(|v| {
-                if v.abs() < TINY {
-                    *v = 0.0
-                }
-            });
+            stack.flush(&slots.order, &mut gram, &mut rhs);
+            slots.retire(&mut y);
         }
+        let m = slots.order.len();
         z.columns_mut(0, m)
-            .gemm(-1.0, &parts.gain[gain], &next.columns(0, m), 0.0);
+            .gemm(-1.0, &parts.gain[gain], &y.columns(0, m), 0.0);
+        // Retired slots past the carried ones start from zero when reused.
+        z.columns_mut(m, p - m).fill(0.0);
     }
-    let m = order.len();
-    stack.flush(m, &mut gram, &mut rhs);
-    let to_mid = (0..m)
+    stack.flush(&slots.order, &mut gram, &mut rhs);
+    let to_mid = (0..slots.order.len())
         .map(|j| V18::from_column_slice(z.column(j).as_slice()))
         .collect();
     SweepForms {
-        order,
+        order: slots.order,
         gram,
         rhs,
         to_mid,
@@ -343,20 +387,16 @@ pub fn schur_forms(factor: &Factored, cross: &Coupling) -> (DMatrix<f64>, DVecto
     }
     let mut hah = DMatrix::zeros(p, p);
     let mut har = DVector::zeros(p);
+    for half in [&top, &bottom] {
+        hah += &half.gram;
+        har += &half.rhs;
+    }
     let mut add = |ca: usize, cb: usize, v: f64| {
         hah[(ca, cb)] += v;
         if ca != cb {
             hah[(cb, ca)] += v;
         }
     };
-    for half in [&top, &bottom] {
-        for (a, &ca) in half.order.iter().enumerate() {
-            har[ca] += half.rhs[a];
-            for (b, &cb) in half.order[..=a].iter().enumerate() {
-                add(ca, cb, half.gram[(a, b)]);
-            }
-        }
-    }
     for a in 0..p {
         har[a] += zm[a].dot(&parts.w[m]);
         for b in 0..=a {
