@@ -199,7 +199,7 @@ pub fn calibrate_dvl_imu(
     if opts.estimate_noise {
         for _ in 0..2 {
             let before = factor;
-            let r = joint.redundancy(&sol.knots, &sol.state)?;
+            let r = joint.redundancy_of(&mut sol)?;
             factor = (
                 (factor.0 * Redundancy::factor(r.gyro)).max(1.0),
                 (factor.1 * Redundancy::factor(r.accel)).max(1.0),

@@ -309,7 +309,14 @@ fn camera_imu(
             samples.len()
         )));
     }
-    let traj = Trajectory::fit(poses, &FitOptions::default())?;
+    // The pose-only fit only starts the joint problem, which moves every knot again (a tenth
+    // of a standard deviation per knot is close enough), and its covariance is not used.
+    let fit = FitOptions {
+        covariance: false,
+        decrement_per_knot: 0.01,
+        ..FitOptions::default()
+    };
+    let traj = Trajectory::fit(poses, &fit)?;
     let bins = bins::make_bins(samples, opts.bin_width_s, noise.update_rate);
     let mut st = init::initial_state(
         &traj,
@@ -387,7 +394,7 @@ fn camera_imu(
         // Two rounds: the first factor moves the solution a little, the second settles it.
         for _ in 0..2 {
             let before = (factor, dvl_factor);
-            let r = joint.redundancy(&sol.knots, &sol.state)?;
+            let r = joint.redundancy_of(&mut sol)?;
             let (chi_g, red_g, chi_a, red_a) = (r.gyro.0, r.gyro.1, r.accel.0, r.accel.1);
             if !dvl_obs.is_empty() {
                 // The variance ratio the residuals show, applied beyond `noise_factor_from`.

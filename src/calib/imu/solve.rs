@@ -19,7 +19,7 @@ use super::preint::{WindowTerms, Windows, residual as window_residual, window_te
 use super::state::{ImuState, NFIXED};
 use crate::calib::model::{DvlObs, NPARAM, d_predict_d_params, d_predict_d_twist, predict};
 use crate::error::{Error, Result};
-use crate::trajectory::blocktri::{BandedInverse, BlockTridiagonal, M18, V18};
+use crate::trajectory::blocktri::{BandedInverse, BlockTridiagonal, Factored, M18, V18};
 use crate::trajectory::gp::{Knot, LocalState, local_gamma, local_state};
 use crate::trajectory::solver::{Problem, step};
 use crate::trajectory::{JerkDensity, KnotView};
@@ -85,13 +85,31 @@ struct Linear {
 /// function of the variables would move by more than a tenth of its standard deviation.
 const STOP_DECREMENT: f64 = 1e-2;
 
+/// Gauss-Newton also stops when the calibration's step is below [`STOP_DECREMENT`] in its own
+/// metric (no linear function of `theta` would move by more than a tenth of its marginal
+/// standard deviation) and the whole step's decrement is below this fraction of the cost: what
+/// the knots have left to move changes the chi-square the noise factors are estimated from by
+/// less than a millionth. On long recordings the knots' hundreds of thousands of variables keep
+/// the whole decrement above the absolute bound for an iteration or two after the calibration
+/// has settled.
+const STOP_RELATIVE: f64 = 1e-6;
+
 /// One Gauss-Newton step.
 struct Step {
     dx: Vec<V18>,
     dth: DVector<f64>,
     schur: DMatrix<f64>,
     decrement: f64,
-    spare: BlockTridiagonal,
+    /// The calibration's share of `decrement`: `dth^T S dth`.
+    theta_decrement: f64,
+    factor: Factored,
+}
+
+/// The linearisation at a solution and the knots' factor there, kept for
+/// [`ImuJoint::redundancy_of`].
+struct Last {
+    lin: Linear,
+    factor: Factored,
 }
 
 /// The columns of `theta` a bin touches: the fixed parameters, then its two bias nodes.
@@ -161,6 +179,11 @@ pub struct Solution {
     pub cost: f64,
     /// Bins inside the trajectory's span at the solution (with windows: inside one).
     pub bins_used: usize,
+    /// The calibration's Schur complement at the solution (its information, knots
+    /// marginalised).
+    pub schur: DMatrix<f64>,
+    /// The last linearisation (at `knots` and `state`) and its factor.
+    last: Option<Box<Last>>,
 }
 
 /// Bins whose terms are computed at once (in parallel) before they are summed in order.
@@ -649,6 +672,15 @@ impl ImuJoint<'_> {
         cost
     }
 
+    /// The calibration's Schur complement `S` (symmetrised), the reduced right-hand side `s`
+    /// and the knots' `A^-1 r`, from the linearisation `lin` and the knots' factor.
+    fn schur(&self, lin: &Linear, factor: &Factored) -> (DMatrix<f64>, DVector<f64>, Vec<V18>) {
+        let (hah, har, xr) = schur_forms(factor, &lin.cross);
+        let schur = &lin.hth - hah;
+        let schur = (&schur + schur.transpose()) * 0.5;
+        (schur, &lin.gth - har, xr)
+    }
+
     /// The Gauss-Newton step at one linearisation: the knots' and the calibration's, the
     /// Schur complement of the calibration, and the predicted decrease of the cost. The Schur
     /// complement `S = H_theta - H_x theta^T A^-1 H_x theta` and the reduced right-hand side
@@ -656,21 +688,20 @@ impl ImuJoint<'_> {
     /// knots' step is `A^-1 (r - H_x theta d_theta)`.
     fn step(&self, lin: &Linear, sys: BlockTridiagonal) -> Result<Step> {
         let factor = sys.factor()?;
-        let (hah, har, xr) = schur_forms(&factor, &lin.cross);
-        let schur = &lin.hth - hah;
-        let schur = (&schur + schur.transpose()) * 0.5;
-        let s = &lin.gth - har;
+        let (schur, s, xr) = self.schur(lin, &factor);
         let dth = solve_schur(&schur, &s)?;
         let hd: Vec<V18> = (0..xr.len()).map(|k| lin.cross.times(k, &dth)).collect();
         let xd = factor.solve_many::<1>(&hd);
         let dx = xr.iter().zip(&xd).map(|(a, b)| a - b).collect();
-        let decrement = factor.decrement() + s.dot(&dth);
+        let theta_decrement = s.dot(&dth);
+        let decrement = factor.decrement() + theta_decrement;
         Ok(Step {
             dx,
             dth,
             schur,
             decrement,
-            spare: factor.into_system(),
+            theta_decrement,
+            factor,
         })
     }
 
@@ -684,15 +715,38 @@ impl ImuJoint<'_> {
     /// the first term needs the knots' banded covariance, the second splits by the columns of
     /// `G`, so `X G` is solved for a few columns at a time and never stored whole.
     pub fn redundancy(&self, knots: &[Knot], st: &ImuState) -> Result<Redundancy> {
-        let n = knots.len();
-        let mut sys = BlockTridiagonal::zeros(n);
+        let mut sys = BlockTridiagonal::zeros(knots.len());
         let lin = self.linearise(knots, st, &mut sys);
         let factor = sys.factor()?;
-        let (hah, _, _) = schur_forms(&factor, &lin.cross);
-        let schur = &lin.hth - hah;
-        let schur = (&schur + schur.transpose()) * 0.5;
+        let schur = self.schur(&lin, &factor).0;
+        self.redundancy_at(knots, st, lin, factor, &schur)
+    }
+
+    /// [`ImuJoint::redundancy`] at a solution of [`ImuJoint::solve`] (with the same weights),
+    /// from the linearisation and factor it ended with.
+    pub fn redundancy_of(&self, sol: &mut Solution) -> Result<Redundancy> {
+        match sol.last.take() {
+            Some(last) => {
+                let Last { lin, factor } = *last;
+                self.redundancy_at(&sol.knots, &sol.state, lin, factor, &sol.schur)
+            }
+            None => self.redundancy(&sol.knots, &sol.state),
+        }
+    }
+
+    /// [`ImuJoint::redundancy`] from the linearisation `lin` at `knots` and `st` and the
+    /// knots' factor there.
+    fn redundancy_at(
+        &self,
+        knots: &[Knot],
+        st: &ImuState,
+        lin: Linear,
+        factor: Factored,
+        schur: &DMatrix<f64>,
+    ) -> Result<Redundancy> {
+        let n = knots.len();
         let p = schur.nrows();
-        let l = schur.cholesky().ok_or_else(singular)?.unpack();
+        let l = schur.clone().cholesky().ok_or_else(singular)?.unpack();
         let g = l
             .transpose()
             .solve_upper_triangular(&DMatrix::identity(p, p))
@@ -831,11 +885,13 @@ impl ImuJoint<'_> {
                 dth,
                 schur,
                 decrement,
-                spare,
+                theta_decrement,
+                factor,
             } = self.step(&lin, sys)?;
-            sys = spare;
-            if converged || decrement < STOP_DECREMENT || iterations >= max_iterations {
-                converged = converged || decrement < STOP_DECREMENT;
+            let settled = decrement < STOP_DECREMENT
+                || (theta_decrement < STOP_DECREMENT && decrement < STOP_RELATIVE * cost);
+            if converged || settled || iterations >= max_iterations {
+                converged = converged || settled;
                 let covariance = schur.clone().try_inverse().ok_or_else(singular)?;
                 let bins_used = self.bins_used(&st);
                 return Ok(Solution {
@@ -846,8 +902,11 @@ impl ImuJoint<'_> {
                     converged,
                     cost,
                     bins_used,
+                    schur,
+                    last: Some(Box::new(Last { lin, factor })),
                 });
             }
+            sys = factor.into_system();
             let mut scale = 1.0;
             let mut accepted = None;
             for _ in 0..10 {
