@@ -410,3 +410,152 @@ fn the_sums_do_not_depend_on_the_number_of_threads() {
         assert!(same, "{threads} threads give other sums than one");
     }
 }
+
+/// A windows problem on a simulated IMU: `n` knots 0.1 s apart at the truth of a lively motion,
+/// a pose on every fourth, the IMU preintegrated between them, nothing held.
+fn windows_problem(
+    n: usize,
+) -> (
+    Vec<f64>,
+    Vec<Knot>,
+    ImuState,
+    Vec<crate::types::imu::ImuSample>,
+    ImuNoise,
+) {
+    use crate::sim::imu::{ImuSimConfig, simulate_imu};
+    use crate::sim::motion::{Motion, SinusoidMotion};
+    let span = 0.1 * n as f64 + 2.0;
+    let motion = SinusoidMotion::lively(span).expect("motion");
+    let cfg = ImuSimConfig::default_truth();
+    let imu = simulate_imu(&motion, &cfg, 0.0, span, 5).expect("imu");
+    let times: Vec<f64> = (0..n).map(|i| 1.0 + 0.1 * i as f64).collect();
+    let ks = times
+        .iter()
+        .map(|&t| {
+            let s = motion.state(t);
+            Knot {
+                pose: s.pose,
+                twist: s.twist,
+                rate: s.twist_rate,
+            }
+        })
+        .collect();
+    let st = ImuState {
+        t_cam_imu: cfg.t_cam_imu,
+        time_offset_s: cfg.time_offset_s,
+        gravity_rotation: ImuState::gravity_rotation_of(&cfg.gravity_world),
+        gravity_magnitude: cfg.gravity_world.norm(),
+        bias: BiasNodes::spanning(0.0, span, span / 3.0, cfg.initial_bias),
+        dvl: None,
+    };
+    (times, ks, st, imu.samples, cfg.noise)
+}
+
+/// The windows' normal equations, filled in parallel runs of knots, equal a plain loop over the
+/// windows (to rounding: at the runs' boundaries and in the sums on `theta` the order differs),
+/// on enough knots for three runs.
+#[test]
+fn the_windows_in_runs_match_a_plain_loop() {
+    let (times, ks, st, samples, noise) = windows_problem(2 * RUN + 90);
+    let n = ks.len();
+    let mut joint = joint(&times, &ks, &[], &[]);
+    joint.held.clear();
+    joint.noise = noise;
+    // Without windows (and without bins): the prior, the pose and the bias walks alone.
+    let mut want = BlockTridiagonal::zeros(n);
+    let base = joint.linearise(&ks, &st, &mut want);
+    let w = Windows::new(
+        &samples,
+        &times,
+        &st,
+        &noise,
+        Windows::stated_variances(&noise),
+    );
+    let (mut cross, mut hth, mut gth, mut cost) = (base.cross, base.hth, base.gth, base.cost);
+    let mut count = 0;
+    for k in 0..n - 1 {
+        let Some(t) = joint.window_at(&w, &ks, k, &st) else {
+            continue;
+        };
+        let b = window_normal(k, &t);
+        cost += b.cost;
+        want.diag[k] += b.d1;
+        want.diag[k + 1] += b.d2;
+        want.upper[k] += b.up;
+        want.rhs[k] -= b.r1;
+        want.rhs[k + 1] -= b.r2;
+        cross.add_bin(k, b.node, &b.c1);
+        cross.add_bin(k + 1, b.node, &b.c2);
+        add_theta(&mut hth, &mut gth, &b);
+        count += 1;
+    }
+    assert_eq!(count, n - 1, "every window covered");
+    joint.windows = Some(w);
+    let mut sys = BlockTridiagonal::zeros(n);
+    let lin = joint.linearise(&ks, &st, &mut sys);
+    let close = |a: &[f64], b: &[f64], what: &str| {
+        let scale = b.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
+        let diff = a
+            .iter()
+            .zip(b)
+            .fold(0.0_f64, |m, (x, y)| m.max((x - y).abs()));
+        assert!(
+            scale > 0.0 && diff <= 1e-12 * scale,
+            "{what}: {diff} of {scale}"
+        );
+    };
+    let flat = |s: &BlockTridiagonal| -> Vec<f64> {
+        s.diag
+            .iter()
+            .chain(&s.upper)
+            .flat_map(|m| m.iter().copied())
+            .chain(s.rhs.iter().flat_map(|v| v.iter().copied()))
+            .collect()
+    };
+    close(&flat(&sys), &flat(&want), "knots' system");
+    close(
+        lin.cross.dense().as_slice(),
+        cross.dense().as_slice(),
+        "coupling",
+    );
+    close(lin.hth.as_slice(), hth.as_slice(), "calibration block");
+    close(lin.gth.as_slice(), gth.as_slice(), "calibration gradient");
+    close(&[lin.cost], &[cost], "cost");
+}
+
+/// The redundancy a solve's kept linearisation gives equals the one built again at its
+/// solution, and a second call (nothing kept any more) builds it again.
+#[test]
+fn the_redundancy_from_the_kept_linearisation_equals_one_built_again() {
+    let (times, ks, st, samples, noise) = windows_problem(120);
+    let mut joint = joint(&times, &ks, &[], &[]);
+    joint.noise = noise;
+    for (k, pose) in joint.poses.poses.iter_mut().enumerate().step_by(4) {
+        *pose = Some((ks[k].pose, Matrix6::identity() * 1e6));
+    }
+    joint.windows = Some(Windows::new(
+        &samples,
+        &times,
+        &st,
+        &noise,
+        Windows::stated_variances(&noise),
+    ));
+    let mut sol = joint.solve(ks.clone(), st, 10).expect("solve");
+    assert!(sol.last.is_some());
+    let built = joint.redundancy(&sol.knots, &sol.state).expect("built");
+    let kept = joint.redundancy_of(&mut sol).expect("kept");
+    assert!(sol.last.is_none());
+    let again = joint.redundancy_of(&mut sol).expect("again");
+    for (a, b, c) in [
+        (built.gyro, kept.gyro, again.gyro),
+        (built.accel, kept.accel, again.accel),
+    ] {
+        assert!(a.1 > 1.0, "{a:?}");
+        for (x, y) in [(a.0, b.0), (a.1, b.1), (a.0, c.0), (a.1, c.1)] {
+            assert!(
+                (x - y).abs() <= 1e-9 * x.abs().max(1.0),
+                "{a:?} {b:?} {c:?}"
+            );
+        }
+    }
+}
