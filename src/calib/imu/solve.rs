@@ -94,6 +94,15 @@ const STOP_DECREMENT: f64 = 1e-2;
 /// has settled.
 const STOP_RELATIVE: f64 = 1e-6;
 
+/// The calibration's Schur complement `S` (symmetrised), the reduced right-hand side `s` and
+/// the knots' `A^-1 r`, from the linearisation `lin` and the knots' factor.
+fn schur_of(lin: &Linear, factor: &Factored) -> (DMatrix<f64>, DVector<f64>, Vec<V18>) {
+    let (hah, har, xr) = schur_forms(factor, &lin.cross);
+    let schur = &lin.hth - hah;
+    let schur = (&schur + schur.transpose()) * 0.5;
+    (schur, &lin.gth - har, xr)
+}
+
 /// One Gauss-Newton step.
 struct Step {
     dx: Vec<V18>,
@@ -105,11 +114,12 @@ struct Step {
     factor: Factored,
 }
 
-/// The linearisation at a solution and the knots' factor there, kept for
-/// [`ImuJoint::redundancy_of`].
+/// The linearisation at a solution, the knots' factor and the calibration's Schur complement
+/// there, kept for [`ImuJoint::redundancy_of`].
 struct Last {
     lin: Linear,
     factor: Factored,
+    schur: DMatrix<f64>,
 }
 
 /// The columns of `theta` a bin touches: the fixed parameters, then its two bias nodes.
@@ -179,9 +189,6 @@ pub struct Solution {
     pub cost: f64,
     /// Bins inside the trajectory's span at the solution (with windows: inside one).
     pub bins_used: usize,
-    /// The calibration's Schur complement at the solution (its information, knots
-    /// marginalised).
-    pub schur: DMatrix<f64>,
     /// The last linearisation (at `knots` and `state`) and its factor.
     last: Option<Box<Last>>,
 }
@@ -228,6 +235,28 @@ fn add_theta(hth: &mut DMatrix<f64>, gth: &mut DVector<f64>, b: &BinNormal) {
         for (c, &cb) in cols.iter().enumerate() {
             hth[(ca, cb)] += b.hl[(a, c)];
         }
+    }
+}
+
+impl BinNormal {
+    /// Adds the blocks into the knots' system `sys`, the coupling `cross` and the calibration's
+    /// `hth` and `gth`; returns the cost.
+    fn add_into(
+        &self,
+        sys: &mut BlockTridiagonal,
+        cross: &mut Coupling,
+        (hth, gth): (&mut DMatrix<f64>, &mut DVector<f64>),
+    ) -> f64 {
+        let k = self.k;
+        sys.diag[k] += self.d1;
+        sys.diag[k + 1] += self.d2;
+        sys.upper[k] += self.up;
+        sys.rhs[k] -= self.r1;
+        sys.rhs[k + 1] -= self.r2;
+        cross.add_bin(k, self.node, &self.c1);
+        cross.add_bin(k + 1, self.node, &self.c2);
+        add_theta(hth, gth, self);
+        self.cost
     }
 }
 
@@ -517,18 +546,7 @@ impl ImuJoint<'_> {
             }
         };
         let local = |k: usize| local_state(&knots[k], &knots[k + 1]);
-        let add = |b: &BinNormal| {
-            let k = b.k;
-            cost += b.cost;
-            sys.diag[k] += b.d1;
-            sys.diag[k + 1] += b.d2;
-            sys.upper[k] += b.up;
-            sys.rhs[k] -= b.r1;
-            sys.rhs[k + 1] -= b.r2;
-            cross.add_bin(k, b.node, &b.c1);
-            cross.add_bin(k + 1, b.node, &b.c2);
-            add_theta(&mut hth, &mut gth, b);
-        };
+        let add = |b: &BinNormal| cost += b.add_into(sys, &mut cross, (&mut hth, &mut gth));
         match &self.windows {
             Some(w) => {
                 cost += self.linearise_windows(w, knots, st, sys, &mut cross, (&mut hth, &mut gth));
@@ -672,15 +690,6 @@ impl ImuJoint<'_> {
         cost
     }
 
-    /// The calibration's Schur complement `S` (symmetrised), the reduced right-hand side `s`
-    /// and the knots' `A^-1 r`, from the linearisation `lin` and the knots' factor.
-    fn schur(&self, lin: &Linear, factor: &Factored) -> (DMatrix<f64>, DVector<f64>, Vec<V18>) {
-        let (hah, har, xr) = schur_forms(factor, &lin.cross);
-        let schur = &lin.hth - hah;
-        let schur = (&schur + schur.transpose()) * 0.5;
-        (schur, &lin.gth - har, xr)
-    }
-
     /// The Gauss-Newton step at one linearisation: the knots' and the calibration's, the
     /// Schur complement of the calibration, and the predicted decrease of the cost. The Schur
     /// complement `S = H_theta - H_x theta^T A^-1 H_x theta` and the reduced right-hand side
@@ -688,7 +697,7 @@ impl ImuJoint<'_> {
     /// knots' step is `A^-1 (r - H_x theta d_theta)`.
     fn step(&self, lin: &Linear, sys: BlockTridiagonal) -> Result<Step> {
         let factor = sys.factor()?;
-        let (schur, s, xr) = self.schur(lin, &factor);
+        let (schur, s, xr) = schur_of(lin, &factor);
         let dth = solve_schur(&schur, &s)?;
         let hd: Vec<V18> = (0..xr.len()).map(|k| lin.cross.times(k, &dth)).collect();
         let xd = factor.solve_many::<1>(&hd);
@@ -718,7 +727,7 @@ impl ImuJoint<'_> {
         let mut sys = BlockTridiagonal::zeros(knots.len());
         let lin = self.linearise(knots, st, &mut sys);
         let factor = sys.factor()?;
-        let schur = self.schur(&lin, &factor).0;
+        let schur = schur_of(&lin, &factor).0;
         self.redundancy_at(knots, st, lin, factor, &schur)
     }
 
@@ -727,8 +736,8 @@ impl ImuJoint<'_> {
     pub fn redundancy_of(&self, sol: &mut Solution) -> Result<Redundancy> {
         match sol.last.take() {
             Some(last) => {
-                let Last { lin, factor } = *last;
-                self.redundancy_at(&sol.knots, &sol.state, lin, factor, &sol.schur)
+                let Last { lin, factor, schur } = *last;
+                self.redundancy_at(&sol.knots, &sol.state, lin, factor, &schur)
             }
             None => self.redundancy(&sol.knots, &sol.state),
         }
@@ -902,8 +911,7 @@ impl ImuJoint<'_> {
                     converged,
                     cost,
                     bins_used,
-                    schur,
-                    last: Some(Box::new(Last { lin, factor })),
+                    last: Some(Box::new(Last { lin, factor, schur })),
                 });
             }
             sys = factor.into_system();

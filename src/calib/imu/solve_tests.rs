@@ -477,16 +477,7 @@ fn the_windows_in_runs_match_a_plain_loop() {
         let Some(t) = joint.window_at(&w, &ks, k, &st) else {
             continue;
         };
-        let b = window_normal(k, &t);
-        cost += b.cost;
-        want.diag[k] += b.d1;
-        want.diag[k + 1] += b.d2;
-        want.upper[k] += b.up;
-        want.rhs[k] -= b.r1;
-        want.rhs[k + 1] -= b.r2;
-        cross.add_bin(k, b.node, &b.c1);
-        cross.add_bin(k + 1, b.node, &b.c2);
-        add_theta(&mut hth, &mut gth, &b);
+        cost += window_normal(k, &t).add_into(&mut want, &mut cross, (&mut hth, &mut gth));
         count += 1;
     }
     assert_eq!(count, n - 1, "every window covered");
