@@ -13,8 +13,8 @@ use dvlcal::io::imu::noise::read_imu_noise;
 use dvlcal::io::imu::read_imu_csv;
 use dvlcal::io::imu::truth::read_imu_truth;
 use dvlcal::lie::so3;
-use dvlcal::sim::imu::{ImuSimConfig, simulate_imu};
-use dvlcal::sim::{MotionKind, SimConfig, build_motion, simulate_with};
+use dvlcal::sim::imu::{ImuSimConfig, SimImu, simulate_imu};
+use dvlcal::sim::{MotionKind, SimConfig, SimDataset, build_motion, simulate_with};
 use nalgebra::{Matrix3, Matrix4, Vector3};
 use tmp_common::{TmpDir, dvlcal, dvlcal_ok, s, simulate_imu_recording};
 
@@ -41,21 +41,28 @@ fn preintegrated_errors_match_their_std_over_twenty_seeds() {
     twenty_seeds(&opts, 0.25);
 }
 
+/// The simulator's calm-then-rotating recording of `duration_s` (seed `seed`): poses at 10 Hz,
+/// the default IMU (its configuration, then its samples).
+fn calm_then_rotating(seed: u64, duration_s: f64) -> (SimDataset, ImuSimConfig, SimImu) {
+    let cfg = SimConfig {
+        seed,
+        duration_s,
+        motion: MotionKind::CalmThenRotate,
+        ..SimConfig::default()
+    };
+    let motion = build_motion(&cfg).expect("motion");
+    let data = simulate_with(&cfg, motion.as_ref()).expect("data");
+    let imu_cfg = ImuSimConfig::default_truth();
+    let imu = simulate_imu(motion.as_ref(), &imu_cfg, 0.0, duration_s, seed).expect("imu");
+    (data, imu_cfg, imu)
+}
+
 fn twenty_seeds(opts: &ImuOptions, factor_tolerance: f64) {
     let seeds = 20u64;
     let mut sq = [0.0f64; 3];
     let mut std_sum = [0.0f64; 3];
     for seed in 1..=seeds {
-        let cfg = SimConfig {
-            seed,
-            duration_s: 60.0,
-            motion: MotionKind::CalmThenRotate,
-            ..SimConfig::default()
-        };
-        let motion = build_motion(&cfg).expect("motion");
-        let data = simulate_with(&cfg, motion.as_ref()).expect("data");
-        let imu_cfg = ImuSimConfig::default_truth();
-        let imu = simulate_imu(motion.as_ref(), &imu_cfg, 0.0, cfg.duration_s, seed).expect("imu");
+        let (data, imu_cfg, imu) = calm_then_rotating(seed, 60.0);
         let est = calibrate_camera_imu(&data.poses, &imu.samples, &imu_cfg.noise, opts)
             .expect("calibration");
         assert!(est.converged, "seed {seed} did not converge");
@@ -119,16 +126,7 @@ fn twenty_seeds(opts: &ImuOptions, factor_tolerance: f64) {
 /// near one (11 minutes: 6600 poses, 132,000 IMU samples).
 #[test]
 fn a_recording_over_ten_minutes_is_preintegrated_and_at_its_std() {
-    let cfg = SimConfig {
-        seed: 4,
-        duration_s: 660.0,
-        motion: MotionKind::CalmThenRotate,
-        ..SimConfig::default()
-    };
-    let motion = build_motion(&cfg).expect("motion");
-    let data = simulate_with(&cfg, motion.as_ref()).expect("data");
-    let imu_cfg = ImuSimConfig::default_truth();
-    let imu = simulate_imu(motion.as_ref(), &imu_cfg, 0.0, cfg.duration_s, 4).expect("imu");
+    let (data, imu_cfg, imu) = calm_then_rotating(4, 660.0);
     let est = calibrate_camera_imu(
         &data.poses,
         &imu.samples,
