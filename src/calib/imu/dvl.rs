@@ -12,7 +12,7 @@
 use nalgebra::{Matrix3, Matrix6, SMatrix, Vector3, Vector6};
 
 use super::bins::{ImuBin, make_bins};
-use super::dvl_init::{DeadReckoning, initial_dvl_imu};
+use super::dvl_init::{DeadReckoning, DvlImuStart, gyro_bias_from_gravity, initial_dvl_imu};
 use super::factors::{SparsePoseFactors, bin_information};
 use super::preint::Windows;
 use super::solve::{ImuJoint, Redundancy};
@@ -132,14 +132,21 @@ pub fn calibrate_dvl_imu(
     let times: Vec<f64> = (0..n)
         .map(|i| t0 + (t1 - t0) * i as f64 / (n - 1) as f64)
         .collect();
-    let knots = initial_knots(
-        &dr,
-        &times,
-        &obs,
-        &params,
-        &start.accel_bias,
-        &start.gravity,
-    )?;
+    let mut bias = BiasNodes::spanning(
+        bins[0].t,
+        bins[bins.len() - 1].t,
+        bias_spacing(samples, opts),
+        ImuBias {
+            gyro: Vector3::zeros(),
+            accel: start.accel_bias,
+        },
+    );
+    // The gyro's bias from the windows' gravity, so that the knots' attitudes do not drift
+    // from the start (over an hour a bias of a few tenths of a degree per second turns the
+    // reckoning by radians, and Gauss-Newton would spend tens of iterations undoing it).
+    let (unbiased, gravity) = unbias_gyro(&bins, &start, &mut bias, noise, g);
+    let dr = DeadReckoning::new(&unbiased, Vector3::zeros());
+    let knots = initial_knots(&dr, &times, &obs, &params, &start.accel_bias, &gravity)?;
     // World frame: the IMU at the first knot.
     let to_world = knots[0].pose.inverse();
     let knots: Vec<Knot> = knots
@@ -149,21 +156,13 @@ pub fn calibrate_dvl_imu(
             ..k
         })
         .collect();
-    let gravity_world = to_world.rot * start.gravity;
+    let gravity_world = to_world.rot * gravity;
     let st = ImuState {
         t_cam_imu: Se3::identity(),
         time_offset_s: 0.0,
         gravity_rotation: ImuState::gravity_rotation_of(&gravity_world),
         gravity_magnitude: g,
-        bias: BiasNodes::spanning(
-            bins[0].t,
-            bins[bins.len() - 1].t,
-            bias_spacing(samples, opts),
-            ImuBias {
-                gyro: Vector3::zeros(),
-                accel: start.accel_bias,
-            },
-        ),
+        bias,
         dvl: Some(params),
     };
     let mut gauge = vec![None; n];
@@ -253,6 +252,48 @@ pub fn calibrate_dvl_imu(
         times,
         knots: sol.knots,
     })
+}
+
+/// The bins with the gyro's bias at `bias` removed, its nodes' gyro biases estimated from the
+/// windows' gravity of `start` (twice: the second pass reckons with the first's bias removed,
+/// so that what it linearises is small), and gravity in the reckoning's frame then (magnitude
+/// `g`). Where the windows say too little, the bias stays as it was.
+fn unbias_gyro(
+    bins: &[ImuBin],
+    start: &DvlImuStart,
+    bias: &mut BiasNodes,
+    noise: &ImuNoise,
+    g: f64,
+) -> (Vec<ImuBin>, Vector3<f64>) {
+    let remove = |bias: &BiasNodes| -> Vec<ImuBin> {
+        bins.iter()
+            .map(|b| ImuBin {
+                gyro: b.gyro - bias.at(b.t).gyro,
+                ..*b
+            })
+            .collect()
+    };
+    let mut unbiased = remove(bias);
+    for _ in 0..2 {
+        let dr = DeadReckoning::new(&unbiased, Vector3::zeros());
+        let Some(db) =
+            gyro_bias_from_gravity(&dr, &start.windows, bias, noise.gyroscope_random_walk)
+        else {
+            break;
+        };
+        for (v, d) in bias.values.iter_mut().zip(db) {
+            v.gyro += d;
+        }
+        unbiased = remove(bias);
+    }
+    let dr = DeadReckoning::new(&unbiased, Vector3::zeros());
+    let sum: Vector3<f64> = start
+        .windows
+        .iter()
+        .filter_map(|w| dr.at(w.t).map(|s| s.rot * w.body))
+        .sum();
+    let gravity = sum.try_normalize(1e-9).map_or(start.gravity, |d| d * g);
+    (unbiased, gravity)
 }
 
 /// The trajectory at `times` from the dead reckoning and the first estimate: attitude from the

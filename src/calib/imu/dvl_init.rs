@@ -17,9 +17,12 @@
 //! point (then a parabola) whose least-squares cost is smallest; `M` is then split into a
 //! rotation and a scale and the rest solved again with the rotation held.
 
-use nalgebra::{Matrix3, SMatrix, Vector3};
+use std::ops::AddAssign;
+
+use nalgebra::{DMatrix, DVector, Matrix3, SMatrix, Vector3};
 
 use super::bins::ImuBin;
+use super::state::BiasNodes;
 use crate::calib::model::DvlObs;
 use crate::error::{Error, Result};
 use crate::lie::{hat, so3};
@@ -124,13 +127,22 @@ struct Normal {
     windows: Vec<Window>,
 }
 
-/// A window's reference attitude, `C^T C` inverse, `C^T A` and `C^T b`.
-type Window = (
-    Matrix3<f64>,
-    Matrix3<f64>,
-    SMatrix<f64, 3, 15>,
-    Vector3<f64>,
-);
+/// What recovers a window's gravity: `g_0 = ci (ctb - cta x)` in the body frame at its start.
+struct Window {
+    /// The window's start, IMU clock, s.
+    t: f64,
+    /// `C^T C` inverse, `C^T A` and `C^T b`.
+    ci: Matrix3<f64>,
+    cta: SMatrix<f64, 3, 15>,
+    ctb: Vector3<f64>,
+}
+
+/// One window's gravity: its time and its direction in the body frame at the window's start.
+#[derive(Clone, Debug)]
+pub(crate) struct WindowGravity {
+    pub t: f64,
+    pub body: Vector3<f64>,
+}
 
 /// The first estimate.
 #[derive(Clone, Debug)]
@@ -143,6 +155,9 @@ pub(crate) struct DvlImuStart {
     pub accel_bias: Vector3<f64>,
     /// Gravity in the dead reckoning's reference frame (the body at the first bin).
     pub gravity: Vector3<f64>,
+    /// Each window's gravity (unit), from which the gyro's bias is estimated
+    /// ([`gyro_bias_from_gravity`]).
+    pub windows: Vec<WindowGravity>,
 }
 
 /// Longest window, s, and the longest pause between reports inside one.
@@ -219,7 +234,12 @@ fn add_window(w: &[(f64, Reckoned, Vector3<f64>)], out: &mut Normal) {
     out.n += ata - atc * ci * atc.transpose();
     out.r += atb - atc * ci * ctb;
     out.c += btb - ctb.dot(&(ci * ctb));
-    out.windows.push((s0.rot, ci, atc.transpose(), ctb));
+    out.windows.push(Window {
+        t: *t0,
+        ci,
+        cta: atc.transpose(),
+        ctb,
+    });
 }
 
 /// The least-squares solution of `N` restricted to `x = T z`, and its cost per row.
@@ -310,10 +330,15 @@ pub(crate) fn initial_dvl_imu(
     let xs: SMatrix<f64, 15, 1> = t * z;
     let mut g = Vector3::zeros();
     let mut mags = Vec::new();
-    for (rot, ci, cta, ctb) in &nm.windows {
-        let g0 = ci * (ctb - cta * xs);
+    let mut windows = Vec::with_capacity(nm.windows.len());
+    for w in &nm.windows {
+        let g0 = w.ci * (w.ctb - w.cta * xs);
+        let Some(s) = dr.at(w.t) else { continue };
         mags.push(g0.norm());
-        g += rot * g0;
+        g += s.rot * g0;
+        if let Some(body) = g0.try_normalize(1e-9) {
+            windows.push(WindowGravity { t: w.t, body });
+        }
     }
     mags.sort_by(f64::total_cmp);
     let median = mags.get(mags.len() / 2).copied().unwrap_or(0.0);
@@ -330,12 +355,178 @@ pub(crate) fn initial_dvl_imu(
         lever: Vector3::new(z[1], z[2], z[3]),
         accel_bias: Vector3::new(z[4], z[5], z[6]),
         gravity: g.normalize() * gravity,
+        windows,
     })
+}
+
+/// Consecutive windows further apart than this are not paired, s.
+const PAIR_GAP_S: f64 = 10.0;
+
+/// A gyro bias's prior std about zero, rad/s: keeps a component the motion never turned into
+/// view (about gravity on a calm stretch) at zero rather than undetermined.
+const BIAS_PRIOR_STD: f64 = 0.1;
+
+/// Directions of gravity between windows that scatter more than this (rad) are not a bias.
+const MAX_SCATTER: f64 = 0.1;
+
+/// The gyro's bias at `nodes` (linear between them) from how the windows' gravity drifts in
+/// the dead reckoning `dr` (which already has whatever bias it was built with removed; the
+/// result is what is left). A bias `b` left in the gyro turns the reckoned attitude `R` away
+/// from the true one: gravity's direction in the reckoning's frame, `a = R g_body`, obeys
+/// `da/dt = (R b) x a`. Between two windows a few seconds apart that is
+/// `a_1 - a_0 = -[a]x (S_1 - S_0) b`, with `S` the reckoning's integral of `R`: linear in
+/// `b`, however far the reckoning has drifted by then. The pairs' scatter weighs the biases'
+/// random walk (`random_walk`, rad/s/sqrt(s)) between nodes and a loose prior about zero.
+/// `None` when too few windows pair up or their directions scatter too much to say.
+pub(crate) fn gyro_bias_from_gravity(
+    dr: &DeadReckoning,
+    windows: &[WindowGravity],
+    nodes: &BiasNodes,
+    random_walk: f64,
+) -> Option<Vec<Vector3<f64>>> {
+    let m = nodes.times.len();
+    let dim = 3 * m;
+    let mut n = DMatrix::<f64>::zeros(dim, dim);
+    let mut r = DVector::<f64>::zeros(dim);
+    let mut rows = Vec::new();
+    let at: Vec<Option<Reckoned>> = windows.iter().map(|w| dr.at(w.t)).collect();
+    for (pair, s) in windows.windows(2).zip(at.windows(2)) {
+        let ((w0, w1), (Some(s0), Some(s1))) = ((&pair[0], &pair[1]), (&s[0], &s[1])) else {
+            continue;
+        };
+        if w1.t - w0.t > PAIR_GAP_S {
+            continue;
+        }
+        let (a0, a1) = (s0.rot * w0.body, s1.rot * w1.body);
+        let Some(mean) = (a0 + a1).try_normalize(1e-9) else {
+            continue;
+        };
+        let j = hat(&mean) * (s1.sr - s0.sr);
+        let y = a0 - a1;
+        let (i, u) = nodes.weights(0.5 * (w0.t + w1.t));
+        let parts = [(i, 1.0 - u), ((i + 1).min(m - 1), u)];
+        for &(a, wa) in &parts {
+            r.fixed_rows_mut::<3>(3 * a)
+                .add_assign(&(j.transpose() * y * wa));
+            for &(b, wb) in &parts {
+                let mut blk = n.fixed_view_mut::<3, 3>(3 * a, 3 * b);
+                blk += j.transpose() * j * (wa * wb);
+            }
+        }
+        rows.push((j, y, parts));
+    }
+    if rows.len() < 3 * m + 10 {
+        return None;
+    }
+    let solve = |n: &DMatrix<f64>| n.clone().cholesky().map(|c| c.solve(&r));
+    // First with a ridge for what the pairs leave undetermined, for the pairs' scatter.
+    let ridge = 1e-9 * (n.trace() / dim as f64).max(1e-300);
+    let mut first = n.clone();
+    for d in 0..dim {
+        first[(d, d)] += ridge;
+    }
+    let b = solve(&first)?;
+    let rss: f64 = rows
+        .iter()
+        .map(|(j, y, parts)| {
+            let bias: Vector3<f64> = parts
+                .iter()
+                .map(|&(a, w)| b.fixed_rows::<3>(3 * a) * w)
+                .sum();
+            (y - j * bias).norm_squared()
+        })
+        .sum();
+    let var = rss / (3 * rows.len()).saturating_sub(dim).max(1) as f64;
+    if var.is_nan() || var.sqrt() >= MAX_SCATTER {
+        return None;
+    }
+    for d in 0..dim {
+        n[(d, d)] += var / (BIAS_PRIOR_STD * BIAS_PRIOR_STD);
+    }
+    for i in 0..m.saturating_sub(1) {
+        let dt = (nodes.times[i + 1] - nodes.times[i]).max(1e-6);
+        let w = var / (random_walk.max(1e-12).powi(2) * dt);
+        for d in 0..3 {
+            let (p, q) = (3 * i + d, 3 * (i + 1) + d);
+            n[(p, p)] += w;
+            n[(q, q)] += w;
+            n[(p, q)] -= w;
+            n[(q, p)] -= w;
+        }
+    }
+    let b = solve(&n)?;
+    Some(
+        (0..m)
+            .map(|i| b.fixed_rows::<3>(3 * i).into_owned())
+            .collect(),
+    )
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_gyro_bias_comes_back_from_how_gravity_drifts_in_the_reckoning() {
+        // Ten minutes of turning about every axis, a gyro bias that changes half-way, and each
+        // 2 s window's gravity in the body frame with 1 mrad of noise: the reckoning with the
+        // bias left in drifts by most of a radian, the bias comes back at every node.
+        let dt = 0.01;
+        let n = 60_001;
+        let bias_at = |t: f64| {
+            let u = (t / 600.0).clamp(0.0, 1.0);
+            Vector3::new(0.004, -0.006, 0.003) * (1.0 - u) + Vector3::new(0.005, -0.004, 0.002) * u
+        };
+        let mut bins = Vec::with_capacity(n);
+        let mut truth = Vec::with_capacity(n);
+        let mut r = Matrix3::identity();
+        for i in 0..n {
+            let t = dt * i as f64;
+            let w = Vector3::new(0.3 * (0.5 * t).sin(), 0.25 * (0.31 * t).cos(), 0.2);
+            truth.push(r);
+            bins.push(ImuBin {
+                t,
+                gyro: w + bias_at(t),
+                accel: Vector3::zeros(),
+                n: 2,
+            });
+            r *= so3::exp(&(w * dt));
+        }
+        let up = Vector3::new(0.0, 0.0, 1.0);
+        let mut rng = 12345u64;
+        let mut noise = || {
+            // A small linear congruential generator: uniform on [-1, 1] scaled to ~1 mrad std.
+            rng = rng
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((rng >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0) * 1.7e-3
+        };
+        let windows: Vec<WindowGravity> = (0..n)
+            .step_by(200)
+            .map(|i| {
+                let e = Vector3::new(noise(), noise(), noise());
+                WindowGravity {
+                    t: bins[i].t,
+                    body: (truth[i].transpose() * up + e).normalize(),
+                }
+            })
+            .collect();
+        let nodes = BiasNodes::spanning(0.0, 600.0, 100.0, Default::default());
+        let dr = DeadReckoning::new(&bins, Vector3::zeros());
+        let drift = so3::log(&(dr.at(600.0).expect("inside").rot * truth[n - 1].transpose()));
+        assert!(
+            drift.norm() > 0.5,
+            "the reckoning drifted by {drift:?} only"
+        );
+        let b = gyro_bias_from_gravity(&dr, &windows, &nodes, 3.8e-5).expect("determined");
+        // The end nodes have half the pairs of the others; the bias itself is 7.8e-3 rad/s.
+        let last = nodes.times.len() - 1;
+        for (i, (t, est)) in nodes.times.iter().zip(&b).enumerate() {
+            let err = (est - bias_at(*t)).norm();
+            let bound = if i == 0 || i == last { 5e-4 } else { 2e-4 };
+            assert!(err < bound, "at {t} s: {est:?} against {:?}", bias_at(*t));
+        }
+    }
 
     #[test]
     fn dead_reckoning_turns_at_a_constant_rate_exactly() {
