@@ -120,6 +120,10 @@ struct Last {
     lin: Linear,
     factor: Factored,
     schur: DMatrix<f64>,
+    /// Whether `lin` was taken at the point before the solution's last step (a fraction of a
+    /// standard deviation away) rather than at the solution (read by the tests).
+    #[cfg_attr(not(test), allow(dead_code))]
+    behind: bool,
 }
 
 /// The columns of `theta` a bin touches: the fixed parameters, then its two bias nodes.
@@ -189,8 +193,17 @@ pub struct Solution {
     pub cost: f64,
     /// Bins inside the trajectory's span at the solution (with windows: inside one).
     pub bins_used: usize,
-    /// The last linearisation (at `knots` and `state`) and its factor.
+    /// The last linearisation (at `knots` and `state`, or at the point a last small step
+    /// before them) and its factor.
     last: Option<Box<Last>>,
+}
+
+impl Solution {
+    /// Whether the kept linearisation was taken a step before the solution.
+    #[cfg(test)]
+    pub(crate) fn kept_behind(&self) -> Option<bool> {
+        self.last.as_ref().map(|l| l.behind)
+    }
 }
 
 /// Bins whose terms are computed at once (in parallel) before they are summed in order.
@@ -732,11 +745,15 @@ impl ImuJoint<'_> {
     }
 
     /// [`ImuJoint::redundancy`] at a solution of [`ImuJoint::solve`] (with the same weights),
-    /// from the linearisation and factor it ended with.
+    /// from the linearisation and factor it ended with. When the solve stopped a last small
+    /// step past them, the chi-squares are still the solution's and only the traces come from
+    /// the point before it.
     pub fn redundancy_of(&self, sol: &mut Solution) -> Result<Redundancy> {
         match sol.last.take() {
             Some(last) => {
-                let Last { lin, factor, schur } = *last;
+                let Last {
+                    lin, factor, schur, ..
+                } = *last;
                 self.redundancy_at(&sol.knots, &sol.state, lin, factor, &schur)
             }
             None => self.redundancy(&sol.knots, &sol.state),
@@ -773,7 +790,8 @@ impl ImuJoint<'_> {
             return Ok(out);
         };
         for &c0 in rest {
-            self.redundancy_pass(knots, st, (&solved(c0), &g, c0), None, &mut out);
+            let x = solved(c0);
+            self.redundancy_pass(knots, st, (&x, &g, c0), None, &mut out);
         }
         let x = solved(last);
         let band = factor.banded_inverse();
@@ -888,6 +906,7 @@ impl ImuJoint<'_> {
         let mut cost = lin.cost;
         let mut iterations = 0;
         let mut converged = false;
+        let mut previous: Option<(f64, f64)> = None;
         loop {
             let Step {
                 dx,
@@ -897,8 +916,10 @@ impl ImuJoint<'_> {
                 theta_decrement,
                 factor,
             } = self.step(&lin, sys)?;
-            let settled = decrement < STOP_DECREMENT
-                || (theta_decrement < STOP_DECREMENT && decrement < STOP_RELATIVE * cost);
+            let settles = |d: f64, td: f64| {
+                d < STOP_DECREMENT || (td < STOP_DECREMENT && d < STOP_RELATIVE * cost)
+            };
+            let settled = settles(decrement, theta_decrement);
             if converged || settled || iterations >= max_iterations {
                 converged = converged || settled;
                 let covariance = schur.clone().try_inverse().ok_or_else(singular)?;
@@ -911,10 +932,26 @@ impl ImuJoint<'_> {
                     converged,
                     cost,
                     bins_used,
-                    last: Some(Box::new(Last { lin, factor, schur })),
+                    last: Some(Box::new(Last {
+                        lin,
+                        factor,
+                        schur,
+                        behind: false,
+                    })),
                 });
             }
-            sys = factor.into_system();
+            // The decrements shrink at least by the ratio of this step's to the last's (Gauss-
+            // Newton converges linearly at worst, near a minimum): when that says the next step
+            // would settle, this one is the last.
+            let last_step = previous.is_some_and(|(d0, td0)| {
+                decrement < d0
+                    && theta_decrement < td0
+                    && settles(
+                        decrement * decrement / d0,
+                        theta_decrement * theta_decrement / td0,
+                    )
+            });
+            previous = Some((decrement, theta_decrement));
             let mut scale = 1.0;
             let mut accepted = None;
             for _ in 0..10 {
@@ -929,6 +966,29 @@ impl ImuJoint<'_> {
             }
             iterations += 1;
             match accepted {
+                // The full step lowered the cost as its linearisation predicted (so the
+                // linearisation holds that far): stop at it, with the covariance and the kept
+                // linearisation of the point it was taken from, a fraction of a standard
+                // deviation away.
+                Some((k, s, c)) if last_step && scale == 1.0 && cost - c >= 0.5 * decrement => {
+                    let covariance = schur.clone().try_inverse().ok_or_else(singular)?;
+                    let bins_used = self.bins_used(&s);
+                    return Ok(Solution {
+                        knots: k,
+                        state: s,
+                        covariance,
+                        iterations,
+                        converged: true,
+                        cost: c,
+                        bins_used,
+                        last: Some(Box::new(Last {
+                            lin,
+                            factor,
+                            schur,
+                            behind: true,
+                        })),
+                    });
+                }
                 Some((k, s, c)) => {
                     // A full step that lowers the cost by less than the stopping decrement has
                     // nothing left to gain (the clock offset's steps alternate in sign near the
@@ -939,6 +999,7 @@ impl ImuJoint<'_> {
                 }
                 None => converged = true,
             }
+            sys = factor.into_system();
             lin = self.linearise(&knots, &st, &mut sys);
             cost = lin.cost;
         }
