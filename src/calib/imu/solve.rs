@@ -149,8 +149,10 @@ fn theta_jacobian(t: &BinTerms) -> SMatrix<f64, 6, 21> {
     jl
 }
 
-/// The columns of `theta` the redundancy's solves take at once.
-const CHUNK: usize = 36;
+/// The columns of `theta` the redundancy's solves take at once: two passes cover the camera
+/// modes' 57 (nine fixed parameters and eight bias nodes) with 7 padding columns and the DVL's
+/// 64 without any (36 padded the first to 72).
+const CHUNK: usize = 32;
 
 /// The error of a calibration whose information is singular.
 fn singular() -> Error {
