@@ -94,6 +94,12 @@ const STOP_DECREMENT: f64 = 1e-2;
 /// has settled.
 const STOP_RELATIVE: f64 = 1e-6;
 
+/// A step is only taken as the last one (without linearising after it) when the calibration's
+/// share of its decrement is below this: it moves no linear function of `theta` by more than
+/// its marginal std. Further away the ratio of two decrements says nothing of the next: from
+/// the first estimate at 1 h, a step of 18 after one of 1e5 was followed by one of 0.25.
+const LAST_STEP_BELOW: f64 = 1.0;
+
 /// The calibration's Schur complement `S` (symmetrised), the reduced right-hand side `s` and
 /// the knots' `A^-1 r`, from the linearisation `lin` and the knots' factor.
 fn schur_of(lin: &Linear, factor: &Factored) -> (DMatrix<f64>, DVector<f64>, Vec<V18>) {
@@ -942,11 +948,12 @@ impl ImuJoint<'_> {
                     })),
                 });
             }
-            // The decrements shrink at least by the ratio of this step's to the last's (Gauss-
-            // Newton converges linearly at worst, near a minimum): when that says the next step
-            // would settle, this one is the last.
+            // Within a standard deviation of the minimum the decrements shrink at least by the
+            // ratio of this step's to the last's (Gauss-Newton converges linearly at worst
+            // there): when that says the next step would settle, this one is the last.
             let last_step = previous.is_some_and(|(d0, td0)| {
-                decrement < d0
+                theta_decrement < LAST_STEP_BELOW
+                    && decrement < d0
                     && theta_decrement < td0
                     && settles(
                         decrement * decrement / d0,
