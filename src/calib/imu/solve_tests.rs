@@ -514,23 +514,35 @@ fn the_windows_in_runs_match_a_plain_loop() {
     close(&[lin.cost], &[cost], "cost");
 }
 
+/// Sets up `joint` for the windows' tests: a pose on every fourth knot (`ks`'), the windows
+/// integrated from `samples` at `st`, with `noise`.
+fn with_poses_and_windows(
+    joint: &mut ImuJoint,
+    ks: &[Knot],
+    st: &ImuState,
+    samples: &[crate::types::imu::ImuSample],
+    noise: &ImuNoise,
+) {
+    joint.noise = *noise;
+    for (k, pose) in joint.poses.poses.iter_mut().enumerate().step_by(4) {
+        *pose = Some((ks[k].pose, Matrix6::identity() * 1e6));
+    }
+    joint.windows = Some(Windows::new(
+        samples,
+        &joint.times,
+        st,
+        noise,
+        Windows::stated_variances(noise),
+    ));
+}
+
 /// The redundancy a solve's kept linearisation gives equals the one built again at its
 /// solution, and a second call (nothing kept any more) builds it again.
 #[test]
 fn the_redundancy_from_the_kept_linearisation_equals_one_built_again() {
     let (times, ks, st, samples, noise) = windows_problem(120);
     let mut joint = joint(&times, &ks, &[], &[]);
-    joint.noise = noise;
-    for (k, pose) in joint.poses.poses.iter_mut().enumerate().step_by(4) {
-        *pose = Some((ks[k].pose, Matrix6::identity() * 1e6));
-    }
-    joint.windows = Some(Windows::new(
-        &samples,
-        &times,
-        &st,
-        &noise,
-        Windows::stated_variances(&noise),
-    ));
+    with_poses_and_windows(&mut joint, &ks, &st, &samples, &noise);
     let mut sol = joint.solve(ks.clone(), st, 10).expect("solve");
     // Kept a step behind the solution, the traces come from the point before it: they may
     // differ in the sixth digit, the chi-squares not at all.
@@ -566,17 +578,7 @@ fn a_solve_stops_where_another_would_take_no_step() {
     // again from where it stopped must find nothing left to do.
     let (times, ks, st, samples, noise) = windows_problem(120);
     let mut joint = joint(&times, &ks, &[], &[]);
-    joint.noise = noise;
-    for (k, pose) in joint.poses.poses.iter_mut().enumerate().step_by(4) {
-        *pose = Some((ks[k].pose, Matrix6::identity() * 1e6));
-    }
-    joint.windows = Some(Windows::new(
-        &samples,
-        &times,
-        &st,
-        &noise,
-        Windows::stated_variances(&noise),
-    ));
+    with_poses_and_windows(&mut joint, &ks, &st, &samples, &noise);
     let mut start = st.clone();
     let mut d = DVector::<f64>::zeros(start.dim());
     for (i, v) in [0.05, -0.08, 0.06, 0.05, -0.04, 0.06].iter().enumerate() {
