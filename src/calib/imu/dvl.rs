@@ -144,8 +144,9 @@ pub fn calibrate_dvl_imu(
     // The gyro's bias from the windows' gravity, so that the knots' attitudes do not drift
     // from the start (over an hour a bias of a few tenths of a degree per second turns the
     // reckoning by radians, and Gauss-Newton would spend tens of iterations undoing it).
-    let (unbiased, gravity) = unbias_gyro(&bins, &start, &mut bias, noise, g);
+    let unbiased = unbias_gyro(&bins, &start, &mut bias, noise);
     let dr = DeadReckoning::new(&unbiased, Vector3::zeros());
+    let gravity = gravity_in(&dr, &start, g);
     let knots = initial_knots(&dr, &times, &obs, &params, &start.accel_bias, &gravity)?;
     // World frame: the IMU at the first knot.
     let to_world = knots[0].pose.inverse();
@@ -256,15 +257,14 @@ pub fn calibrate_dvl_imu(
 
 /// The bins with the gyro's bias at `bias` removed, its nodes' gyro biases estimated from the
 /// windows' gravity of `start` (twice: the second pass reckons with the first's bias removed,
-/// so that what it linearises is small), and gravity in the reckoning's frame then (magnitude
-/// `g`). Where the windows say too little, the bias stays as it was.
+/// so that what it linearises is small). Where the windows say too little, the bias stays as
+/// it was.
 fn unbias_gyro(
     bins: &[ImuBin],
     start: &DvlImuStart,
     bias: &mut BiasNodes,
     noise: &ImuNoise,
-    g: f64,
-) -> (Vec<ImuBin>, Vector3<f64>) {
+) -> Vec<ImuBin> {
     let remove = |bias: &BiasNodes| -> Vec<ImuBin> {
         bins.iter()
             .map(|b| ImuBin {
@@ -286,14 +286,18 @@ fn unbias_gyro(
         }
         unbiased = remove(bias);
     }
-    let dr = DeadReckoning::new(&unbiased, Vector3::zeros());
+    unbiased
+}
+
+/// Gravity (magnitude `g`) in the frame of the reckoning `dr`: the mean direction of the
+/// windows' gravity of `start` rotated by it (`start.gravity` if they cancel).
+fn gravity_in(dr: &DeadReckoning, start: &DvlImuStart, g: f64) -> Vector3<f64> {
     let sum: Vector3<f64> = start
         .windows
         .iter()
         .filter_map(|w| dr.at(w.t).map(|s| s.rot * w.body))
         .sum();
-    let gravity = sum.try_normalize(1e-9).map_or(start.gravity, |d| d * g);
-    (unbiased, gravity)
+    sum.try_normalize(1e-9).map_or(start.gravity, |d| d * g)
 }
 
 /// The trajectory at `times` from the dead reckoning and the first estimate: attitude from the
