@@ -27,7 +27,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for seed in first..=last {
         let cfg = SimConfig {
             seed,
-            duration_s: 60.0,
+            duration_s: std::env::var("DURATION")
+                .ok()
+                .and_then(|s| s.parse().ok())
+                .unwrap_or(60.0),
             motion,
             ..SimConfig::default()
         };
@@ -44,6 +47,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 .and_then(|s| s.parse().ok())
                 .unwrap_or(1.0),
             preintegrate: std::env::var("PREINT").ok().map(|v| v != "0"),
+            poses_per_knot: std::env::var("POSES_PER_KNOT")
+                .ok()
+                .and_then(|s| s.parse().ok()),
             ..ImuOptions::default()
         };
         let est = calibrate_camera_imu(&data.poses, &imu.samples, &imu_cfg.noise, &opts)?;

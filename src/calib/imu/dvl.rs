@@ -173,7 +173,10 @@ pub fn calibrate_dvl_imu(
         obs.iter().map(DvlObs::information).collect::<Result<_>>()?;
     let mut joint = ImuJoint {
         times: times.clone(),
-        poses: SparsePoseFactors { poses: gauge },
+        poses: SparsePoseFactors {
+            poses: gauge,
+            between: Vec::new(),
+        },
         density: jerk_density(&bins, noise).scaled(opts.density_factor),
         bins: &bins,
         info: stated.clone(),

@@ -17,8 +17,9 @@ use nalgebra::{Matrix3, Matrix6, SMatrix, Vector3, Vector6};
 use super::bins::ImuBin;
 use super::state::ImuState;
 use crate::lie::{Se3, curly, hat, se3_right_jacobian, se3_right_jacobian_inv, so3};
+use crate::trajectory::KnotView;
 use crate::trajectory::blocktri::{M18, V18};
-use crate::trajectory::factors::CoSensorFactors;
+use crate::trajectory::factors::{CoSensorFactors, IntervalNormal};
 use crate::trajectory::gp::{
     Knot, LocalState, apply_scalar, first_local_state, interpolation_weights,
     motion_from_local_with,
@@ -219,12 +220,76 @@ pub fn bin_terms(
 }
 
 /// Camera poses on some of the knots (the others lie between pose times, where the IMU
-/// alone drives the trajectory): each a factor `log(T_meas^-1 T_knot)` weighted by its
-/// information.
-#[derive(Clone, Debug)]
+/// alone drives the trajectory), each a factor `log(T_meas^-1 T_knot)` weighted by its
+/// information; and camera poses between knots (when the knots are sparser than the poses),
+/// each the same factor on the pose the GP interpolates there from the two knots around it.
+#[derive(Clone, Debug, Default)]
 pub struct SparsePoseFactors {
     /// Per knot: the measured pose and its information, or `None`.
     pub poses: Vec<Option<(Se3, Matrix6<f64>)>>,
+    /// Per interval (empty: none anywhere): the poses inside it, each with its time after the
+    /// interval's first knot.
+    pub between: Vec<Vec<BetweenPose>>,
+}
+
+/// A camera pose between two knots.
+#[derive(Clone, Debug)]
+pub struct BetweenPose {
+    /// Its time after the interval's first knot, s.
+    pub s: f64,
+    /// The measured pose.
+    pub meas: Se3,
+    /// Its information.
+    pub info: Matrix6<f64>,
+}
+
+/// `xi(s)`, the pose part of the local state interpolated at `s` into an interval of `dt`.
+fn xi_at(k1: &Knot, gamma2: &V18, s: f64, dt: f64) -> (Vector6<f64>, Matrix3<f64>, Matrix3<f64>) {
+    let (lambda, omega, _) = interpolation_weights(s, dt);
+    let xi = k1.twist * lambda[(0, 1)]
+        + k1.rate * lambda[(0, 2)]
+        + gamma2.fixed_rows::<6>(0) * omega[(0, 0)]
+        + gamma2.fixed_rows::<6>(6) * omega[(0, 1)]
+        + gamma2.fixed_rows::<6>(12) * omega[(0, 2)];
+    (xi, lambda, omega)
+}
+
+/// The residual `log(T_meas^-1 T(s))` of a pose between knots `k1` and the next (whose local
+/// state is `gamma2`), `dt` apart.
+pub fn between_residual(k1: &Knot, gamma2: &V18, dt: f64, p: &BetweenPose) -> Vector6<f64> {
+    let (xi, _, _) = xi_at(k1, gamma2, p.s, dt);
+    (p.meas.inverse() * k1.pose * Se3::exp(&xi)).log()
+}
+
+/// [`between_residual`] and its Jacobians with respect to both knots' variables. With
+/// `T(s) = T_1 Exp(xi(s))`, a right perturbation `d` of `T_1` and a change `dxi` move `T(s)` by
+/// `Ad(Exp(-xi)) d + J_r(xi) dxi` on the right, and the residual by `J_r^-1(e)` of that.
+pub fn between_terms(
+    k1: &Knot,
+    ls: &LocalState,
+    dt: f64,
+    p: &BetweenPose,
+) -> (Vector6<f64>, M6x18, M6x18) {
+    let (xi, lambda, omega) = xi_at(k1, &ls.gamma, p.s, dt);
+    let e = (p.meas.inverse() * k1.pose * Se3::exp(&xi)).log();
+    let outer = se3_right_jacobian_inv(&e);
+    let via = outer * se3_right_jacobian(&xi);
+    // d xi / d gamma_2 = [Omega00 I, Omega01 I, Omega02 I].
+    let mut d_xi_d_gamma2 = M6x18::zeros();
+    for j in 0..3 {
+        d_xi_d_gamma2
+            .fixed_view_mut::<6, 6>(0, 6 * j)
+            .copy_from(&(via * omega[(0, j)]));
+    }
+    let mut j1 = M6x18::zeros();
+    j1.fixed_view_mut::<6, 6>(0, 0)
+        .copy_from(&(outer * Se3::exp(&-xi).adjoint() + d_xi_d_gamma2 * ls.d_pose1()));
+    j1.fixed_view_mut::<6, 6>(0, 6)
+        .copy_from(&(via * lambda[(0, 1)]));
+    j1.fixed_view_mut::<6, 6>(0, 12)
+        .copy_from(&(via * lambda[(0, 2)]));
+    let j2 = d_xi_d_gamma2 * ls.d_knot2();
+    (e, j1, j2)
 }
 
 impl CoSensorFactors for SparsePoseFactors {
@@ -250,13 +315,64 @@ impl CoSensorFactors for SparsePoseFactors {
         })
     }
 
+    fn has_interval_terms(&self) -> bool {
+        !self.between.is_empty()
+    }
+
+    fn interval_terms(
+        &self,
+        view: KnotView,
+        k: usize,
+        ls: &LocalState,
+        out: &mut IntervalNormal,
+    ) -> bool {
+        let Some(list) = self.between.get(k).filter(|l| !l.is_empty()) else {
+            return false;
+        };
+        let dt = view.times[k + 1] - view.times[k];
+        *out = IntervalNormal::zeros();
+        for p in list {
+            let (e, j1, j2) = between_terms(&view.knots[k], ls, dt, p);
+            let (wj1, wj2) = (p.info * j1, p.info * j2);
+            out.d1 += j1.transpose() * wj1;
+            out.d2 += j2.transpose() * wj2;
+            out.upper += j1.transpose() * wj2;
+            out.r1 -= wj1.transpose() * e;
+            out.r2 -= wj2.transpose() * e;
+            out.cost += (e.transpose() * p.info * e)[0];
+        }
+        true
+    }
+
+    fn interval_cost(&self, view: KnotView, k: usize, gamma2: &V18) -> f64 {
+        let Some(list) = self.between.get(k) else {
+            return 0.0;
+        };
+        let dt = view.times[k + 1] - view.times[k];
+        list.iter()
+            .map(|p| {
+                let e = between_residual(&view.knots[k], gamma2, dt, p);
+                (e.transpose() * p.info * e)[0]
+            })
+            .sum()
+    }
+
     fn dimension(&self) -> usize {
-        6 * self.poses.iter().filter(|p| p.is_some()).count()
+        6 * (self.poses.iter().filter(|p| p.is_some()).count()
+            + self.between.iter().map(Vec::len).sum::<usize>())
     }
 
     fn restricted(&self, range: Range<usize>) -> Box<dyn CoSensorFactors + '_> {
+        let between = if self.between.is_empty() {
+            Vec::new()
+        } else {
+            // The intervals inside the range: all but its last knot's.
+            let end = range.end.saturating_sub(1).max(range.start);
+            self.between[range.start..end.min(self.between.len())].to_vec()
+        };
         Box::new(SparsePoseFactors {
             poses: self.poses[range].to_vec(),
+            between,
         })
     }
 }
@@ -317,6 +433,41 @@ mod tests {
         st: &ImuState,
     ) -> Vector6<f64> {
         bin_residual(k1, &local_gamma(k1, k2), s, dt, bin, st)
+    }
+
+    #[test]
+    fn a_pose_between_knots_has_the_jacobians_of_its_differences() {
+        let (k1, k2) = (knot(1.0), knot(-0.6));
+        let k2 = Knot {
+            pose: k1.pose * Se3::exp(&Vector6::new(0.05, 0.02, -0.03, 0.04, -0.02, 0.03)),
+            ..k2
+        };
+        let dt = 0.4;
+        let p = BetweenPose {
+            s: 0.13,
+            meas: k1.pose * Se3::exp(&Vector6::new(0.02, 0.01, -0.01, 0.01, 0.02, -0.02)),
+            info: Matrix6::identity(),
+        };
+        let ls = local_state(&k1, &k2);
+        let (e, j1, j2) = between_terms(&k1, &ls, dt, &p);
+        let res = |a: &Knot, b: &Knot| between_residual(a, &local_gamma(a, b), dt, &p);
+        assert!((e - res(&k1, &k2)).norm() < 1e-14);
+        // The interpolated pose is the trajectory's own interpolation.
+        let (lambda, omega, _) = interpolation_weights(p.s, dt);
+        let gamma =
+            apply_scalar(&lambda, &first_local_state(&k1)) + apply_scalar(&omega, &ls.gamma);
+        let want = (p.meas.inverse() * knot_from_local(&k1.pose, &gamma).pose).log();
+        assert!((e - want).norm() < 1e-12, "{e} vs {want}");
+        let h = 1e-6;
+        for i in 0..18 {
+            let mut d = V18::zeros();
+            d[i] = h;
+            let n1 = (res(&perturb(&k1, &d), &k2) - res(&perturb(&k1, &(-d)), &k2)) / (2.0 * h);
+            let n2 = (res(&k1, &perturb(&k2, &d)) - res(&k1, &perturb(&k2, &(-d)))) / (2.0 * h);
+            let (a1, a2) = (j1.column(i), j2.column(i));
+            assert!((a1 - n1).amax() < 1e-7, "knot 1 col {i}: {a1} vs {n1}");
+            assert!((a2 - n2).amax() < 1e-7, "knot 2 col {i}: {a2} vs {n2}");
+        }
     }
 
     #[test]

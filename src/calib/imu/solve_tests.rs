@@ -93,7 +93,10 @@ fn joint<'a>(times: &[f64], ks: &[Knot], bins: &'a [ImuBin], dvl: &'a [DvlObs]) 
     ));
     ImuJoint {
         times: times.to_vec(),
-        poses: SparsePoseFactors { poses },
+        poses: SparsePoseFactors {
+            poses,
+            between: Vec::new(),
+        },
         density: JerkDensity::constant(Vector6::from_element(1e5)),
         bins,
         info: vec![Vector6::from_element(50.0); bins.len()],
