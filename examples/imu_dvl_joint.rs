@@ -60,6 +60,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             &carried,
             &ImuOptions {
                 preintegrate: std::env::var("PREINT").ok().map(|v| v != "0"),
+                poses_per_knot: std::env::var("POSES_PER_KNOT")
+                    .ok()
+                    .and_then(|s| s.parse().ok()),
                 ..ImuOptions::default()
             },
         )?;
