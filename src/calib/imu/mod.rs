@@ -77,6 +77,9 @@ pub struct ImuOptions {
     /// trajectory the GP interpolates there); `None`: as many as the pose-only fit's trajectory
     /// allows without straying from the poses between ([`knot_stride`]).
     pub poses_per_knot: Option<usize>,
+    /// DVL + IMU with the IMU preintegrated: start the first solve from the same problem on
+    /// every fifth knot, solved; `None`: from [`dvl::COARSE_FROM_KNOTS`] knots on.
+    pub coarse_start: Option<bool>,
 }
 
 impl Default for ImuOptions {
@@ -93,6 +96,7 @@ impl Default for ImuOptions {
             density_factor: 1.0,
             preintegrate: None,
             poses_per_knot: None,
+            coarse_start: None,
         }
     }
 }
