@@ -236,6 +236,22 @@ struct BinNormal {
     gl: SMatrix<f64, 21, 1>,
 }
 
+/// A DVL velocity's share of the normal equations (see [`BinNormal`]), on the DVL's columns.
+#[derive(Clone, Default)]
+struct DvlNormal {
+    k: usize,
+    cost: f64,
+    d1: M18,
+    d2: M18,
+    up: M18,
+    r1: V18,
+    r2: V18,
+    c1: SMatrix<f64, 18, NPARAM>,
+    c2: SMatrix<f64, 18, NPARAM>,
+    ht: SMatrix<f64, NPARAM, NPARAM>,
+    gt: SMatrix<f64, NPARAM, 1>,
+}
+
 /// Knots per run of [`ImuJoint::linearise_windows`].
 const RUN: usize = 256;
 
@@ -351,11 +367,12 @@ impl ImuJoint<'_> {
         used
     }
 
-    /// `f` of every bin of `placed`, with what `interval` gives for its interval (computed once
-    /// for the bins of one interval), handed to `sink` in the bins' order. The terms are
+    /// `f` of every factor of `placed` (bins, windows or DVL velocities: its index, interval and
+    /// time), with what `interval` gives for its interval (computed once for the factors of one
+    /// interval), handed to `sink` in the factors' order. The terms are
     /// computed in parallel a block at a time, into one buffer (`zero` fills it), and summed by
     /// the caller in order, so the sums are those of a plain loop on any number of cores.
-    fn map_bins<C, T: Send + Sync + Clone>(
+    fn map_factors<C, T: Send + Sync + Clone>(
         &self,
         placed: &[(usize, usize, f64)],
         zero: T,
@@ -438,11 +455,12 @@ impl ImuJoint<'_> {
             knots,
         };
         let mut cost = 0.0;
-        for (i, k, tau) in self.placed_dvl(st) {
-            let g2 = local_gamma(&knots[k], &knots[k + 1]);
-            let e = predict(p, &view.motion_in(k, tau, &g2).twist) - self.dvl[i].v;
-            cost += (e.transpose() * self.dvl_info[i] * e)[0];
-        }
+        let gamma2 = |k: usize| local_gamma(&knots[k], &knots[k + 1]);
+        let term = |g2: &V18, i: usize, k: usize, tau: f64| {
+            let e = predict(p, &view.motion_in(k, tau, g2).twist) - self.dvl[i].v;
+            (e.transpose() * self.dvl_info[i] * e)[0]
+        };
+        self.map_factors(&self.placed_dvl(st), 0.0, gamma2, term, |c| cost += c);
         cost
     }
 
@@ -519,7 +537,7 @@ impl ImuJoint<'_> {
                     (white * e).norm_squared()
                 })
             };
-            self.map_bins(&w.placed(), 0.0, |_| (), term, |c| cost += c);
+            self.map_factors(&w.placed(), 0.0, |_| (), term, |c| cost += c);
             return cost;
         }
         let placed = self.placed(st.time_offset_s);
@@ -529,7 +547,7 @@ impl ImuJoint<'_> {
             let e = bin_residual(&knots[k], g2, s, dt, &self.bins[j], st);
             e.dot(&self.info[j].component_mul(&e))
         };
-        self.map_bins(&placed, 0.0, gamma2, term, |c| cost += c);
+        self.map_factors(&placed, 0.0, gamma2, term, |c| cost += c);
         cost
     }
 
@@ -574,7 +592,7 @@ impl ImuJoint<'_> {
             }
             None => {
                 let placed = self.placed(st.time_offset_s);
-                self.map_bins(&placed, BinNormal::default(), local, normal, add)
+                self.map_factors(&placed, BinNormal::default(), local, normal, add)
             }
         }
         // The random walks between nodes.
@@ -596,34 +614,49 @@ impl ImuJoint<'_> {
                 }
             }
         }
-        // The DVL's velocities.
+        // The DVL's velocities: their terms computed in parallel, summed in their order.
         if let Some(p) = &st.dvl {
             let c0 = st.dvl_start();
-            let mut ls: Option<(usize, LocalState)> = None;
-            for (i, k, tau) in self.placed_dvl(st) {
-                if ls.as_ref().is_none_or(|(kk, _)| *kk != k) {
-                    ls = Some((k, local_state(&knots[k], &knots[k + 1])));
-                }
-                let Some((_, l)) = &ls else { continue };
+            let local = |k: usize| local_state(&knots[k], &knots[k + 1]);
+            let normal = |l: &LocalState, i: usize, k: usize, tau: f64| {
                 let t = self.dvl_terms(knots, k, tau, l, i, p);
                 let w = &self.dvl_info[i];
                 let we = w * t.e;
-                cost += t.e.dot(&we);
                 let (wj1, wj2, wjt) = (w * t.j1, w * t.j2, w * t.jth);
-                sys.diag[k] += t.j1.transpose() * wj1;
-                sys.diag[k + 1] += t.j2.transpose() * wj2;
-                sys.upper[k] += t.j1.transpose() * wj2;
-                sys.rhs[k] -= t.j1.transpose() * we;
-                sys.rhs[k + 1] -= t.j2.transpose() * we;
-                let c1 = t.j1.transpose() * wjt;
-                let c2 = t.j2.transpose() * wjt;
-                cross.add_dvl(k, &c1);
-                cross.add_dvl(k + 1, &c2);
-                hth.view_mut((c0, c0), (NPARAM, NPARAM))
-                    .add_assign(&(t.jth.transpose() * wjt));
-                gth.rows_mut(c0, NPARAM)
-                    .sub_assign(&(t.jth.transpose() * we));
-            }
+                DvlNormal {
+                    k,
+                    cost: t.e.dot(&we),
+                    d1: t.j1.transpose() * wj1,
+                    d2: t.j2.transpose() * wj2,
+                    up: t.j1.transpose() * wj2,
+                    r1: t.j1.transpose() * we,
+                    r2: t.j2.transpose() * we,
+                    c1: t.j1.transpose() * wjt,
+                    c2: t.j2.transpose() * wjt,
+                    ht: t.jth.transpose() * wjt,
+                    gt: t.jth.transpose() * we,
+                }
+            };
+            let add = |b: &DvlNormal| {
+                let k = b.k;
+                cost += b.cost;
+                sys.diag[k] += b.d1;
+                sys.diag[k + 1] += b.d2;
+                sys.upper[k] += b.up;
+                sys.rhs[k] -= b.r1;
+                sys.rhs[k + 1] -= b.r2;
+                cross.add_dvl(k, &b.c1);
+                cross.add_dvl(k + 1, &b.c2);
+                hth.view_mut((c0, c0), (NPARAM, NPARAM)).add_assign(&b.ht);
+                gth.rows_mut(c0, NPARAM).sub_assign(&b.gt);
+            };
+            self.map_factors(
+                &self.placed_dvl(st),
+                DvlNormal::default(),
+                local,
+                normal,
+                add,
+            );
         }
         for &c in &self.held {
             cross.hold(c);
@@ -870,34 +903,42 @@ impl ImuJoint<'_> {
                         (u.row(r).norm_squared(), own)
                     })
                 };
-                self.map_bins(&w.placed(), [(0.0, None); 9], |_| (), terms, |r| sink(r));
+                self.map_factors(&w.placed(), [(0.0, None); 9], |_| (), terms, |r| sink(r));
             }
             None => {
                 let placed = self.placed(st.time_offset_s);
-                self.map_bins(&placed, [(0.0, None); 6], local, terms, |r| sink(r))
+                self.map_factors(&placed, [(0.0, None); 6], local, terms, |r| sink(r))
             }
         }
         if let Some(pd) = &st.dvl {
             let c = st.dvl_start();
             let cols: Vec<usize> = (c..c + NPARAM).collect();
             let gl = SMatrix::<f64, NPARAM, CHUNK>::from_iterator(g_rows(&cols).iter().copied());
-            let mut ls: Option<(usize, LocalState)> = None;
-            for (i, k, tau) in self.placed_dvl(st) {
-                if ls.as_ref().is_none_or(|(kk, _)| *kk != k) {
-                    ls = Some((k, local_state(&knots[k], &knots[k + 1])));
-                }
-                let Some((_, l)) = &ls else { continue };
+            // Per velocity: `tr(W U U^T)`, and with the band its chi-square and its dimension
+            // less `tr(W J_x A^-1 J_x^T)`.
+            let local = |k: usize| local_state(&knots[k], &knots[k + 1]);
+            let terms = |l: &LocalState, i: usize, k: usize, tau: f64| {
                 let t = self.dvl_terms(knots, k, tau, l, i, pd);
                 let u = t.j1 * xg[k] + t.j2 * xg[k + 1] - t.jth * gl;
                 let w = &self.dvl_info[i];
                 // tr(W P) for symmetric P.
                 let trace = |p: &Matrix3<f64>| w.component_mul(p).sum();
-                out.dvl.1 -= trace(&(u * u.transpose()));
-                if let Some(b) = band {
-                    out.dvl.0 += (t.e.transpose() * w * t.e)[0];
-                    out.dvl.1 += 3.0 - trace(&local_projection(b, k, &t.j1, &t.j2));
+                let own = band.map(|b| {
+                    (
+                        (t.e.transpose() * w * t.e)[0],
+                        3.0 - trace(&local_projection(b, k, &t.j1, &t.j2)),
+                    )
+                });
+                (trace(&(u * u.transpose())), own)
+            };
+            let sink = |&(projected, own): &(f64, Option<(f64, f64)>)| {
+                out.dvl.1 -= projected;
+                if let Some((chi, red)) = own {
+                    out.dvl.0 += chi;
+                    out.dvl.1 += red;
                 }
-            }
+            };
+            self.map_factors(&self.placed_dvl(st), (0.0, None), local, terms, sink);
         }
     }
 
