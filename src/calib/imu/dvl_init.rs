@@ -20,6 +20,7 @@
 use std::ops::AddAssign;
 
 use nalgebra::{DMatrix, DVector, Matrix3, SMatrix, Vector3};
+use rayon::prelude::*;
 
 use super::bins::ImuBin;
 use super::state::BiasNodes;
@@ -266,13 +267,19 @@ pub(crate) fn initial_dvl_imu(
         let nm = normal(dr, obs, offset);
         (nm.rows >= 60).then(|| solve_in(&nm, &free).map(|(_, c)| c))?
     };
+    // The candidates scored in parallel, the best picked in their order (the first of equals).
     let search = |from: f64, to: f64, step: f64| -> Option<(f64, f64)> {
         let n = ((to - from) / step).round() as i64;
-        (0..=n)
-            .filter_map(|i| {
+        let scored: Vec<Option<(f64, f64)>> = (0..=n)
+            .into_par_iter()
+            .map(|i| {
                 let o = from + step * i as f64;
                 score(o).map(|c| (o, c))
             })
+            .collect();
+        scored
+            .into_iter()
+            .flatten()
             .min_by(|a, b| a.1.total_cmp(&b.1))
     };
     let (coarse, _) = search(-max_offset, max_offset, 0.02).ok_or_else(|| {
