@@ -428,18 +428,32 @@ fn library_files() -> Vec<(String, String)> {
         .collect()
 }
 
-/// The lines of a file before its tests: up to its first `#[cfg(test)]` line, comments
-/// included.
+/// The lines of a file before its tests: up to the `#[cfg(test)]` line of its first test
+/// module (not one on a test-only function), comments included.
 fn lines_before_tests(text: &str) -> usize {
-    text.lines()
-        .take_while(|l| l.trim() != "#[cfg(test)]")
-        .count()
+    let lines: Vec<&str> = text.lines().collect();
+    lines
+        .iter()
+        .enumerate()
+        .position(|(i, l)| l.trim() == "#[cfg(test)]" && opens_a_module(&lines[i + 1..]))
+        .unwrap_or(lines.len())
+}
+
+/// Whether the item after an attribute (`rest` its following lines, doc comments and further
+/// attributes skipped) is a module.
+fn opens_a_module(rest: &[&str]) -> bool {
+    rest.iter()
+        .map(|l| l.trim())
+        .find(|l| !l.starts_with("#[") && !l.starts_with("///"))
+        .is_some_and(|l| {
+            l.starts_with("mod ") || l.starts_with("pub mod ") || l.starts_with("pub(crate) mod ")
+        })
 }
 
 /// The lines of code before a file's tests: without blank lines and comments.
 fn code_lines_before_tests(text: &str) -> usize {
     text.lines()
-        .take_while(|l| l.trim() != "#[cfg(test)]")
+        .take(lines_before_tests(text))
         .filter(|l| {
             let t = l.trim();
             !t.is_empty() && !t.starts_with("//")

@@ -9,6 +9,8 @@
 //! - [`solve`]: Gauss-Newton on knots and calibration together, and the calibration's
 //!   covariance with the trajectory marginalised.
 //! - [`dvl`] (with `dvl_init`): a DVL calibrated against the IMU alone, no camera.
+//! - `dvl_factors`: the DVL's velocities as factors of the joint problem (with a camera or
+//!   without).
 //!
 //! The trajectory is the camera's white-noise-on-jerk GP with knots between the pose times as
 //! well (the IMU measures the motion between poses, which the knots at pose times alone would
@@ -17,6 +19,7 @@
 pub(crate) mod bins;
 pub(crate) mod coupling;
 pub mod dvl;
+pub(crate) mod dvl_factors;
 pub(crate) mod dvl_init;
 pub(crate) mod factors;
 pub(crate) mod init;

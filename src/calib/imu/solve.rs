@@ -7,8 +7,6 @@
 //! gauge), the IMU's own frame and clock as the trajectory's (those columns held), and the
 //! DVL's velocities as a third kind of factor with the DVL's parameters at the end of `theta`.
 
-use std::ops::{AddAssign, SubAssign};
-
 use nalgebra::{DMatrix, DVector, Matrix3, SMatrix, Vector6};
 use rayon::prelude::*;
 
@@ -17,13 +15,12 @@ use super::coupling::{Coupling, schur_forms};
 use super::factors::{BinTerms, SparsePoseFactors, bin_residual, bin_terms};
 use super::preint::{WindowTerms, Windows, residual as window_residual, window_terms};
 use super::state::{ImuState, NFIXED};
-use crate::calib::model::{DvlObs, NPARAM, d_predict_d_params, d_predict_d_twist, predict};
+use crate::calib::model::{DvlObs, NPARAM};
 use crate::error::{Error, Result};
+use crate::trajectory::JerkDensity;
 use crate::trajectory::blocktri::{BandedInverse, BlockTridiagonal, Factored, M18, V18};
 use crate::trajectory::gp::{Knot, LocalState, local_gamma, local_state};
 use crate::trajectory::solver::{Problem, step};
-use crate::trajectory::{JerkDensity, KnotView};
-use crate::types::CalibrationParams;
 use crate::types::imu::ImuNoise;
 
 /// The problem: knot times, the poses on them, the motion prior, the IMU's bins and noise.
@@ -61,14 +58,6 @@ impl Redundancy {
     pub fn factor(part: (f64, f64)) -> f64 {
         (part.0 / part.1.max(1.0)).sqrt()
     }
-}
-
-/// One DVL velocity's residual and Jacobians.
-struct DvlTerms {
-    e: nalgebra::Vector3<f64>,
-    j1: SMatrix<f64, 3, 18>,
-    j2: SMatrix<f64, 3, 18>,
-    jth: SMatrix<f64, 3, NPARAM>,
 }
 
 /// The calibration's part of the normal equations at one linearisation point.
@@ -236,22 +225,6 @@ struct BinNormal {
     gl: SMatrix<f64, 21, 1>,
 }
 
-/// A DVL velocity's share of the normal equations (see [`BinNormal`]), on the DVL's columns.
-#[derive(Clone, Default)]
-struct DvlNormal {
-    k: usize,
-    cost: f64,
-    d1: M18,
-    d2: M18,
-    up: M18,
-    r1: V18,
-    r2: V18,
-    c1: SMatrix<f64, 18, NPARAM>,
-    c2: SMatrix<f64, 18, NPARAM>,
-    ht: SMatrix<f64, NPARAM, NPARAM>,
-    gt: SMatrix<f64, NPARAM, 1>,
-}
-
 /// Knots per run of [`ImuJoint::linearise_windows`].
 const RUN: usize = 256;
 
@@ -372,7 +345,7 @@ impl ImuJoint<'_> {
     /// interval), handed to `sink` in the factors' order. The terms are
     /// computed in parallel a block at a time, into one buffer (`zero` fills it), and summed by
     /// the caller in order, so the sums are those of a plain loop on any number of cores.
-    fn map_factors<C, T: Send + Sync + Clone>(
+    pub(super) fn map_factors<C, T: Send + Sync + Clone>(
         &self,
         placed: &[(usize, usize, f64)],
         zero: T,
@@ -398,70 +371,6 @@ impl ImuJoint<'_> {
                 });
             out.iter().for_each(&mut sink);
         }
-    }
-
-    /// For each DVL velocity inside the span at the DVL's clock offset: its index, the
-    /// interval and its time on the trajectory's clock.
-    fn placed_dvl(&self, st: &ImuState) -> Vec<(usize, usize, f64)> {
-        let Some(p) = &st.dvl else {
-            return Vec::new();
-        };
-        let view = KnotView {
-            times: &self.times,
-            knots: &[],
-        };
-        let mut out: Vec<_> = self
-            .dvl
-            .iter()
-            .enumerate()
-            .filter_map(|(i, o)| {
-                let tau = o.t + p.time_offset_s;
-                view.interval(tau).map(|k| (i, k, tau))
-            })
-            .collect();
-        out.sort_by(|a, b| a.2.total_cmp(&b.2));
-        out
-    }
-
-    /// The residual and Jacobians of DVL velocity `i` at `tau`, in interval `k`.
-    fn dvl_terms(
-        &self,
-        knots: &[Knot],
-        k: usize,
-        tau: f64,
-        ls: &LocalState,
-        i: usize,
-        p: &CalibrationParams,
-    ) -> DvlTerms {
-        let view = KnotView {
-            times: &self.times,
-            knots,
-        };
-        let m = d_predict_d_twist(p);
-        let (motion, j1, j2) = view.projected_twist_jacobian_in(k, tau, ls, &m);
-        DvlTerms {
-            e: predict(p, &motion.twist) - self.dvl[i].v,
-            j1,
-            j2,
-            jth: d_predict_d_params(p, &motion.twist, &motion.rate),
-        }
-    }
-
-    /// The DVL's part of the cost.
-    fn dvl_cost(&self, knots: &[Knot], st: &ImuState) -> f64 {
-        let Some(p) = &st.dvl else { return 0.0 };
-        let view = KnotView {
-            times: &self.times,
-            knots,
-        };
-        let mut cost = 0.0;
-        let gamma2 = |k: usize| local_gamma(&knots[k], &knots[k + 1]);
-        let term = |g2: &V18, i: usize, k: usize, tau: f64| {
-            let e = predict(p, &view.motion_in(k, tau, g2).twist) - self.dvl[i].v;
-            (e.transpose() * self.dvl_info[i] * e)[0]
-        };
-        self.map_factors(&self.placed_dvl(st), 0.0, gamma2, term, |c| cost += c);
-        cost
     }
 
     /// The IMU's factors weighed by its stated noise times `f` (gyro, accelerometer): the
@@ -614,49 +523,9 @@ impl ImuJoint<'_> {
                 }
             }
         }
-        // The DVL's velocities: their terms computed in parallel, summed in their order.
+        // The DVL's velocities.
         if let Some(p) = &st.dvl {
-            let c0 = st.dvl_start();
-            let local = |k: usize| local_state(&knots[k], &knots[k + 1]);
-            let normal = |l: &LocalState, i: usize, k: usize, tau: f64| {
-                let t = self.dvl_terms(knots, k, tau, l, i, p);
-                let w = &self.dvl_info[i];
-                let we = w * t.e;
-                let (wj1, wj2, wjt) = (w * t.j1, w * t.j2, w * t.jth);
-                DvlNormal {
-                    k,
-                    cost: t.e.dot(&we),
-                    d1: t.j1.transpose() * wj1,
-                    d2: t.j2.transpose() * wj2,
-                    up: t.j1.transpose() * wj2,
-                    r1: t.j1.transpose() * we,
-                    r2: t.j2.transpose() * we,
-                    c1: t.j1.transpose() * wjt,
-                    c2: t.j2.transpose() * wjt,
-                    ht: t.jth.transpose() * wjt,
-                    gt: t.jth.transpose() * we,
-                }
-            };
-            let add = |b: &DvlNormal| {
-                let k = b.k;
-                cost += b.cost;
-                sys.diag[k] += b.d1;
-                sys.diag[k + 1] += b.d2;
-                sys.upper[k] += b.up;
-                sys.rhs[k] -= b.r1;
-                sys.rhs[k + 1] -= b.r2;
-                cross.add_dvl(k, &b.c1);
-                cross.add_dvl(k + 1, &b.c2);
-                hth.view_mut((c0, c0), (NPARAM, NPARAM)).add_assign(&b.ht);
-                gth.rows_mut(c0, NPARAM).sub_assign(&b.gt);
-            };
-            self.map_factors(
-                &self.placed_dvl(st),
-                DvlNormal::default(),
-                local,
-                normal,
-                add,
-            );
+            cost += self.linearise_dvl(knots, st, p, sys, &mut cross, (&mut hth, &mut gth));
         }
         for &c in &self.held {
             cross.hold(c);

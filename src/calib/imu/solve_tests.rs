@@ -9,6 +9,7 @@ use crate::calib::imu::bins::ImuBin;
 use crate::calib::imu::state::BiasNodes;
 use crate::lie::{Se3, so3};
 use crate::trajectory::blocktri::BlockTridiagonal;
+use crate::types::CalibrationParams;
 use crate::types::imu::{ImuBias, STANDARD_GRAVITY};
 
 fn knots(n: usize) -> (Vec<f64>, Vec<Knot>) {
