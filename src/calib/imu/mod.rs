@@ -362,17 +362,11 @@ fn camera_imu(
         for (i, k) in pose_at.iter().enumerate() {
             sparse[*k] = Some((poses[i].pose, info[i]));
         }
-        let density = if traj.density().is_constant() {
-            traj.density().clone()
-        } else {
-            let f = traj.density().factors();
-            JerkDensity::varying(
-                traj.density().base(),
-                f.iter()
-                    .flat_map(|x| std::iter::repeat_n(*x, per))
-                    .collect(),
-            )
-        };
+        let density = density_on(&traj, |f| {
+            f.iter()
+                .flat_map(|x| std::iter::repeat_n(*x, per))
+                .collect()
+        });
         let factors = SparsePoseFactors {
             poses: sparse,
             between: Vec::new(),
@@ -533,6 +527,20 @@ pub(crate) fn bias_spacing(samples: &[ImuSample], opts: &ImuOptions) -> f64 {
     opts.bias_spacing_s.max(span / most as f64 * (1.0 + 1e-9))
 }
 
+/// The pose-only fit's motion prior on other intervals: as it is when constant, else with the
+/// per-interval factors `per_interval` makes of the fit's.
+fn density_on(
+    traj: &Trajectory,
+    per_interval: impl FnOnce(&[[f64; 2]]) -> Vec<[f64; 2]>,
+) -> JerkDensity {
+    let d = traj.density();
+    if d.is_constant() {
+        d.clone()
+    } else {
+        JerkDensity::varying(d.base(), per_interval(d.factors()))
+    }
+}
+
 /// The fit's knots thinned to every `stride`-th (and the last), the poses on them as factors
 /// on those knots and the poses between them as factors on the pose the GP interpolates there;
 /// the motion prior's varying density averaged over the intervals each new one spans.
@@ -568,21 +576,15 @@ fn sparse_knots(
             });
         }
     }
-    let density = if traj.density().is_constant() {
-        traj.density().clone()
-    } else {
-        let f = traj.density().factors();
-        JerkDensity::varying(
-            traj.density().base(),
-            kept.windows(2)
-                .map(|w| {
-                    let m = (w[1] - w[0]) as f64;
-                    let part = |c: usize| f[w[0]..w[1]].iter().map(|x| x[c]).sum::<f64>() / m;
-                    [part(0), part(1)]
-                })
-                .collect(),
-        )
-    };
+    let density = density_on(traj, |f| {
+        kept.windows(2)
+            .map(|w| {
+                let m = (w[1] - w[0]) as f64;
+                let part = |c: usize| f[w[0]..w[1]].iter().map(|x| x[c]).sum::<f64>() / m;
+                [part(0), part(1)]
+            })
+            .collect()
+    });
     let factors = SparsePoseFactors { poses: on, between };
     (times, knots, factors, density)
 }
