@@ -49,7 +49,7 @@ pub const COARSE_FROM_KNOTS: usize = 18_000;
 
 /// The start for `joint` from its problem on every [`COARSE_STRIDE`]-th knot (and the last):
 /// the reckoned trajectory's nonlinearity (a long chain fixed at its first knot, turning as
-/// its attitude is corrected) is worked off there at a third of the cost, and the full
+/// its attitude is corrected) is worked off there at about a fifth of the cost, and the full
 /// problem starts near its minimum. The full problem, its windows and its minimum are the
 /// same; only its first iterate moves. The coarse solution's knots are interpolated at the
 /// full problem's times.
@@ -60,11 +60,7 @@ fn coarse_start(
     st: ImuState,
     max_iterations: usize,
 ) -> Result<(Vec<Knot>, ImuState)> {
-    let n = joint.times.len();
-    let mut kept: Vec<usize> = (0..n).step_by(COARSE_STRIDE).collect();
-    if kept.last() != Some(&(n - 1)) {
-        kept.push(n - 1);
-    }
+    let kept = super::every_nth(joint.times.len(), COARSE_STRIDE);
     let times: Vec<f64> = kept.iter().map(|&i| joint.times[i]).collect();
     let coarse_knots: Vec<Knot> = kept.iter().map(|&i| knots[i]).collect();
     let poses = kept.iter().map(|&i| joint.poses.poses[i]).collect();

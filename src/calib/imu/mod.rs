@@ -348,7 +348,6 @@ fn camera_imu(
             .unwrap_or_else(|| knots_per_pose(poses))
             .max(1)
     };
-    let (times, knots, pose_at) = densify(&traj, per);
     let info = measurement_information(poses, traj.report().pose_sigma)?;
     let stride = match opts.poses_per_knot {
         _ if !preintegrate => 1,
@@ -358,6 +357,7 @@ fn camera_imu(
     let (times, knots, pose_factors, density) = if stride > 1 {
         sparse_knots(&traj, poses, &info, stride)
     } else {
+        let (times, knots, pose_at) = densify(&traj, per);
         let mut sparse = vec![None; times.len()];
         for (i, k) in pose_at.iter().enumerate() {
             sparse[*k] = Some((poses[i].pose, info[i]));
@@ -527,6 +527,16 @@ pub(crate) fn bias_spacing(samples: &[ImuSample], opts: &ImuOptions) -> f64 {
     opts.bias_spacing_s.max(span / most as f64 * (1.0 + 1e-9))
 }
 
+/// The indices `0, stride, 2 stride, ...` below `n`, and `n - 1` (none when `n` is 0): the
+/// knots kept when thinning `n` of them.
+pub(crate) fn every_nth(n: usize, stride: usize) -> Vec<usize> {
+    let mut kept: Vec<usize> = (0..n).step_by(stride.max(1)).collect();
+    if n > 0 && kept.last() != Some(&(n - 1)) {
+        kept.push(n - 1);
+    }
+    kept
+}
+
 /// The pose-only fit's motion prior on other intervals: as it is when constant, else with the
 /// per-interval factors `per_interval` makes of the fit's.
 fn density_on(
@@ -552,10 +562,7 @@ fn sparse_knots(
 ) -> (Vec<f64>, Vec<Knot>, SparsePoseFactors, JerkDensity) {
     let (t, k) = (traj.times(), traj.knots());
     let n = t.len();
-    let mut kept: Vec<usize> = (0..n).step_by(stride).collect();
-    if kept.last() != Some(&(n - 1)) {
-        kept.push(n - 1);
-    }
+    let kept = every_nth(n, stride);
     let times: Vec<f64> = kept.iter().map(|&i| t[i]).collect();
     let knots: Vec<Knot> = kept.iter().map(|&i| k[i]).collect();
     let mut on = vec![None; kept.len()];
@@ -616,12 +623,10 @@ pub(crate) fn knot_stride(traj: &Trajectory, info: &[nalgebra::Matrix6<f64>]) ->
 /// pose against the interpolated one.
 fn interpolation_misfit(traj: &Trajectory, info: &[nalgebra::Matrix6<f64>], stride: usize) -> f64 {
     let (t, k) = (traj.times(), traj.knots());
-    let n = t.len();
     let mut sum = 0.0;
     let mut count = 0usize;
-    let mut a = 0;
-    while a + 1 < n {
-        let b = (a + stride).min(n - 1);
+    for w in every_nth(t.len(), stride).windows(2) {
+        let (a, b) = (w[0], w[1]);
         let g2 = crate::trajectory::gp::local_gamma(&k[a], &k[b]);
         for i in a + 1..b {
             let p = factors::BetweenPose {
@@ -633,7 +638,6 @@ fn interpolation_misfit(traj: &Trajectory, info: &[nalgebra::Matrix6<f64>], stri
             sum += (e.transpose() * info[i] * e)[0] / 6.0;
             count += 1;
         }
-        a = b;
     }
     if count == 0 { 0.0 } else { sum / count as f64 }
 }
