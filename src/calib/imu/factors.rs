@@ -100,7 +100,13 @@ fn d_predict_d_rates(gamma: &V18, jr: &Matrix6<f64>, st: &ImuState) -> SMatrix<f
 /// knot's local state `gamma2` (no clamping: a little outside the interval it extrapolates).
 fn local_at(k1: &Knot, gamma2: &V18, s: f64, dt: f64) -> V18 {
     let (lambda, omega, _) = interpolation_weights(s, dt);
-    apply_scalar(&lambda, &first_local_state(k1)) + apply_scalar(&omega, gamma2)
+    interpolated(&lambda, &omega, k1, gamma2)
+}
+
+/// `Lambda gamma_1 + Omega gamma_2`: the local state between knot `k1` and the next (local state
+/// `gamma2`) at the interpolation weights `lambda`, `omega`.
+fn interpolated(lambda: &Matrix3<f64>, omega: &Matrix3<f64>, k1: &Knot, gamma2: &V18) -> V18 {
+    apply_scalar(lambda, &first_local_state(k1)) + apply_scalar(omega, gamma2)
 }
 
 /// The residual of `bin` alone (for costs), the bin's camera time at `s` after knot `k1`.
@@ -136,7 +142,7 @@ pub fn bin_terms(
 ) -> BinTerms {
     let g = st.gravity_world();
     let (lambda, omega, _) = interpolation_weights(s, dt);
-    let gamma = apply_scalar(&lambda, &first_local_state(k1)) + apply_scalar(&omega, &ls.gamma);
+    let gamma = interpolated(&lambda, &omega, k1, &ls.gamma);
     let h = predict(&k1.pose, &gamma, st, &g);
     let node = st.bias.weights(bin.t);
     let e = h - measured(bin, &st.bias.at(bin.t));
@@ -243,21 +249,12 @@ pub struct BetweenPose {
     pub info: Matrix6<f64>,
 }
 
-/// `xi(s)`, the pose part of the local state interpolated at `s` into an interval of `dt`.
-fn xi_at(k1: &Knot, gamma2: &V18, s: f64, dt: f64) -> (Vector6<f64>, Matrix3<f64>, Matrix3<f64>) {
-    let (lambda, omega, _) = interpolation_weights(s, dt);
-    let xi = k1.twist * lambda[(0, 1)]
-        + k1.rate * lambda[(0, 2)]
-        + gamma2.fixed_rows::<6>(0) * omega[(0, 0)]
-        + gamma2.fixed_rows::<6>(6) * omega[(0, 1)]
-        + gamma2.fixed_rows::<6>(12) * omega[(0, 2)];
-    (xi, lambda, omega)
-}
-
 /// The residual `log(T_meas^-1 T(s))` of a pose between knots `k1` and the next (whose local
 /// state is `gamma2`), `dt` apart.
 pub fn between_residual(k1: &Knot, gamma2: &V18, dt: f64, p: &BetweenPose) -> Vector6<f64> {
-    let (xi, _, _) = xi_at(k1, gamma2, p.s, dt);
+    let xi: Vector6<f64> = local_at(k1, gamma2, p.s, dt)
+        .fixed_rows::<6>(0)
+        .into_owned();
     (p.meas.inverse() * k1.pose * Se3::exp(&xi)).log()
 }
 
@@ -270,7 +267,9 @@ pub fn between_terms(
     dt: f64,
     p: &BetweenPose,
 ) -> (Vector6<f64>, M6x18, M6x18) {
-    let (xi, lambda, omega) = xi_at(k1, &ls.gamma, p.s, dt);
+    let (lambda, omega, _) = interpolation_weights(p.s, dt);
+    let gamma = interpolated(&lambda, &omega, k1, &ls.gamma);
+    let xi: Vector6<f64> = gamma.fixed_rows::<6>(0).into_owned();
     let e = (p.meas.inverse() * k1.pose * Se3::exp(&xi)).log();
     let outer = se3_right_jacobian_inv(&e);
     let via = outer * se3_right_jacobian(&xi);
@@ -367,8 +366,8 @@ impl CoSensorFactors for SparsePoseFactors {
             Vec::new()
         } else {
             // The intervals inside the range: all but its last knot's.
-            let end = range.end.saturating_sub(1).max(range.start);
-            self.between[range.start..end.min(self.between.len())].to_vec()
+            let end = range.end.saturating_sub(1).min(self.between.len());
+            self.between[range.start.min(end)..end].to_vec()
         };
         Box::new(SparsePoseFactors {
             poses: self.poses[range].to_vec(),
