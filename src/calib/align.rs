@@ -237,20 +237,14 @@ pub fn align_clocks(
     let x: Vec<f64> = cam.iter().map(|c| c.map_or(0.0, |(v, _)| v)).collect();
 
     let m = (nc + nd).next_power_of_two();
-    let mut cor = Correlator::new(m);
+    let cor = Correlator::new(m);
     let sq = |v: &[f64], w: &[f64]| -> Vec<f64> { v.iter().zip(w).map(|(a, b)| a * b).collect() };
-    let a1 = cor.forward(&mc);
-    let a2 = cor.forward(&sq(&mc, &x));
-    let a3 = cor.forward(&sq(&mc, &sq(&x, &x)));
-    let b1 = cor.forward(&md);
-    let b2 = cor.forward(&sq(&md, &y));
-    let b3 = cor.forward(&sq(&md, &sq(&y, &y)));
-    let n = cor.correlate(&a1, &b1);
-    let sx = cor.correlate(&a2, &b1);
-    let sy = cor.correlate(&a1, &b2);
-    let sxx = cor.correlate(&a3, &b1);
-    let syy = cor.correlate(&a1, &b3);
-    let sxy = cor.correlate(&a2, &b2);
+    let (mcx, mdy) = (sq(&mc, &x), sq(&md, &y));
+    let (mcxx, mdyy) = (sq(&mc, &sq(&x, &x)), sq(&md, &sq(&y, &y)));
+    let f = cor.forward(&[&mc, &md, &mcx, &mdy, &mcxx, &mdyy]);
+    let (a1, b1, a2, b2, a3, b3) = (&f[0], &f[1], &f[2], &f[3], &f[4], &f[5]);
+    let c = cor.correlate(&[(a1, b1), (a2, b1), (a1, b2), (a3, b1), (a1, b3), (a2, b2)]);
+    let (n, sx, sy, sxx, syy, sxy) = (&c[0], &c[1], &c[2], &c[3], &c[4], &c[5]);
 
     // Shift s = i - j (camera cell minus DVL cell) is at index s mod m; its lag is
     // (c0 - d0) + s * step.

@@ -251,13 +251,16 @@ fn coarse_offset(grid: &[f64], a: f64, step: f64, bins: &[ImuBin], mags: &[f64])
     let cam2: Vec<f64> = cam.iter().map(|v| v * v).collect();
     let ones = vec![1.0; cam.len()];
     let size = (m + cam.len()).next_power_of_two();
-    let mut cor = Correlator::new(size);
-    let (f_mask, f_iv, f_iv2) = (cor.forward(&mask), cor.forward(&iv), cor.forward(&iv2));
-    let (f_cam, f_cam2, f_ones) = (cor.forward(&cam), cor.forward(&cam2), cor.forward(&ones));
-    let count = cor.correlate(&f_ones, &f_mask);
-    let cam_sq = cor.correlate(&f_cam2, &f_mask);
-    let cross = cor.correlate(&f_cam, &f_iv);
-    let imu_sq = cor.correlate(&f_ones, &f_iv2);
+    let cor = Correlator::new(size);
+    let f = cor.forward(&[&mask, &ones, &iv, &iv2, &cam, &cam2]);
+    let (f_mask, f_ones, f_iv, f_iv2, f_cam, f_cam2) = (&f[0], &f[1], &f[2], &f[3], &f[4], &f[5]);
+    let corr = cor.correlate(&[
+        (f_ones, f_mask),
+        (f_ones, f_iv2),
+        (f_cam2, f_mask),
+        (f_cam, f_iv),
+    ]);
+    let (count, imu_sq, cam_sq, cross) = (&corr[0], &corr[1], &corr[2], &corr[3]);
     let mut best: Option<(f64, f64)> = None;
     let (lo, hi) = (-(m as i64) + 1, cam.len() as i64 - 1);
     for l in lo..=hi {
