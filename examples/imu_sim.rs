@@ -1,5 +1,8 @@
 //! Camera-IMU calibration on simulated data over several seeds: error, std and their ratio.
 //! `cargo run --release --example imu_sim -- [SEEDS] [MOTION] [KNOTS_PER_POSE]`
+//!
+//! Environment: `DURATION` (s), `PREINT` (0 for the bins), `POSES_PER_KNOT`, `QCF` (the motion
+//! prior's density factor), `BIAS_NODES` (the most bias nodes, `ImuOptions::max_bias_nodes`).
 
 use dvlcal::calib::imu::{ImuOptions, calibrate_camera_imu};
 use dvlcal::lie::so3;
@@ -50,6 +53,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             poses_per_knot: std::env::var("POSES_PER_KNOT")
                 .ok()
                 .and_then(|s| s.parse().ok()),
+            max_bias_nodes: std::env::var("BIAS_NODES")
+                .ok()
+                .and_then(|s| s.parse().ok())
+                .unwrap_or(ImuOptions::default().max_bias_nodes),
             ..ImuOptions::default()
         };
         let est = calibrate_camera_imu(&data.poses, &imu.samples, &imu_cfg.noise, &opts)?;
@@ -73,7 +80,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             *s += x * x;
         }
         println!(
-            "{seed:4}  {:6.2} {:6.2} {:6.2}   {:6.2} {:6.2} {:6.2}   {:6.2}   {:3} {:5.2}s  std rot {:.4} deg lever {:.2} mm off {:.3} ms; bins {}/{} noise x{:.2} x{:.2}",
+            "{seed:4}  {:6.2} {:6.2} {:6.2}   {:6.2} {:6.2} {:6.2}   {:6.2}   {:3} {:5.2}s  std rot {:.4} deg lever {:.2} mm off {:.3} ms; bins {}/{} noise x{:.2} x{:.2}; other offsets {}",
             r[0],
             r[1],
             r[2],
@@ -89,7 +96,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             est.bins_used,
             est.bins_total,
             est.noise_factor.0,
-            est.noise_factor.1
+            est.noise_factor.1,
+            est.offset_alternatives_s.len()
         );
     }
     let n = (last - first + 1) as f64;

@@ -706,7 +706,7 @@ pub fn imu_verdicts(est: &ImuEstimate, weak: &WeakThresholds) -> ImuVerdicts {
     let m = imu_motion(est);
     let (s_rot, s_lever, s_off) = est.std();
     let [a, b, c] = m.principal_rates;
-    ImuVerdicts {
+    let mut v = ImuVerdicts {
         rotation: verdict_by_std(
             s_rot.max().to_degrees(),
             weak.rotation_deg,
@@ -746,7 +746,29 @@ pub fn imu_verdicts(est: &ImuEstimate, weak: &WeakThresholds) -> ImuVerdicts {
             WeakCause::SteadyRotationRate,
         ),
         motion: m,
+    };
+    if !est.offset_alternatives_s.is_empty() {
+        let others: Vec<String> = est
+            .offset_alternatives_s
+            .iter()
+            .map(|o| format!("{o:.2} s"))
+            .collect();
+        v.time_offset = Verdict {
+            ok: false,
+            reason: format!(
+                "IMU clock offset ambiguous: the motion repeats, and offsets of {} align the \
+                 gyro's rates with the camera's about as well as the {:.4} s kept (the one at \
+                 which the two recordings overlap most); its standard deviation holds only \
+                 near it. Vary the motion (turn, stop, turn back at irregular times), or share \
+                 one clock between the IMU and the camera",
+                others.join(", "),
+                est.state.time_offset_s
+            ),
+            by: DeterminedBy::Data,
+            cause: Some(WeakCause::RepeatingMotion),
+        };
     }
+    v
 }
 
 /// The DVL cost per degree of freedom under the stated noise, over the samples that are not
@@ -1053,6 +1075,7 @@ mod imu_verdict_tests {
             cost: 0.0,
             noise_factor: (1.0, 1.0),
             dvl_noise_factor: 1.0,
+            offset_alternatives_s: Vec::new(),
         }
     }
 

@@ -116,6 +116,9 @@ pub enum WeakCause {
     FewRotationAxes,
     /// The rotation rate varied too little (the IMU's clock offset).
     SteadyRotationRate,
+    /// The motion repeats, so other clock offsets align the gyro's rates with the camera's
+    /// about as well (the IMU's clock offset).
+    RepeatingMotion,
 }
 
 /// Verdict on one parameter.

@@ -26,6 +26,15 @@ use crate::types::imu::ImuBias;
 /// took 0.2 s) and not convergence.
 const MAX_FIRST_BINS: usize = 30_000;
 
+/// The first estimate, and the other clock offsets that align the rates about as well (a
+/// motion that repeats; empty when the offset is unique): [`ImuEstimate::offset_alternatives_s`].
+///
+/// [`ImuEstimate::offset_alternatives_s`]: super::ImuEstimate::offset_alternatives_s
+pub struct FirstEstimate {
+    pub state: ImuState,
+    pub offset_alternatives_s: Vec<f64>,
+}
+
 /// The first estimate; `spacing` the bias nodes' spacing, `max_offset` the largest clock offset
 /// searched (s), `gravity` its magnitude.
 pub fn initial_state(
@@ -34,8 +43,8 @@ pub fn initial_state(
     spacing: f64,
     max_offset: f64,
     gravity: f64,
-) -> Result<ImuState> {
-    let offset = search_offset(traj, bins, max_offset)?;
+) -> Result<FirstEstimate> {
+    let (offset, offset_alternatives_s) = search_offset(traj, bins, max_offset)?;
     // Pairs of camera and gyro rates, camera state at each bin (every `every`-th of those the
     // trajectory spans).
     let (a, z) = traj.span();
@@ -132,7 +141,7 @@ pub fn initial_state(
         bins.first().map_or(0.0, |b| b.t),
         bins.last().map_or(0.0, |b| b.t),
     );
-    Ok(ImuState {
+    let state = ImuState {
         t_cam_imu: Se3::new(q.transpose(), lever),
         time_offset_s: offset,
         gravity_rotation: ImuState::gravity_rotation_of(&g),
@@ -147,6 +156,10 @@ pub fn initial_state(
             },
         ),
         dvl: None,
+    };
+    Ok(FirstEstimate {
+        state,
+        offset_alternatives_s,
     })
 }
 
@@ -160,7 +173,7 @@ const FINE_SPAN_S: f64 = 0.05;
 /// the trajectory's: the coarse lag over every overlap, then a grid at 2 ms within
 /// [`FINE_SPAN_S`] (and `max_offset`) of it, then a parabola through the best point and its
 /// neighbours.
-fn search_offset(traj: &Trajectory, bins: &[ImuBin], max_offset: f64) -> Result<f64> {
+fn search_offset(traj: &Trajectory, bins: &[ImuBin], max_offset: f64) -> Result<(f64, Vec<f64>)> {
     let (a, b) = traj.span();
     // The trajectory's rate magnitude on the coarse search's 10 ms grid, read linearly
     // between its points by the fine search: the GP's rates are smooth on that scale (their
@@ -184,7 +197,8 @@ fn search_offset(traj: &Trajectory, bins: &[ImuBin], max_offset: f64) -> Result<
         Some(grid[i] * (1.0 - u) + grid[(i + 1).min(n - 1)] * u)
     };
     let mags: Vec<f64> = bins.iter().map(|b| b.gyro.norm()).collect();
-    let centre = coarse_offset(&grid, a, step, bins, &mags).unwrap_or(0.0);
+    let (centre, others) = coarse_offset(&grid, a, step, bins, &mags)
+        .map_or((0.0, Vec::new()), |c| (c.offset, c.others));
     let score = |d: f64| -> Option<f64> {
         let mut sum = 0.0;
         let mut count = 0usize;
@@ -226,14 +240,20 @@ fn search_offset(traj: &Trajectory, bins: &[ImuBin], max_offset: f64) -> Result<
             d += 0.5 * dstep * (sm - sp) / curv;
         }
     }
-    Ok(centre + d)
+    Ok((centre + d, others))
 }
 
 /// The lag, on a 10 ms grid over every lag at which the IMU's span and the trajectory's
 /// overlap by at least half the shorter, that best aligns the gyro's rate magnitudes (`mags`,
 /// one per bin) with the trajectory's (`grid`, from `a` every `step`): clocks may be any
 /// distance apart (a device's uptime against a motion-capture clock). `None` without bins.
-fn coarse_offset(grid: &[f64], a: f64, step: f64, bins: &[ImuBin], mags: &[f64]) -> Option<f64> {
+fn coarse_offset(
+    grid: &[f64],
+    a: f64,
+    step: f64,
+    bins: &[ImuBin],
+    mags: &[f64],
+) -> Option<CoarseLag> {
     let res = 0.01;
     let (c, d) = (bins.first()?.t, bins.last()?.t);
     // The IMU's magnitudes on a 10 ms grid from c (the bins' nearest, by time).
@@ -283,20 +303,72 @@ fn coarse_offset(grid: &[f64], a: f64, step: f64, bins: &[ImuBin], mags: &[f64])
         (f_cam, f_iv),
     ]);
     let (count, imu_sq, cam_sq, cross) = (&corr[0], &corr[1], &corr[2], &corr[3]);
-    let mut best: Option<(f64, f64)> = None;
+    // Every lag's mean misfit and overlap.
     let (lo, hi) = (-(m as i64) + 1, cam.len() as i64 - 1);
-    for l in lo..=hi {
-        let at = l.rem_euclid(size as i64) as usize;
-        let n = count[at].round();
-        if n >= need.max(1) as f64 {
-            let s = (cam_sq[at] - 2.0 * cross[at] + imu_sq[at]).max(0.0) / n;
-            if best.is_none_or(|(_, b)| s < b) {
-                best = Some((l as f64, s));
+    let scored: Vec<(i64, f64, f64)> = (lo..=hi)
+        .filter_map(|l| {
+            let at = l.rem_euclid(size as i64) as usize;
+            let n = count[at].round();
+            (n >= need.max(1) as f64).then(|| {
+                (
+                    l,
+                    (cam_sq[at] - 2.0 * cross[at] + imu_sq[at]).max(0.0) / n,
+                    n,
+                )
+            })
+        })
+        .collect();
+    let lowest = scored.iter().map(|x| x.1).min_by(f64::total_cmp)?;
+    // The peaks near the lowest misfit: runs of lags within `REPEAT_RATIO` of it, apart by
+    // more than `PEAK_GAP_S`, each at its own lowest.
+    let mut peaks: Vec<(i64, f64, f64)> = Vec::new();
+    let gap = (PEAK_GAP_S / res).round() as i64;
+    let mut last = i64::MIN;
+    for x in scored.iter().filter(|x| x.1 <= lowest * REPEAT_RATIO) {
+        match peaks.last_mut() {
+            Some(p) if x.0 - last <= gap => {
+                if x.1 < p.1 {
+                    *p = *x;
+                }
             }
+            _ => peaks.push(*x),
         }
+        last = x.0;
     }
+    // Of the peaks that tie with the lowest, the one the recordings overlap most at.
+    let chosen = peaks
+        .iter()
+        .filter(|p| p.1 <= lowest * TIE_RATIO)
+        .max_by(|p, q| p.2.total_cmp(&q.2).then(q.1.total_cmp(&p.1)))?;
     // t_cam = t_imu + offset: camera index j + l at a + (j + l) res, IMU index j at c + j res.
-    best.map(|(l, _)| a + l * res - c)
+    let offset = |l: i64| a + l as f64 * res - c;
+    let others = peaks
+        .iter()
+        .filter(|p| p.0 != chosen.0)
+        .map(|p| offset(p.0))
+        .collect();
+    Some(CoarseLag {
+        offset: offset(chosen.0),
+        others,
+    })
+}
+
+/// Misfits within this ratio of the lowest tie with it: a motion that repeats aligns as well a
+/// period away, and the misfits then differ by their noise alone.
+const TIE_RATIO: f64 = 1.1;
+
+/// Lags whose misfit is within this ratio of the lowest fit the rates about as well: the
+/// offset is ambiguous among them, and the result says so.
+const REPEAT_RATIO: f64 = 1.5;
+
+/// Lags within this of each other belong to one peak, s.
+const PEAK_GAP_S: f64 = 1.0;
+
+/// The coarse search's lag as a clock offset (`t_cam = t_imu + offset`, s), and those of the
+/// other peaks that fit the rate magnitudes about as well.
+struct CoarseLag {
+    offset: f64,
+    others: Vec<f64>,
 }
 
 #[cfg(test)]
@@ -327,10 +399,55 @@ mod tests {
                 })
                 .collect();
             let mags: Vec<f64> = bins.iter().map(|b| b.gyro.norm()).collect();
-            let found = coarse_offset(&grid, a, step, &bins, &mags).expect("a lag");
+            let lag = coarse_offset(&grid, a, step, &bins, &mags).expect("a lag");
+            assert!(lag.others.is_empty(), "{:?}", lag.others);
+            let found = lag.offset;
             assert!(
                 (found - offset).abs() <= 0.0051,
                 "offset {offset}: found {found}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_repeating_motion_keeps_the_largest_overlap_and_names_the_other_lags() {
+        // A rate magnitude with a 5 s period; the IMU and the camera cover the same 200 s, the
+        // IMU's clock 0.013 s behind, its magnitudes with a noise of 0.02 rad/s.
+        let period = 5.0;
+        let rate = |t: f64| {
+            let u = std::f64::consts::TAU * t / period;
+            1.0 + 0.5 * u.sin() + 0.3 * (2.0 * u + 0.3).sin()
+        };
+        let (a, step) = (1000.0, 0.01);
+        let grid: Vec<f64> = (0..20_001).map(|i| rate(a + i as f64 * step)).collect();
+        let offset = 1000.013;
+        let bins: Vec<ImuBin> = (0..10_000)
+            .map(|j| {
+                let t = 0.02 * j as f64;
+                let noise = 0.02 * (2.0 * ((j as f64 * 12.9898).sin() * 43758.5453).fract() - 1.0);
+                ImuBin {
+                    t,
+                    gyro: Vector3::new(rate(t + offset) + noise, 0.0, 0.0),
+                    accel: Vector3::zeros(),
+                    n: 4,
+                }
+            })
+            .collect();
+        let mags: Vec<f64> = bins.iter().map(|b| b.gyro.norm()).collect();
+        let lag = coarse_offset(&grid, a, step, &bins, &mags).expect("a lag");
+        assert!(
+            (lag.offset - offset).abs() <= 0.0051,
+            "found {} for {offset}",
+            lag.offset
+        );
+        // Every other period within the half overlap the search allows is named, and nothing
+        // else: 20 periods either side.
+        assert_eq!(lag.others.len(), 40, "{:?}", lag.others);
+        for o in &lag.others {
+            let periods = (o - offset) / period;
+            assert!(
+                (periods - periods.round()).abs() * period <= 0.02 && periods.round() != 0.0,
+                "{o}"
             );
         }
     }

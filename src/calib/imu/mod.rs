@@ -133,6 +133,12 @@ pub struct ImuEstimate {
     pub noise_factor: (f64, f64),
     /// With a DVL in the problem: the factor its stated noise was multiplied by (else 1).
     pub dvl_noise_factor: f64,
+    /// Other clock offsets (`t_cam = t_imu + offset`, s, to 10 ms) at which the gyro's rate
+    /// magnitudes match the camera's about as well as at the one found (within half its
+    /// misfit again): the motion repeats, and the offset is ambiguous among them. Of those that
+    /// match as well (within a tenth), the one kept is the one the two recordings overlap most
+    /// at. Empty when the offset is unique.
+    pub offset_alternatives_s: Vec<f64>,
 }
 
 impl ImuEstimate {
@@ -331,13 +337,14 @@ fn camera_imu(
     };
     let traj = Trajectory::fit(poses, &fit)?;
     let bins = bins::make_bins(samples, opts.bin_width_s, noise.update_rate);
-    let mut st = init::initial_state(
+    let first = init::initial_state(
         &traj,
         &bins,
         bias_spacing(samples, opts),
         opts.max_offset_s,
         opts.gravity_magnitude,
     )?;
+    let mut st = first.state;
     let preintegrate = opts.preintegrate.unwrap_or_else(|| {
         poses.last().map_or(0.0, |p| p.t) - poses.first().map_or(0.0, |p| p.t) > PREINTEGRATE_FROM_S
     });
@@ -479,6 +486,7 @@ fn camera_imu(
         cost: sol.cost,
         noise_factor: factor,
         dvl_noise_factor: dvl_factor,
+        offset_alternatives_s: first.offset_alternatives_s,
     })
 }
 
