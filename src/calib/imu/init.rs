@@ -44,7 +44,10 @@ pub fn initial_state(
     max_offset: f64,
     gravity: f64,
 ) -> Result<FirstEstimate> {
-    let (offset, offset_alternatives_s) = search_offset(traj, bins, max_offset)?;
+    let Lag {
+        offset,
+        others: offset_alternatives_s,
+    } = search_offset(traj, bins, max_offset)?;
     // Pairs of camera and gyro rates, camera state at each bin (every `every`-th of those the
     // trajectory spans).
     let (a, z) = traj.span();
@@ -173,7 +176,7 @@ const FINE_SPAN_S: f64 = 0.05;
 /// the trajectory's: the coarse lag over every overlap, then a grid at 2 ms within
 /// [`FINE_SPAN_S`] (and `max_offset`) of it, then a parabola through the best point and its
 /// neighbours.
-fn search_offset(traj: &Trajectory, bins: &[ImuBin], max_offset: f64) -> Result<(f64, Vec<f64>)> {
+fn search_offset(traj: &Trajectory, bins: &[ImuBin], max_offset: f64) -> Result<Lag> {
     let (a, b) = traj.span();
     // The trajectory's rate magnitude on the coarse search's 10 ms grid, read linearly
     // between its points by the fine search: the GP's rates are smooth on that scale (their
@@ -197,8 +200,13 @@ fn search_offset(traj: &Trajectory, bins: &[ImuBin], max_offset: f64) -> Result<
         Some(grid[i] * (1.0 - u) + grid[(i + 1).min(n - 1)] * u)
     };
     let mags: Vec<f64> = bins.iter().map(|b| b.gyro.norm()).collect();
-    let (centre, others) = coarse_offset(&grid, a, step, bins, &mags)
-        .map_or((0.0, Vec::new()), |c| (c.offset, c.others));
+    let Lag {
+        offset: centre,
+        others,
+    } = coarse_offset(&grid, a, step, bins, &mags).unwrap_or(Lag {
+        offset: 0.0,
+        others: Vec::new(),
+    });
     let score = |d: f64| -> Option<f64> {
         let mut sum = 0.0;
         let mut count = 0usize;
@@ -240,20 +248,17 @@ fn search_offset(traj: &Trajectory, bins: &[ImuBin], max_offset: f64) -> Result<
             d += 0.5 * dstep * (sm - sp) / curv;
         }
     }
-    Ok((centre + d, others))
+    Ok(Lag {
+        offset: centre + d,
+        others,
+    })
 }
 
 /// The lag, on a 10 ms grid over every lag at which the IMU's span and the trajectory's
 /// overlap by at least half the shorter, that best aligns the gyro's rate magnitudes (`mags`,
 /// one per bin) with the trajectory's (`grid`, from `a` every `step`): clocks may be any
 /// distance apart (a device's uptime against a motion-capture clock). `None` without bins.
-fn coarse_offset(
-    grid: &[f64],
-    a: f64,
-    step: f64,
-    bins: &[ImuBin],
-    mags: &[f64],
-) -> Option<CoarseLag> {
+fn coarse_offset(grid: &[f64], a: f64, step: f64, bins: &[ImuBin], mags: &[f64]) -> Option<Lag> {
     let res = 0.01;
     let (c, d) = (bins.first()?.t, bins.last()?.t);
     // The IMU's magnitudes on a 10 ms grid from c (the bins' nearest, by time).
@@ -347,7 +352,7 @@ fn coarse_offset(
         .filter(|p| p.0 != chosen.0)
         .map(|p| offset(p.0))
         .collect();
-    Some(CoarseLag {
+    Some(Lag {
         offset: offset(chosen.0),
         others,
     })
@@ -364,9 +369,9 @@ const REPEAT_RATIO: f64 = 1.5;
 /// Lags within this of each other belong to one peak, s.
 const PEAK_GAP_S: f64 = 1.0;
 
-/// The coarse search's lag as a clock offset (`t_cam = t_imu + offset`, s), and those of the
-/// other peaks that fit the rate magnitudes about as well.
-struct CoarseLag {
+/// A lag found as a clock offset (`t_cam = t_imu + offset`, s), and the other peaks' offsets
+/// that fit the rate magnitudes about as well (to the coarse grid's 10 ms).
+struct Lag {
     offset: f64,
     others: Vec<f64>,
 }
