@@ -7,7 +7,7 @@
 //! gauge), the IMU's own frame and clock as the trajectory's (those columns held), and the
 //! DVL's velocities as a third kind of factor with the DVL's parameters at the end of `theta`.
 
-use nalgebra::{DMatrix, DVector, Matrix3, SMatrix, Vector3, Vector6};
+use nalgebra::{DMatrix, DVector, Matrix3, SMatrix, Vector6};
 use rayon::prelude::*;
 
 use super::bins::ImuBin;
@@ -15,14 +15,11 @@ use super::coupling::{Coupling, schur_forms};
 use super::factors::{BinTerms, SparsePoseFactors, bin_residual, bin_terms};
 use super::preint::{WindowTerms, Windows, residual as window_residual, window_terms};
 use super::state::{ImuState, NFIXED};
-use crate::calib::joint::redundancy::PriorShare;
 use crate::calib::model::{DvlObs, NPARAM};
 use crate::error::{Error, Result};
 use crate::trajectory::JerkDensity;
 use crate::trajectory::blocktri::{BandedInverse, BlockTridiagonal, Factored, M18, V18};
-use crate::trajectory::gp::{
-    Knot, LocalState, local_gamma, local_state, prior_factor, q_scalar_inv,
-};
+use crate::trajectory::gp::{Knot, LocalState, local_gamma, local_state};
 use crate::trajectory::solver::{Problem, step};
 use crate::types::imu::ImuNoise;
 
@@ -46,7 +43,7 @@ pub struct ImuJoint<'a> {
 
 /// Each sensor's chi-square and its share of the redundancy at a solution (see
 /// [`ImuJoint::redundancy`]).
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Copy, Debug, Default)]
 pub struct Redundancy {
     /// The gyro's chi-square and redundancy.
     pub gyro: (f64, f64),
@@ -54,12 +51,6 @@ pub struct Redundancy {
     pub accel: (f64, f64),
     /// The DVL's (zero without one).
     pub dvl: (f64, f64),
-    /// The motion prior's between knots, its translational and rotational parts apart (each
-    /// part a variance component of the jerk density).
-    pub prior: [(f64, f64); 2],
-    /// The same per interval between knots: each part's cost and the degrees of freedom it
-    /// takes (its nine dimensions less its redundancy).
-    pub prior_shares: Vec<PriorShare>,
 }
 
 impl Redundancy {
@@ -174,41 +165,6 @@ fn local_projection<const M: usize>(
     let (d1, d2, u): (&M18, &M18, &M18) = (&band.diag[k], &band.diag[k + 1], &band.upper[k]);
     let a = j1 * u * j2.transpose();
     j1 * d1 * j1.transpose() + a + a.transpose() + j2 * d2 * j2.transpose()
-}
-
-/// Per part of the motion prior (translational, rotational), `sum_c u_c^T W u_c` over the
-/// columns of `u` with `W = Q(dt)^-1 (x) diag(qc_inv)`: each of the six components couples its
-/// pose, rate and acceleration rows (`c`, `6 + c`, `12 + c`) through `Q(dt)^-1` alone.
-fn prior_weighted<const C: usize>(
-    qi: &Matrix3<f64>,
-    qc_inv: &Vector6<f64>,
-    u: &SMatrix<f64, 18, C>,
-) -> [f64; 2] {
-    let mut out = [0.0; 2];
-    for c in 0..6 {
-        let s: f64 = (0..C)
-            .map(|col| {
-                let a = Vector3::new(u[(c, col)], u[(6 + c, col)], u[(12 + c, col)]);
-                a.dot(&(qi * a))
-            })
-            .sum();
-        out[usize::from(c >= 3)] += qc_inv[c] * s;
-    }
-    out
-}
-
-/// Per part of the motion prior, `tr(W P)` of a symmetric 18x18 `P` (`W` as in
-/// [`prior_weighted`]).
-fn prior_trace(qi: &Matrix3<f64>, qc_inv: &Vector6<f64>, p: &M18) -> [f64; 2] {
-    let mut out = [0.0; 2];
-    for c in 0..6 {
-        let s: f64 = (0..3)
-            .flat_map(|i| (0..3).map(move |j| (i, j)))
-            .map(|(i, j)| qi[(i, j)] * p[(6 * i + c, 6 * j + c)])
-            .sum();
-        out[usize::from(c >= 3)] += qc_inv[c] * s;
-    }
-    out
 }
 
 /// `S^-1 s`, or an error saying the calibration is not determined.
@@ -739,10 +695,7 @@ impl ImuJoint<'_> {
             x
         };
         let starts: Vec<usize> = (0..p).step_by(CHUNK).collect();
-        let mut out = Redundancy {
-            prior_shares: vec![PriorShare::default(); n.saturating_sub(1)],
-            ..Redundancy::default()
-        };
+        let mut out = Redundancy::default();
         let Some((&last, rest)) = starts.split_last() else {
             return Ok(out);
         };
@@ -753,12 +706,6 @@ impl ImuJoint<'_> {
         let x = solved(last);
         let band = factor.banded_inverse();
         self.redundancy_pass(knots, st, (&x, &g, last), Some(&band), &mut out);
-        for (part, sum) in out.prior.iter_mut().enumerate() {
-            for share in &out.prior_shares {
-                sum.0 += share.cost[part];
-                sum.1 += 9.0 - share.taken[part];
-            }
-        }
         Ok(out)
     }
 
@@ -832,39 +779,6 @@ impl ImuJoint<'_> {
                 self.map_factors(&placed, [(0.0, None); 6], local, terms, |r| sink(r))
             }
         }
-        // The motion prior between consecutive knots: it touches no column of `theta`, so
-        // `U = J_x X G`; each part takes `tr(W J Sigma J^T)` of its nine dimensions per
-        // interval.
-        let intervals: Vec<(usize, usize, f64)> = (0..knots.len().saturating_sub(1))
-            .map(|k| (k, k, 0.0))
-            .collect();
-        let terms = |_: &(), _: usize, k: usize, _: f64| {
-            let dt = self.times[k + 1] - self.times[k];
-            let f = prior_factor(&knots[k], &knots[k + 1], dt);
-            let (j1, j2) = (f.j1(), f.j2());
-            let (qi, qc_inv) = (q_scalar_inv(dt), self.density.qc_inv(k));
-            let u = j1 * xg[k] + j2 * xg[k + 1];
-            let projected = prior_weighted(&qi, &qc_inv, &u);
-            let own = band.map(|b| {
-                let cost = prior_weighted(&qi, &qc_inv, &f.e);
-                let taken = prior_trace(&qi, &qc_inv, &local_projection(b, k, &j1, &j2));
-                PriorShare { cost, taken }
-            });
-            (projected, own)
-        };
-        let mut shares = out.prior_shares.iter_mut();
-        let sink = |(projected, own): &([f64; 2], Option<PriorShare>)| {
-            if let Some(share) = shares.next() {
-                for (part, projected) in projected.iter().enumerate() {
-                    share.taken[part] += projected;
-                    if let Some(own) = own {
-                        share.cost[part] = own.cost[part];
-                        share.taken[part] += own.taken[part];
-                    }
-                }
-            }
-        };
-        self.map_factors(&intervals, ([0.0; 2], None), |_| (), terms, sink);
         if let Some(pd) = &st.dvl {
             let c = st.dvl_start();
             let cols: Vec<usize> = (c..c + NPARAM).collect();
