@@ -1076,7 +1076,27 @@ mod imu_verdict_tests {
             noise_factor: (1.0, 1.0),
             dvl_noise_factor: 1.0,
             offset_alternatives_s: Vec::new(),
+            prior_shift: None,
         }
+    }
+
+    /// The std are the data's and the motion prior's together: taking the prior's shift out
+    /// leaves the data's, and the shift over it says which of the two leads.
+    #[test]
+    fn the_data_std_leave_the_motion_priors_share_out() {
+        let mut est = estimate(|_| Vector3::new(0.5, 0.0, 0.0), 0.01);
+        est.prior_shift = Some(crate::calib::imu::PriorShift {
+            rotation: Vector3::zeros(),
+            lever_arm: Vector3::new(-0.006, 0.0, 0.0),
+            time_offset_s: 0.008,
+        });
+        let (r, l, o) = est.data_std();
+        let close = |a: f64, b: f64| (a - b).abs() < 1e-12;
+        assert!(close(r.x, 0.01) && close(l.x, 0.008) && close(l.y, 0.01) && close(o, 0.006));
+        let over = est.prior_shift.expect("shift").over_data_std(&est);
+        assert!(close(over[3], 0.75) && close(over[6], 4.0 / 3.0) && over[0] == 0.0);
+        // The total std are untouched.
+        assert!(close(est.std().1.x, 0.01));
     }
 
     #[test]

@@ -637,6 +637,15 @@ impl ImuJoint<'_> {
         })
     }
 
+    /// The calibration's Gauss-Newton step at `knots` and `st` (the knots' step with it
+    /// discarded): from a solution of the problem with other weights, the linear response of
+    /// `theta` to the change of weights.
+    pub fn theta_step(&self, knots: &[Knot], st: &ImuState) -> Result<DVector<f64>> {
+        let mut sys = BlockTridiagonal::zeros(knots.len());
+        let lin = self.linearise(knots, st, &mut sys);
+        Ok(self.step(&lin, sys)?.dth)
+    }
+
     /// Each sensor's share of the measurements' redundancy at the solution, and its chi-square.
     /// The redundancy of a residual block is its dimension less `tr(W J Sigma J^T)`, with
     /// `Sigma` the joint covariance of the two knots and the calibration it touches; the
