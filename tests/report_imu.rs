@@ -107,6 +107,16 @@ fn the_report_shows_the_imu_as_the_result_file_has_it() {
         "{sec}"
     );
     assert!(sec.contains("id=\"imu-rotation-forms\""), "{sec}");
+    // The motion prior's share of the std, as the result file's figures give it.
+    let shift = triple(
+        fig.imu_prior_shift_lever_arm_m.expect("prior shift"),
+        1e3,
+        2,
+    );
+    assert!(
+        sec.contains("id=\"imu-prior\"") && sec.contains(&format!("the lever arm by {shift} mm")),
+        "{shift} not in {sec}"
+    );
     // A simulated IMU's noise is as its noise file says: no factor far above 1 is claimed.
     assert!(!sec.contains("understates"), "{sec}");
 

@@ -259,6 +259,13 @@ run_figures! {
     imu_noise_factor_accel: f64,
     /// Gauss-Newton iterations of the IMU's last solution.
     imu_iterations: usize,
+    /// How far the IMU's rotation moves (deg, per axis) under a motion prior ten times
+    /// looser: the prior's share of its std.
+    imu_prior_shift_rotation_deg: [f64; 3],
+    /// The same for the IMU's lever arm (m, per axis).
+    imu_prior_shift_lever_arm_m: [f64; 3],
+    /// The same for the IMU's clock offset (s).
+    imu_prior_shift_time_offset_s: f64,
     /// How the camchain was obtained, when the cameras were calibrated from the same images.
     camchain_source: String,
     /// Camera poses given.

@@ -277,11 +277,28 @@ pub fn note_imu(
         lever_arm: super::exports::state(&judged.lever_arm),
         time_offset: super::exports::state(&judged.time_offset),
     };
-    let warnings: Vec<String> = [&judged.rotation, &judged.lever_arm, &judged.time_offset]
+    let mut warnings: Vec<String> = [&judged.rotation, &judged.lever_arm, &judged.time_offset]
         .into_iter()
         .filter(|v| !v.ok)
         .map(|v| v.reason.clone())
         .collect();
+    let prior_share = est.prior_shift.map(|p| (p, p.over_data_std(&est)));
+    if let Some((_, over)) = &prior_share {
+        let names = ["rotation", "lever arm", "clock offset"];
+        let led: Vec<&str> = [&over[0..3], &over[3..6], &over[6..7]]
+            .iter()
+            .zip(names)
+            .filter(|(o, _)| o.iter().any(|x| *x > PRIOR_LEADS))
+            .map(|(_, n)| n)
+            .collect();
+        if !led.is_empty() {
+            warnings.push(format!(
+                "the IMU's {} depend more on the motion prior than on the sensors' noise: a                  motion prior ten times looser moves them by up to {:.1} times the standard                  deviation the data alone give (info.imu_prior_shift_*), and their standard                  deviations include that move. The IMU saw too little angular acceleration                  for its noise: rotate more briskly about several axes, and check that its                  noise file is the IMU's",
+                led.join(" and "),
+                over.iter().copied().fold(0.0, f64::max)
+            ));
+        }
+    }
     if let Some(s) = f.std.as_mut() {
         s.imu = Some(ImuStd {
             rotation_deg: v(&s_rot_deg),
@@ -302,6 +319,11 @@ pub fn note_imu(
     fig.imu_noise_factor_gyro = Some(est.noise_factor.0);
     fig.imu_noise_factor_accel = Some(est.noise_factor.1);
     fig.imu_iterations = Some(est.iterations);
+    if let Some((p, _)) = &prior_share {
+        fig.imu_prior_shift_rotation_deg = Some(v(&p.rotation.map(f64::to_degrees)));
+        fig.imu_prior_shift_lever_arm_m = Some(v(&p.lever_arm));
+        fig.imu_prior_shift_time_offset_s = Some(p.time_offset_s);
+    }
     if est.noise_factor.0 > 1.0 || est.noise_factor.1 > 1.0 {
         info.notes.push(format!(
             "the IMU's residuals scatter {:.1}x (gyro) and {:.1}x (accelerometer) its stated \
@@ -314,6 +336,11 @@ pub fn note_imu(
         verdicts: judged,
     }
 }
+
+/// A quantity's shift under a ten times looser motion prior, over the std the data alone give
+/// it, beyond which the result warns that the prior, not the sensors' noise, leads its std
+/// (the std are then more than twice the data's).
+pub const PRIOR_LEADS: f64 = 2.0;
 
 /// The IMU's lines of the run summary (empty without an IMU result).
 pub fn summary_lines(f: &CalibrationFile) -> String {

@@ -136,6 +136,26 @@ pub(super) fn imu_section(s: &mut String, imu: &ImuReportInput) {
         "<p id=\"imu-noise\">{}</p>\n",
         escape(&noise_words(gyro_factor, accel_factor))
     );
+    if let Some(p) = est.prior_shift {
+        let (d_rot, d_lever, d_off) = est.data_std();
+        put!(
+            s,
+            "<p id=\"imu-prior\">{}</p>\n",
+            escape(&format!(
+                "The standard deviations include the motion prior's share: a prior ten times \
+                 looser moves the rotation by {} deg, the lever arm by {} mm and the clock \
+                 offset by {:.3} ms, against standard deviations of {} deg, {} mm and {:.3} ms \
+                 from the sensors' noise alone. Where the move is the larger, the motion, not \
+                 the noise, limits what the recording says.",
+                vec3(&p.rotation.map(f64::to_degrees), 1.0, 4),
+                vec3(&p.lever_arm, 1e3, 2),
+                1e3 * p.time_offset_s,
+                vec3(&d_rot.map(f64::to_degrees), 1.0, 4),
+                vec3(&d_lever, 1e3, 2),
+                1e3 * d_off
+            ))
+        );
+    }
     let m = &v.motion;
     let [a, b, c] = m.principal_rates;
     let r = |x: &Vector3<f64>| vec3(x, 1.0, 3);
