@@ -1,11 +1,13 @@
 //! Camera-IMU calibration on simulated data over several seeds: error, std and their ratio.
 //! `cargo run --release --example imu_sim -- [SEEDS] [MOTION] [KNOTS_PER_POSE]`
 //!
-//! Environment: `DURATION` (s), `PREINT` (0 for the bins), `POSES_PER_KNOT`, `QCF` (the motion
-//! prior's density factor), `BIAS_NODES` (the most bias nodes, `ImuOptions::max_bias_nodes`),
+//! Environment: `DURATION` (s), `PREINT` (0 for the bins), `POSES_PER_KNOT`, `QCF` (a factor
+//! on the motion prior's density, `ImuOptions::density_factor`, on top of
+//! `JOINT_DENSITY_FACTOR`), `BIAS_NODES` (the most bias nodes, `ImuOptions::max_bias_nodes`),
 //! `SIM_IMU_NOISE`, `SIM_IMU_WALK` and `SIM_POSE_NOISE` (factors on the simulated IMU's white
-//! noise, on its biases' random walks and on the poses' noise; the noise the calibration is told stays as stated, so at 0 what is
-//! left of an error is the method's own, not the data's).
+//! noise, on its biases' random walks and on the poses' noise; the noise the calibration is
+//! told stays as stated, so at 0 what is left of an error is the method's own, not the
+//! data's).
 
 use dvlcal::calib::imu::{ImuOptions, calibrate_camera_imu};
 use dvlcal::lie::so3;
@@ -96,6 +98,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .chain((0..3).map(|i| lev_err[i] / slev[i]))
             .chain([off_err / soff])
             .collect();
+        let shift: Vec<f64> = est.prior_shift.map_or(vec![0.0; 7], |p| {
+            (0..3)
+                .map(|i| p.rotation[i] / srot[i])
+                .chain((0..3).map(|i| p.lever_arm[i] / slev[i]))
+                .chain([p.time_offset_s / soff])
+                .collect()
+        });
         err2[0] += rot_err.norm_squared().to_degrees().to_degrees() / 3.0;
         err2[1] += lev_err.norm_squared() / 3.0;
         err2[2] += off_err * off_err;
@@ -109,7 +118,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             *s += x;
         }
         println!(
-            "{seed:4}  {:6.2} {:6.2} {:6.2}   {:6.2} {:6.2} {:6.2}   {:6.2}   {:3} {:5.2}s  std rot {:.4} deg lever {:.2} mm off {:.3} ms; lever err {:.3} {:.3} {:.3} mm; bins {}/{} noise x{:.2} x{:.2}; other offsets {}",
+            "{seed:4}  {:6.2} {:6.2} {:6.2}   {:6.2} {:6.2} {:6.2}   {:6.2}   {:3} {:5.2}s  std rot {:.4} deg lever {:.2} mm off {:.3} ms; lever err {:.3} {:.3} {:.3} mm; bins {}/{} noise x{:.2} x{:.2}; other offsets {}; prior shift/std rot {:.2} {:.2} {:.2} lever {:.2} {:.2} {:.2} off {:.2}",
             r[0],
             r[1],
             r[2],
@@ -129,7 +138,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             est.bins_total,
             est.noise_factor.0,
             est.noise_factor.1,
-            est.offset_alternatives_s.len()
+            est.offset_alternatives_s.len(),
+            shift[0],
+            shift[1],
+            shift[2],
+            shift[3],
+            shift[4],
+            shift[5],
+            shift[6]
         );
     }
     let n = (last - first + 1) as f64;
