@@ -415,6 +415,23 @@ fn calibrate_without_a_camera_writes_the_dvl_relative_to_the_imu() {
     );
     let obs = r.observability.as_ref().expect("verdicts");
     assert_eq!(format!("{:?}", obs.lever_arm), "Ok");
+    // The motion prior's share of the std, per parameter: on this simulated motion a small
+    // part of them (a lever arm's move below its std), so no warning that it leads.
+    let info = r.info.as_ref().expect("info");
+    let shift = info
+        .figures
+        .dvl_prior_shift_per_parameter
+        .as_ref()
+        .expect("dvl_prior_shift_per_parameter");
+    assert_eq!(shift.len(), 8, "{shift:?}");
+    for i in 0..3 {
+        assert!(shift[3 + i].abs() < lever_s[i], "{shift:?} {lever_s:?}");
+    }
+    assert!(
+        !info.warnings.iter().any(|w| w.contains("motion prior")),
+        "{:?}",
+        info.warnings
+    );
     exports_hold_the_dvl_in_the_imu(&tmp, &ds, &est, &stdout);
     // The report: its sections in order, the estimate as the result file has it, the verdicts
     // in words, and the result file itself.

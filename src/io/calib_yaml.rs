@@ -266,6 +266,9 @@ run_figures! {
     imu_prior_shift_lever_arm_m: [f64; 3],
     /// The same for the IMU's clock offset (s).
     imu_prior_shift_time_offset_s: f64,
+    /// DVL + IMU: how far the DVL's parameters move under a motion prior ten times looser,
+    /// per parameter (the prior's share of their std).
+    dvl_prior_shift_per_parameter: Vec<f64>,
     /// How the camchain was obtained, when the cameras were calibrated from the same images.
     camchain_source: String,
     /// Camera poses given.

@@ -79,6 +79,28 @@ pub fn calibrate_dvl_imu_dataset(data: &Dataset, opts: &CalibOptions) -> Result<
     ));
     info.warnings
         .extend(verdicts.iter().filter(|v| !v.ok).map(|v| v.reason.clone()));
+    if let Some(shift) = est.prior_shift {
+        let data = est.data_std();
+        let names = ["rotation", "lever arm", "velocity scale", "clock offset"];
+        let over = |i: usize| shift[i].abs() / data[i].max(f64::MIN_POSITIVE);
+        let led: Vec<&str> = [0..3, 3..6, 6..7, 7..8]
+            .into_iter()
+            .zip(names)
+            .filter(|(r, _)| r.clone().any(|i| over(i) > super::imu::PRIOR_LEADS))
+            .map(|(_, n)| n)
+            .collect();
+        if !led.is_empty() {
+            info.warnings.push(format!(
+                "the DVL's {} depend more on the motion prior than on the sensors' noise: a \
+                 motion prior ten times looser moves them by up to {:.1} times the standard \
+                 deviation the data alone give (info.dvl_prior_shift_per_parameter), and \
+                 their standard deviations include that move. Turn and change speed more \
+                 during the recording",
+                led.join(" and "),
+                (0..8).map(over).fold(0.0, f64::max)
+            ));
+        }
+    }
     let mut failure = Vec::new();
     if !est.converged {
         failure.push(format!(
@@ -98,6 +120,7 @@ pub fn calibrate_dvl_imu_dataset(data: &Dataset, opts: &CalibOptions) -> Result<
         dvl_samples: Some(est.dvl_total),
         dvl_used: Some(est.dvl_used),
         dvl_noise_over_stated_variance: Some(est.noise_factor.2.powi(2)),
+        dvl_prior_shift_per_parameter: est.prior_shift.map(|s| s.iter().copied().collect()),
         ..RunFigures::default()
     };
     let v3 = |v: &Vector3<f64>| [v.x, v.y, v.z];

@@ -135,6 +135,10 @@ pub struct DvlImuEstimate {
     pub times: Vec<f64>,
     /// The trajectory's knot states at the solution (world: the IMU at the first knot).
     pub knots: Vec<Knot>,
+    /// How far the DVL's parameters move (`calib::model`'s coordinates) when the motion
+    /// prior's jerk density is [`super::PRIOR_SHIFT_FACTOR`] times looser; its outer product is
+    /// part of `covariance` (`None`: the noise was not estimated).
+    pub prior_shift: Option<SMatrix<f64, NPARAM, 1>>,
 }
 
 impl DvlImuEstimate {
@@ -142,6 +146,17 @@ impl DvlImuEstimate {
     /// (m, per axis), scale, clock offset (s).
     pub fn std(&self) -> [f64; NPARAM] {
         std::array::from_fn(|i| self.covariance[(i, i)].max(0.0).sqrt())
+    }
+
+    /// [`DvlImuEstimate::std`] without the motion prior's share: what the sensors' noise alone
+    /// leaves unknown.
+    pub fn data_std(&self) -> [f64; NPARAM] {
+        let shift = self.prior_shift.unwrap_or_default();
+        std::array::from_fn(|i| {
+            (self.covariance[(i, i)] - shift[i] * shift[i])
+                .max(0.0)
+                .sqrt()
+        })
     }
 }
 
@@ -307,8 +322,22 @@ pub fn calibrate_dvl_imu(
         )));
     }
     let c0 = sol.state.dvl_start();
-    let covariance =
+    let mut covariance =
         SMatrix::<f64, NPARAM, NPARAM>::from_fn(|r, c| sol.covariance[(c0 + r, c0 + c)]);
+    // The motion prior's share (as with a camera, `super::PRIOR_SHIFT_FACTOR`): the DVL's
+    // parameters' move under a looser prior, added to their covariance.
+    let prior_shift = if opts.estimate_noise {
+        let density = joint.density.clone();
+        joint.density = density.scaled(super::PRIOR_SHIFT_FACTOR);
+        let step = joint.theta_step(&sol.knots, &sol.state);
+        joint.density = density;
+        let step = step?;
+        let shift = SMatrix::<f64, NPARAM, 1>::from_fn(|r, _| step[c0 + r]);
+        covariance += shift * shift.transpose();
+        Some(shift)
+    } else {
+        None
+    };
     let params = sol.state.dvl.ok_or_else(|| {
         Error::Numerical("the DVL's parameters were lost from the joint problem".into())
     })?;
@@ -331,6 +360,7 @@ pub fn calibrate_dvl_imu(
         bins_total: bins.len(),
         times,
         knots: sol.knots,
+        prior_shift,
     })
 }
 
