@@ -112,7 +112,8 @@ pub const PREINTEGRATE_FROM_S: f64 = 600.0;
 pub struct ImuEstimate {
     /// The estimate.
     pub state: ImuState,
-    /// Covariance of the parameter vector (see [`state`] for its layout).
+    /// Covariance of the parameter vector (see [`state`] for its layout); on the IMU's
+    /// columns it includes the motion prior's share ([`ImuEstimate::prior_shift`]).
     pub covariance: DMatrix<f64>,
     /// Gauss-Newton iterations of the last solution.
     pub iterations: usize,
@@ -140,8 +141,8 @@ pub struct ImuEstimate {
     /// at. Empty when the offset is unique.
     pub offset_alternatives_s: Vec<f64>,
     /// How far the calibration moves when the motion prior's jerk density is
-    /// [`PRIOR_SHIFT_FACTOR`] times looser; its outer product is part of `covariance`. `None` when the noise is not estimated (the covariance is then the data's
-    /// alone).
+    /// [`PRIOR_SHIFT_FACTOR`] times looser; its outer product is part of `covariance`. `None`
+    /// when the noise is not estimated (the covariance is then the data's alone).
     pub prior_shift: Option<PriorShift>,
 }
 
