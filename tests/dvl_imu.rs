@@ -450,6 +450,16 @@ fn calibrate_without_a_camera_writes_the_dvl_relative_to_the_imu() {
     assert!(html.contains(&lever), "no lever arm {lever} in the report");
     assert!(html.contains(&format!("{:.5} s", r.time_offset_s)));
     assert!(html.contains("Every estimated quantity is well determined"));
+    let moved = format!(
+        "the lever arm by [{:.2}, {:.2}, {:.2}] mm",
+        shift[3] * 1e3,
+        shift[4] * 1e3,
+        shift[5] * 1e3
+    );
+    assert!(
+        html.contains("id=\"dvl-imu-prior\"") && html.contains(&moved),
+        "{moved} not in the report"
+    );
     assert_eq!(html.matches("well determined</span>").count(), 4);
     assert!(html.contains("T_imu_dvl:"), "the result file is not shown");
     assert!(!stale.exists(), "the stale Kalibr file was left");

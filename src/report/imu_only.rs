@@ -261,6 +261,28 @@ fn dvl_imu_section(s: &mut String, e: &DvlImuEstimate, v: &[Verdict; 4]) {
         put!(s, "<li>{}</li>", escape(&line));
     }
     s.push_str("</ul>\n");
+    if let Some(shift) = e.prior_shift {
+        let d = e.data_std();
+        let v3 = |x: &[f64]| Vector3::new(x[0], x[1], x[2]);
+        put!(
+            s,
+            "<p id=\"dvl-imu-prior\">{}</p>\n",
+            escape(&format!(
+                "The standard deviations include the motion prior's share: a prior ten times \
+                 looser moves the rotation by {} deg, the lever arm by {} mm, the clock offset \
+                 by {:.3} ms and the scale by {:.5}, against standard deviations of {} deg, {} \
+                 mm, {:.3} ms and {:.5} from the sensors' noise alone.",
+                vec3(&v3(&shift.as_slice()[0..3]).map(f64::to_degrees), 1.0, 4),
+                vec3(&v3(&shift.as_slice()[3..6]), 1e3, 2),
+                1e3 * shift[7],
+                shift[6],
+                vec3(&v3(&d[0..3]).map(f64::to_degrees), 1.0, 4),
+                vec3(&v3(&d[3..6]), 1e3, 2),
+                1e3 * d[7],
+                d[6]
+            ))
+        );
+    }
     put!(
         s,
         "<p id=\"dvl-imu-fit\">The solution took {} Gauss-Newton iterations{}; {} of {} DVL \
