@@ -327,11 +327,8 @@ pub fn calibrate_dvl_imu(
     // The motion prior's share (as with a camera, `super::PRIOR_SHIFT_FACTOR`): the DVL's
     // parameters' move under a looser prior, added to their covariance.
     let prior_shift = if opts.estimate_noise {
-        let density = joint.density.clone();
-        joint.density = density.scaled(super::PRIOR_SHIFT_FACTOR);
-        let step = joint.theta_step(&sol.knots, &sol.state);
-        joint.density = density;
-        let step = step?;
+        let step =
+            joint.theta_step_at_density(&sol.knots, &sol.state, super::PRIOR_SHIFT_FACTOR)?;
         let shift = SMatrix::<f64, NPARAM, 1>::from_fn(|r, _| step[c0 + r]);
         covariance += shift * shift.transpose();
         Some(shift)

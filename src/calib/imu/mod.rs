@@ -540,11 +540,7 @@ fn camera_imu(
     }
     let mut covariance = sol.covariance;
     let prior_shift = if opts.estimate_noise {
-        let density = joint.density.clone();
-        joint.density = density.scaled(PRIOR_SHIFT_FACTOR);
-        let step = joint.theta_step(&sol.knots, &sol.state);
-        joint.density = density;
-        let step = step?;
+        let step = joint.theta_step_at_density(&sol.knots, &sol.state, PRIOR_SHIFT_FACTOR)?;
         // The IMU's columns: the DVL's std come from its own noise model.
         let imu = sol.state.dvl_start();
         covariance.view_mut((0, 0), (imu, imu)).ger(

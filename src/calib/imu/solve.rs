@@ -637,12 +637,20 @@ impl ImuJoint<'_> {
         })
     }
 
-    /// The calibration's Gauss-Newton step at `knots` and `st` (the knots' step with it
-    /// discarded): from a solution of the problem with other weights, the linear response of
-    /// `theta` to the change of weights.
-    pub fn theta_step(&self, knots: &[Knot], st: &ImuState) -> Result<DVector<f64>> {
+    /// The calibration's Gauss-Newton step at `knots` and `st` with the motion prior's density
+    /// multiplied by `factor` (the knots' step discarded; the density restored after): from a
+    /// solution at the present density, the linear response of `theta` to the other one.
+    pub fn theta_step_at_density(
+        &mut self,
+        knots: &[Knot],
+        st: &ImuState,
+        factor: f64,
+    ) -> Result<DVector<f64>> {
+        let kept = self.density.clone();
+        self.density = kept.scaled(factor);
         let mut sys = BlockTridiagonal::zeros(knots.len());
         let lin = self.linearise(knots, st, &mut sys);
+        self.density = kept;
         Ok(self.step(&lin, sys)?.dth)
     }
 
