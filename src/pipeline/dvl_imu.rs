@@ -81,23 +81,22 @@ pub fn calibrate_dvl_imu_dataset(data: &Dataset, opts: &CalibOptions) -> Result<
         .extend(verdicts.iter().filter(|v| !v.ok).map(|v| v.reason.clone()));
     if let Some(shift) = est.prior_shift {
         let data = est.data_std();
-        let names = ["rotation", "lever arm", "velocity scale", "clock offset"];
-        let over = |i: usize| shift[i].abs() / data[i].max(f64::MIN_POSITIVE);
-        let led: Vec<&str> = [0..3, 3..6, 6..7, 7..8]
-            .into_iter()
-            .zip(names)
-            .filter(|(r, _)| r.clone().any(|i| over(i) > super::imu::PRIOR_LEADS))
-            .map(|(_, n)| n)
-            .collect();
-        if !led.is_empty() {
+        let over: [f64; 8] =
+            std::array::from_fn(|i| shift[i].abs() / data[i].max(f64::MIN_POSITIVE));
+        let groups = [
+            ("rotation", &over[0..3]),
+            ("lever arm", &over[3..6]),
+            ("velocity scale", &over[6..7]),
+            ("clock offset", &over[7..8]),
+        ];
+        if let Some((led, most)) = super::imu::prior_leads(&groups) {
             info.warnings.push(format!(
                 "the DVL's {} depend more on the motion prior than on the sensors' noise: a \
                  motion prior ten times looser moves them by up to {:.1} times the standard \
                  deviation the data alone give (info.dvl_prior_shift_per_parameter), and \
                  their standard deviations include that move. Turn and change speed more \
                  during the recording",
-                led.join(" and "),
-                (0..8).map(over).fold(0.0, f64::max)
+                led, most
             ));
         }
     }

@@ -284,18 +284,15 @@ pub fn note_imu(
         .collect();
     let prior_share = est.prior_shift.map(|p| (p, p.over_data_std(&est)));
     if let Some((_, over)) = &prior_share {
-        let names = ["rotation", "lever arm", "clock offset"];
-        let led: Vec<&str> = [&over[0..3], &over[3..6], &over[6..7]]
-            .iter()
-            .zip(names)
-            .filter(|(o, _)| o.iter().any(|x| *x > PRIOR_LEADS))
-            .map(|(_, n)| n)
-            .collect();
-        if !led.is_empty() {
+        let groups = [
+            ("rotation", &over[0..3]),
+            ("lever arm", &over[3..6]),
+            ("clock offset", &over[6..7]),
+        ];
+        if let Some((led, most)) = prior_leads(&groups) {
             warnings.push(format!(
                 "the IMU's {} depend more on the motion prior than on the sensors' noise: a                  motion prior ten times looser moves them by up to {:.1} times the standard                  deviation the data alone give (info.imu_prior_shift_*), and their standard                  deviations include that move. The IMU saw too little angular acceleration                  for its noise: rotate more briskly about several axes, and check that its                  noise file is the IMU's",
-                led.join(" and "),
-                over.iter().copied().fold(0.0, f64::max)
+                led, most
             ));
         }
     }
@@ -341,6 +338,22 @@ pub fn note_imu(
 /// it, beyond which the result warns that the prior, not the sensors' noise, leads its std
 /// (the std are then more than twice the data's).
 pub const PRIOR_LEADS: f64 = 2.0;
+
+/// Of the named groups of ratios (a quantity's shift under the looser prior over its data
+/// std), the names of those with a ratio above [`PRIOR_LEADS`], joined with "and", and the
+/// largest ratio of all; `None` when no group is led by the prior.
+pub(crate) fn prior_leads(groups: &[(&str, &[f64])]) -> Option<(String, f64)> {
+    let led: Vec<&str> = groups
+        .iter()
+        .filter(|(_, r)| r.iter().any(|x| *x > PRIOR_LEADS))
+        .map(|(n, _)| *n)
+        .collect();
+    let most = groups
+        .iter()
+        .flat_map(|(_, r)| r.iter().copied())
+        .fold(0.0, f64::max);
+    (!led.is_empty()).then(|| (led.join(" and "), most))
+}
 
 /// The IMU's lines of the run summary (empty without an IMU result).
 pub fn summary_lines(f: &CalibrationFile) -> String {
@@ -395,4 +408,23 @@ pub fn imu_export(f: &CalibrationFile) -> Option<ImuExport> {
         time_offset_s: off,
         frame: "imu".into(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_prior_leads_the_groups_with_a_ratio_above_its_bound() {
+        let groups = [
+            ("rotation", &[0.1, 2.5, 0.3][..]),
+            ("lever arm", &[1.9, 0.2, 3.0][..]),
+            ("clock offset", &[2.0][..]),
+        ];
+        assert_eq!(
+            prior_leads(&groups),
+            Some(("rotation and lever arm".to_string(), 3.0))
+        );
+        assert_eq!(prior_leads(&groups[2..]), None);
+    }
 }
