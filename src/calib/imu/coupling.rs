@@ -2,10 +2,8 @@
 //! factors touch, and the calibration's Schur complement computed from it without forming
 //! `A^-1 H_x theta`.
 //!
-//! A bin touches the fixed parameters and its two bias nodes (21 columns), a DVL velocity the
-//! DVL's 8; a knot collects the bins of the two intervals around it, so its rows of `H_x theta`
-//! are the 9 fixed columns, two or three bias nodes and the DVL's columns, whatever the number
-//! of bias nodes. Dense, the coupling took `18 N p` numbers and its solution as many again.
+//! A bin or window touches the fixed parameters (9 columns), a DVL velocity the DVL's 8: a
+//! knot's rows of `H_x theta` (24: the knot's state and its biases) are at most 17 columns.
 //!
 //! The Schur complement `S = H_theta - H_x theta^T A^-1 H_x theta` and the reduced right-hand
 //! side need `H_x theta^T A^-1 H_x theta` and `H_x theta^T A^-1 r`: both come from the forward
@@ -15,12 +13,13 @@
 use nalgebra::{DMatrix, DVector, SMatrix};
 use rayon::prelude::*;
 
+use super::solve::{KB, VK};
 use super::state::NFIXED;
 use crate::calib::model::NPARAM;
-use crate::trajectory::blocktri::{Factored, ForwardParts, V18, forward_in_place, lower_inverse};
+use crate::trajectory::blocktri::{Factored, ForwardParts, forward_in_place, lower_inverse};
 
 /// Knot rows.
-const R: usize = 18;
+const R: usize = KB;
 
 /// `H_x theta`, knot by knot, on the columns the knot's factors touch.
 #[derive(Clone, Debug)]
@@ -29,40 +28,8 @@ pub struct Coupling {
     p: usize,
     /// Per knot: the fixed parameters' columns.
     fixed: Vec<SMatrix<f64, R, NFIXED>>,
-    /// Per knot: the bias nodes touched and their 6 columns.
-    bias: Vec<Vec<(usize, SMatrix<f64, R, 6>)>>,
     /// With a DVL: its first column and, per knot, its columns.
     dvl: Option<(usize, Vec<SMatrix<f64, R, NPARAM>>)>,
-}
-
-/// A run of knots' rows of a [`Coupling`] (from [`Coupling::runs_mut`]), knot `0` its first.
-pub struct Rows<'a> {
-    fixed: &'a mut [SMatrix<f64, R, NFIXED>],
-    bias: &'a mut [Vec<(usize, SMatrix<f64, R, 6>)>],
-}
-
-impl Rows<'_> {
-    /// [`Coupling::add_bin`] on the run's knot `k`.
-    pub fn add_bin(&mut self, k: usize, node: usize, block: &SMatrix<f64, R, 21>) {
-        add_block(&mut self.fixed[k], &mut self.bias[k], node, block);
-    }
-}
-
-/// Adds a block on the 21 columns of `theta_columns(node)` to one knot's rows.
-fn add_block(
-    fixed: &mut SMatrix<f64, R, NFIXED>,
-    bias: &mut Vec<(usize, SMatrix<f64, R, 6>)>,
-    node: usize,
-    block: &SMatrix<f64, R, 21>,
-) {
-    *fixed += block.fixed_columns::<NFIXED>(0);
-    for (i, c) in [(node, NFIXED), (node + 1, NFIXED + 6)] {
-        let part = block.fixed_columns::<6>(c);
-        match bias.iter_mut().find(|(j, _)| *j == i) {
-            Some((_, m)) => *m += part,
-            None => bias.push((i, part.into_owned())),
-        }
-    }
 }
 
 impl Coupling {
@@ -71,7 +38,6 @@ impl Coupling {
         Coupling {
             p,
             fixed: vec![SMatrix::zeros(); n],
-            bias: vec![Vec::new(); n],
             dvl: dvl_start.map(|c| (c, vec![SMatrix::zeros(); n])),
         }
     }
@@ -81,25 +47,26 @@ impl Coupling {
         self.p
     }
 
-    /// Adds a bin's block on knot `k` (the 21 columns of `theta_columns(node)`: the fixed
-    /// parameters, then nodes `node` and `node + 1`).
-    pub fn add_bin(&mut self, k: usize, node: usize, block: &SMatrix<f64, R, 21>) {
-        add_block(&mut self.fixed[k], &mut self.bias[k], node, block);
+    /// Adds a bin's or window's block on knot `k` (the fixed parameters' columns).
+    pub fn add_bin(&mut self, k: usize, block: &SMatrix<f64, R, NFIXED>) {
+        self.fixed[k] += block;
     }
 
-    /// The knots' rows in runs of `len` knots, each borrowed apart from the others, so that
-    /// runs can be filled in parallel.
-    pub fn runs_mut(&mut self, len: usize) -> impl IndexedParallelIterator<Item = Rows<'_>> {
-        self.fixed
-            .par_chunks_mut(len)
-            .zip(self.bias.par_chunks_mut(len))
-            .map(|(fixed, bias)| Rows { fixed, bias })
+    /// The knots' rows of the fixed parameters in runs of `len` knots, each borrowed apart from
+    /// the others, so that runs can be filled in parallel.
+    pub fn runs_mut(
+        &mut self,
+        len: usize,
+    ) -> impl IndexedParallelIterator<Item = &mut [SMatrix<f64, R, NFIXED>]> {
+        self.fixed.par_chunks_mut(len)
     }
 
-    /// Adds a DVL velocity's block on knot `k` (without a DVL in `theta`: nothing).
-    pub fn add_dvl(&mut self, k: usize, block: &SMatrix<f64, R, NPARAM>) {
+    /// Adds a DVL velocity's block on knot `k`'s trajectory rows (without a DVL in `theta`:
+    /// nothing).
+    pub fn add_dvl(&mut self, k: usize, block: &SMatrix<f64, 18, NPARAM>) {
         if let Some((_, d)) = &mut self.dvl {
-            d[k] += block;
+            let mut rows = d[k].fixed_rows_mut::<18>(0);
+            rows += block;
         }
     }
 
@@ -114,27 +81,13 @@ impl Coupling {
             && (*c0..*c0 + NPARAM).contains(&c)
         {
             d.iter_mut().for_each(|m| m.column_mut(c - *c0).fill(0.0));
-            return;
-        }
-        if c >= NFIXED {
-            let (node, col) = ((c - NFIXED) / 6, (c - NFIXED) % 6);
-            for list in &mut self.bias {
-                for (_, m) in list.iter_mut().filter(|(j, _)| *j == node) {
-                    m.column_mut(col).fill(0.0);
-                }
-            }
         }
     }
 
-    /// Calls `f(column of theta, its 18 rows)` for every stored column of knot `k`.
+    /// Calls `f(column of theta, its rows)` for every stored column of knot `k`.
     fn for_each_column(&self, k: usize, mut f: impl FnMut(usize, &[f64])) {
         for (c, col) in self.fixed[k].as_slice().chunks_exact(R).enumerate() {
             f(c, col);
-        }
-        for (node, m) in &self.bias[k] {
-            for (c, col) in m.as_slice().chunks_exact(R).enumerate() {
-                f(NFIXED + 6 * node + c, col);
-            }
         }
         if let Some((c0, d)) = &self.dvl {
             for (c, col) in d[k].as_slice().chunks_exact(R).enumerate() {
@@ -144,10 +97,10 @@ impl Coupling {
     }
 
     /// `H_k d`: knot `k`'s rows times a step of `theta`.
-    pub fn times(&self, k: usize, d: &DVector<f64>) -> V18 {
-        let mut out = V18::zeros();
+    pub fn times(&self, k: usize, d: &DVector<f64>) -> VK {
+        let mut out = VK::zeros();
         self.for_each_column(k, |c, col| {
-            out += V18::from_column_slice(col) * d[c];
+            out += VK::from_column_slice(col) * d[c];
         });
         out
     }
@@ -174,7 +127,7 @@ impl Coupling {
         out
     }
 
-    /// The dense `18 N x p` matrix (for tests).
+    /// The dense `24 N x p` matrix (for tests).
     #[cfg(test)]
     pub fn dense(&self) -> DMatrix<f64> {
         let mut out = DMatrix::zeros(R * self.fixed.len(), self.p);
@@ -194,11 +147,11 @@ struct SweepForms {
     order: Vec<usize>,
     gram: DMatrix<f64>,
     rhs: DVector<f64>,
-    to_mid: Vec<V18>,
+    to_mid: Vec<VK>,
 }
 
 /// Knots whose blocks of `L^-1 H` are stacked before their products are summed: one matrix
-/// product of `18 BATCH` rows per batch rather than a dot product per pair of columns and knot.
+/// product of `24 BATCH` rows per batch rather than a dot product per pair of columns and knot.
 const BATCH: usize = 16;
 
 /// A carried column of `L^-1 H` is dropped once its squared norm falls below this fraction of
@@ -288,13 +241,13 @@ impl Stack {
 
 /// The forward substitution of `H` along one sweep of the factor: `knots` in the sweep's order
 /// and, for each, the gain it hands on through. Only the columns the sweep carries take work: a
-/// bias node's columns are zero before its first bin, and once the sweep has passed its knots
-/// they decay knot by knot (through the gains); below [`RETIRE_BELOW`] of their peak (checked
-/// every [`BATCH`] knots) they are dropped, which changes no sum by more than a part in 1e20 of
-/// its column's own. The carried blocks are one `18 x p` matrix, the first columns the carried
+/// column is zero before the first knot that touches it (the DVL's before its first velocity),
+/// and once the sweep has passed the last it decays knot by knot (through the gains); below
+/// [`RETIRE_BELOW`] of its peak (checked every [`BATCH`] knots) it is dropped, which changes no
+/// sum by more than a part in 1e20 of the column's own. The carried blocks are one `24 x p` matrix, the first columns the carried
 /// ones; their products are summed every [`BATCH`] knots.
 fn sweep(
-    parts: &ForwardParts,
+    parts: &ForwardParts<KB>,
     cross: &Coupling,
     knots: impl Iterator<Item = (usize, usize)>,
 ) -> SweepForms {
@@ -324,7 +277,7 @@ fn sweep(
         });
         let m = slots.order.len();
         // `L_k^-1` once, then one product for all columns (a substitution per column costs
-        // 18 divisions each).
+        // 24 divisions each).
         let l_inv = lower_inverse(&parts.chol[k]);
         y.columns_mut(0, m).gemm(1.0, &l_inv, &z.columns(0, m), 0.0);
         let row = R * stack.filled;
@@ -346,7 +299,7 @@ fn sweep(
     }
     stack.flush(&slots.order, &mut gram, &mut rhs);
     let to_mid = (0..slots.order.len())
-        .map(|j| V18::from_column_slice(z.column(j).as_slice()))
+        .map(|j| VK::from_column_slice(z.column(j).as_slice()))
         .collect();
     SweepForms {
         order: slots.order,
@@ -364,7 +317,10 @@ fn sweep(
 /// the middle block takes both; the sums are the top sweep's, the bottom sweep's, then the
 /// middle's, an order fixed by the system's length. Nothing of the recording's length is
 /// stored.
-pub fn schur_forms(factor: &Factored, cross: &Coupling) -> (DMatrix<f64>, DVector<f64>, Vec<V18>) {
+pub fn schur_forms(
+    factor: &Factored<KB>,
+    cross: &Coupling,
+) -> (DMatrix<f64>, DVector<f64>, Vec<VK>) {
     let p = cross.columns();
     let xr = factor.solve();
     let n = xr.len();
@@ -375,8 +331,8 @@ pub fn schur_forms(factor: &Factored, cross: &Coupling) -> (DMatrix<f64>, DVecto
         || sweep(&parts, cross, (m + 1..n).rev().map(|k| (k, k - 1))),
     );
     // The middle block: its own rows less both sweeps' hand-overs, in `theta`'s order.
-    let mut zm = vec![V18::zeros(); p];
-    cross.for_each_column(m, |c, col| zm[c] = V18::from_column_slice(col));
+    let mut zm = vec![VK::zeros(); p];
+    cross.for_each_column(m, |c, col| zm[c] = VK::from_column_slice(col));
     for half in [&top, &bottom] {
         for (c, z) in half.order.iter().zip(&half.to_mid) {
             zm[*c] += z;

@@ -64,6 +64,11 @@ fn coarse_start(
     let times: Vec<f64> = kept.iter().map(|&i| joint.times[i]).collect();
     let coarse_knots: Vec<Knot> = kept.iter().map(|&i| knots[i]).collect();
     let poses = kept.iter().map(|&i| joint.poses.poses[i]).collect();
+    let mut st = st;
+    st.bias = BiasNodes {
+        times: times.clone(),
+        values: kept.iter().map(|&i| st.bias.values[i]).collect(),
+    };
     let windows = Windows::new(
         samples,
         &times,
@@ -86,7 +91,7 @@ fn coarse_start(
         dvl_info: joint.dvl_info.clone(),
         windows: Some(windows),
     };
-    let sol = coarse.solve(coarse_knots, st, max_iterations)?;
+    let mut sol = coarse.solve(coarse_knots, st, max_iterations)?;
     let view = KnotView {
         times: &coarse.times,
         knots: &sol.knots,
@@ -102,6 +107,8 @@ fn coarse_start(
             })
         })
         .collect::<Result<Vec<_>>>()?;
+    // The biases linear between the coarse knots, as they are between the full problem's.
+    sol.state.bias = sol.state.bias.resampled(&joint.times, 0.0);
     Ok((knots, sol.state))
 }
 
@@ -246,7 +253,8 @@ pub fn calibrate_dvl_imu(
         time_offset_s: 0.0,
         gravity_rotation: ImuState::gravity_rotation_of(&gravity_world),
         gravity_magnitude: g,
-        bias,
+        // One bias per knot; the IMU is the trajectory's clock.
+        bias: bias.resampled(&times, 0.0),
         dvl: Some(params),
     };
     let mut gauge = vec![None; n];

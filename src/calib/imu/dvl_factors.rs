@@ -9,6 +9,7 @@ use nalgebra::{DMatrix, DVector, SMatrix};
 
 use super::coupling::Coupling;
 use super::solve::ImuJoint;
+use super::solve::KB;
 use super::state::ImuState;
 use crate::calib::model::{NPARAM, d_predict_d_params, d_predict_d_twist, predict};
 use crate::trajectory::KnotView;
@@ -114,7 +115,7 @@ impl ImuJoint<'_> {
         knots: &[Knot],
         st: &ImuState,
         p: &CalibrationParams,
-        sys: &mut BlockTridiagonal,
+        sys: &mut BlockTridiagonal<KB>,
         cross: &mut Coupling,
         (hth, gth): (&mut DMatrix<f64>, &mut DVector<f64>),
     ) -> f64 {
@@ -143,11 +144,16 @@ impl ImuJoint<'_> {
         let add = |b: &DvlNormal| {
             let k = b.k;
             cost += b.cost;
-            sys.diag[k] += b.d1;
-            sys.diag[k + 1] += b.d2;
-            sys.upper[k] += b.up;
-            sys.rhs[k] -= b.r1;
-            sys.rhs[k + 1] -= b.r2;
+            // On the knots' trajectory rows (the DVL does not see the biases).
+            sys.diag[k].fixed_view_mut::<18, 18>(0, 0).add_assign(&b.d1);
+            sys.diag[k + 1]
+                .fixed_view_mut::<18, 18>(0, 0)
+                .add_assign(&b.d2);
+            sys.upper[k]
+                .fixed_view_mut::<18, 18>(0, 0)
+                .add_assign(&b.up);
+            sys.rhs[k].fixed_rows_mut::<18>(0).sub_assign(&b.r1);
+            sys.rhs[k + 1].fixed_rows_mut::<18>(0).sub_assign(&b.r2);
             cross.add_dvl(k, &b.c1);
             cross.add_dvl(k + 1, &b.c2);
             hth.view_mut((c0, c0), (NPARAM, NPARAM)).add_assign(&b.ht);

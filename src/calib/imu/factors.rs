@@ -41,8 +41,9 @@ pub struct BinTerms {
     pub j2: M6x18,
     /// d e / d the fixed parameters (`theta[0..9]`).
     pub jth: M6x9,
-    /// The bias node and weight (`d e / d node i` is `(1 - u) I`, node `i + 1` `u I`).
-    pub node: (usize, f64),
+    /// The weight `u` of the next knot's biases in the bin's (`d e / d b_k` is `(1 - u) I`,
+    /// `d e / d b_{k+1}` is `u I`).
+    pub u: f64,
 }
 
 /// The information of a bin, gyro then accelerometer (diagonal).
@@ -109,9 +110,15 @@ fn interpolated(lambda: &Matrix3<f64>, omega: &Matrix3<f64>, k1: &Knot, gamma2: 
     apply_scalar(lambda, &first_local_state(k1)) + apply_scalar(omega, gamma2)
 }
 
-/// The residual of `bin` alone (for costs), the bin's camera time at `s` after knot `k1`.
+/// The weight of knot `k + 1`'s biases at `s` into an interval of `dt`.
+fn bias_weight(s: f64, dt: f64) -> f64 {
+    (s / dt).clamp(0.0, 1.0)
+}
+
+/// The residual of `bin` alone (for costs), the bin's camera time at `s` after knot `k1`
+/// (knot `k` of the state's biases).
 pub fn bin_residual(
-    k1: &Knot,
+    (k, k1): (usize, &Knot),
     gamma2: &V18,
     s: f64,
     dt: f64,
@@ -119,7 +126,7 @@ pub fn bin_residual(
     st: &ImuState,
 ) -> Vector6<f64> {
     let g = st.gravity_world();
-    let b = st.bias.at(bin.t);
+    let b = st.bias.between(k, bias_weight(s, dt));
     let h = predict(&k1.pose, &local_at(k1, gamma2, s, dt), st, &g);
     h - measured(bin, &b)
 }
@@ -130,10 +137,10 @@ fn measured(bin: &ImuBin, b: &crate::types::imu::ImuBias) -> Vector6<f64> {
     Vector6::new(gy.x, gy.y, gy.z, ac.x, ac.y, ac.z)
 }
 
-/// The residual and Jacobians of `bin`, at `s` after knot `k1` (interval of `dt`), with `ls`
-/// the local state of the next knot and its Jacobians.
+/// The residual and Jacobians of `bin`, at `s` after knot `k1` (interval of `dt`; knot `k` of
+/// the state's biases), with `ls` the local state of the next knot and its Jacobians.
 pub fn bin_terms(
-    k1: &Knot,
+    (k, k1): (usize, &Knot),
     ls: &LocalState,
     s: f64,
     dt: f64,
@@ -144,8 +151,8 @@ pub fn bin_terms(
     let (lambda, omega, _) = interpolation_weights(s, dt);
     let gamma = interpolated(&lambda, &omega, k1, &ls.gamma);
     let h = predict(&k1.pose, &gamma, st, &g);
-    let node = st.bias.weights(bin.t);
-    let e = h - measured(bin, &st.bias.at(bin.t));
+    let u = bias_weight(s, dt);
+    let e = h - measured(bin, &st.bias.between(k, u));
 
     // d h / d gamma: exact on the rates (the prediction is a closed form in them), by central
     // differences on the pose part (which enters through `J_r(xi)` and gravity's rotation).
@@ -216,13 +223,15 @@ pub fn bin_terms(
     let d_acc_dg = -(r_imu_cam * r_tau.transpose() * dg);
     jth.fixed_view_mut::<3, 2>(3, 7)
         .copy_from(&d_acc_dg.fixed_view::<3, 2>(0, 0));
-    BinTerms {
-        e,
-        j1,
-        j2,
-        jth,
-        node,
+    // The clock offset also moves the bin along the biases' line between the knots.
+    if u > 0.0 && u < 1.0 {
+        let (b0, b1) = (&st.bias.values[k], &st.bias.values[k + 1]);
+        for r in 0..3 {
+            jth[(r, 6)] += (b1.gyro[r] - b0.gyro[r]) / dt;
+            jth[(r + 3, 6)] += (b1.accel[r] - b0.accel[r]) / dt;
+        }
     }
+    BinTerms { e, j1, j2, jth, u }
 }
 
 /// Camera poses on some of the knots (the others lie between pose times, where the IMU
@@ -431,7 +440,7 @@ mod tests {
         bin: &ImuBin,
         st: &ImuState,
     ) -> Vector6<f64> {
-        bin_residual(k1, &local_gamma(k1, k2), s, dt, bin, st)
+        bin_residual((0, k1), &local_gamma(k1, k2), s, dt, bin, st)
     }
 
     #[test]
@@ -505,7 +514,7 @@ mod tests {
             n: 5,
         };
         let ls = local_state(&k1, &k2);
-        let t = bin_terms(&k1, &ls, s, dt, &bin, &st);
+        let t = bin_terms((0, &k1), &ls, s, dt, &bin, &st);
         let e0 = residual(&k1, &k2, s, dt, &bin, &st);
         assert!((t.e - e0).norm() < 1e-12);
         let h = 1e-6;

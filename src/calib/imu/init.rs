@@ -35,7 +35,7 @@ pub struct FirstEstimate {
     pub offset_alternatives_s: Vec<f64>,
 }
 
-/// The first estimate; `spacing` the bias nodes' spacing, `max_offset` the largest clock offset
+/// The first estimate; `spacing` its bias nodes' spacing (on the IMU's clock), `max_offset` the largest clock offset
 /// searched (s), `gravity` its magnitude.
 pub fn initial_state(
     traj: &Trajectory,

@@ -55,11 +55,11 @@ pub struct ImuOptions {
     pub estimate_noise: bool,
     /// The longest span of IMU samples averaged into one bin, s.
     pub bin_width_s: f64,
-    /// The spacing of the bias nodes, s (at least: see `max_bias_nodes`).
+    /// The spacing of the first estimate's bias nodes, s (at least: see `max_bias_nodes`). The
+    /// DVL + IMU start estimates the gyro's bias on them; the joint problem then carries one
+    /// bias per knot, started from them.
     pub bias_spacing_s: f64,
-    /// The most bias nodes: a longer recording spaces them further apart. The calibration's
-    /// Schur complement is dense in them, and its cost grows with the knots times their number
-    /// squared.
+    /// The most bias nodes of the first estimate: a longer recording spaces them further apart.
     pub max_bias_nodes: usize,
     /// The largest clock offset searched, s.
     pub max_offset_s: f64,
@@ -445,6 +445,8 @@ fn camera_imu(
         (times, knots, factors, density)
     };
     let density = density.scaled(opts.density_factor);
+    // One bias per knot, from the first estimate's nodes on the IMU's clock.
+    st.bias = st.bias.resampled(&times, st.time_offset_s);
     let stated: Vec<_> = bins.iter().map(|b| bin_information(b, noise)).collect();
     let (dvl_obs, dvl_stated) = match &dvl {
         Some(d) => {
@@ -625,8 +627,8 @@ fn solve_placed(
     Ok(sol)
 }
 
-/// The bias nodes' spacing: `bias_spacing_s`, or wider so that at most `max_bias_nodes` span the
-/// samples.
+/// The first estimate's bias nodes' spacing: `bias_spacing_s`, or wider so that at most
+/// `max_bias_nodes` span the samples.
 pub(crate) fn bias_spacing(samples: &[ImuSample], opts: &ImuOptions) -> f64 {
     let span = match (samples.first(), samples.last()) {
         (Some(a), Some(b)) => b.t - a.t,

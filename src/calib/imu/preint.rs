@@ -35,7 +35,7 @@ pub struct Preintegrated {
     pub t0: f64,
     /// Length, s.
     pub dt: f64,
-    /// The biases the samples were corrected by (those of the window's middle then).
+    /// The biases the samples were corrected by (the window's then: the mean of its knots').
     pub bias: ImuBias,
     /// `Delta R`, `Delta v`, `Delta p` in the IMU frame at the start, gravity not removed.
     pub rot: Matrix3<f64>,
@@ -53,13 +53,6 @@ pub struct Preintegrated {
     pub cov_accel: M9,
     /// Samples that contributed.
     pub samples: usize,
-}
-
-impl Preintegrated {
-    /// The window's middle, IMU clock (where its biases are taken).
-    pub fn t_mid(&self) -> f64 {
-        self.t0 + 0.5 * self.dt
-    }
 }
 
 /// Integrates `samples` (sorted by time) over `[a, b]` with the biases `bias`; `None` when the
@@ -253,18 +246,23 @@ fn add_block(m: &mut M9, r: usize, c: usize, x: &Matrix3<f64>) {
 }
 
 /// The windows between consecutive knot times `times` (camera clock) at clock offset `offset0`,
-/// their biases from `st`: `None` where the samples do not cover a window.
+/// window `k` corrected by the biases `bias(k)`: `None` where the samples do not cover a window.
 pub fn integrate_windows(
     samples: &[ImuSample],
     times: &[f64],
     offset0: f64,
-    st: &ImuState,
+    bias: impl Fn(usize) -> ImuBias + Sync,
     noise: &ImuNoise,
 ) -> Vec<Option<Preintegrated>> {
     crate::parallel::map_indices(times.len().saturating_sub(1), 1024, |k| {
         let (a, b) = (times[k] - offset0, times[k + 1] - offset0);
-        integrate(samples, a, b, &st.bias.at(0.5 * (a + b)), noise.update_rate)
+        integrate(samples, a, b, &bias(k), noise.update_rate)
     })
+}
+
+/// The biases of window `k` (between knots `k` and `k + 1`): the mean of the two knots'.
+pub fn window_bias(st: &ImuState, k: usize) -> ImuBias {
+    st.bias.between(k, 0.5)
 }
 
 /// The IMU's samples integrated between consecutive knots, each window with its whitening,
@@ -282,7 +280,7 @@ pub struct Windows {
 
 impl Windows {
     /// The windows between the knot times `times` (camera clock) at the clock offset and the
-    /// biases of `st`, weighed by the sample variances `var`.
+    /// biases of `st` (one per knot), weighed by the sample variances `var`.
     pub fn new(
         samples: &[ImuSample],
         times: &[f64],
@@ -290,10 +288,16 @@ impl Windows {
         noise: &ImuNoise,
         var: (f64, f64),
     ) -> Windows {
-        let list = integrate_windows(samples, times, st.time_offset_s, st, noise)
-            .into_iter()
-            .map(|p| p.and_then(|p| whitening(&p, var).map(|w| (p, w))))
-            .collect();
+        let list = integrate_windows(
+            samples,
+            times,
+            st.time_offset_s,
+            |k| window_bias(st, k),
+            noise,
+        )
+        .into_iter()
+        .map(|p| p.and_then(|p| whitening(&p, var).map(|w| (p, w))))
+        .collect();
         Windows {
             list,
             offset0: st.time_offset_s,
@@ -371,8 +375,7 @@ struct Misfit {
     x: Vector3<f64>,
 }
 
-fn misfit(a: &ImuAt, b: &ImuAt, pre: &Preintegrated, st: &ImuState) -> Misfit {
-    let bias = st.bias.at(pre.t_mid());
+fn misfit(a: &ImuAt, b: &ImuAt, pre: &Preintegrated, st: &ImuState, bias: &ImuBias) -> Misfit {
     let dbg = bias.gyro - pre.bias.gyro;
     let dba = bias.accel - pre.bias.accel;
     let g = st.gravity_world();
@@ -392,11 +395,26 @@ fn misfit(a: &ImuAt, b: &ImuAt, pre: &Preintegrated, st: &ImuState) -> Misfit {
     Misfit { e, er, yv, yp, x }
 }
 
-/// The residual of window `pre` between knots `k1` and `k2`, unwhitened: the measured
-/// increments (corrected to the biases of `st`) against those of the knots' states.
-pub fn residual(k1: &Knot, k2: &Knot, pre: &Preintegrated, offset0: f64, st: &ImuState) -> V9 {
+/// The residual of window `pre` between knots `k` (`k1`) and `k + 1` (`k2`), unwhitened: the
+/// measured increments (corrected to the biases of `st` there) against those of the knots'
+/// states.
+pub fn residual(
+    (k, k1): (usize, &Knot),
+    k2: &Knot,
+    pre: &Preintegrated,
+    offset0: f64,
+    st: &ImuState,
+) -> V9 {
     let eps = st.time_offset_s - offset0;
-    misfit(&imu_state(k1, eps, st), &imu_state(k2, eps, st), pre, st).e
+    let bias = window_bias(st, k);
+    misfit(
+        &imu_state(k1, eps, st),
+        &imu_state(k2, eps, st),
+        pre,
+        st,
+        &bias,
+    )
+    .e
 }
 
 /// The window's covariance with the gyro's and the accelerometer's sample variances `var`.
@@ -410,9 +428,11 @@ pub struct WindowTerms {
     pub e: V9,
     pub j1: SMatrix<f64, 9, 18>,
     pub j2: SMatrix<f64, 9, 18>,
-    /// On the fixed parameters, then the two bias nodes around the window's middle.
-    pub jl: SMatrix<f64, 9, 21>,
-    pub node: usize,
+    /// On the fixed parameters.
+    pub jl: SMatrix<f64, 9, NFIXED>,
+    /// On the window's biases (gyro, then accelerometer), the mean of its two knots': each
+    /// knot's biases move it by half of this.
+    pub jb: SMatrix<f64, 9, 6>,
 }
 
 /// The whitening of a window: `L^-1`, or `None` if its covariance is not positive definite.
@@ -488,7 +508,7 @@ fn end(k: &Knot, eps: f64, st: &ImuState) -> End {
 /// rotation's residual moves by `J_r^-1(e_R)` times the turn of `R_b` less `R_b^T R_a` that of
 /// `R_a`.
 pub fn window_terms(
-    k1: &Knot,
+    (k, k1): (usize, &Knot),
     k2: &Knot,
     pre: &Preintegrated,
     offset0: f64,
@@ -497,7 +517,8 @@ pub fn window_terms(
 ) -> WindowTerms {
     let eps = st.time_offset_s - offset0;
     let (a, b) = (end(k1, eps, st), end(k2, eps, st));
-    let Misfit { e, er, yv, yp, x } = misfit(&a.at, &b.at, pre, st);
+    let bias = window_bias(st, k);
+    let Misfit { e, er, yv, yp, x } = misfit(&a.at, &b.at, pre, st, &bias);
     let t = pre.dt;
     let rat = a.at.r.transpose();
     // The residual against each end's `[dphi; dp; dv]`.
@@ -516,7 +537,7 @@ pub fn window_terms(
     eb.fixed_view_mut::<3, 3>(6, 3).copy_from(&rat);
     let j1 = ea * a.d_knot;
     let j2 = eb * b.d_knot;
-    let mut jl = SMatrix::<f64, 9, 21>::zeros();
+    let mut jl = SMatrix::<f64, 9, NFIXED>::zeros();
     jl.fixed_view_mut::<9, 6>(0, 0)
         .copy_from(&(ea * a.d_ext + eb * b.d_ext));
     jl.set_column(6, &(ea * a.d_eps + eb * b.d_eps));
@@ -527,7 +548,7 @@ pub fn window_terms(
     jl.fixed_view_mut::<3, 2>(3, 7).copy_from(&(-rat * dg2 * t));
     jl.fixed_view_mut::<3, 2>(6, 7)
         .copy_from(&(-rat * dg2 * (0.5 * t * t)));
-    // The biases at the window's middle, shared by the two nodes around it.
+    // The window's biases.
     let mut jb = SMatrix::<f64, 9, 6>::zeros();
     jb.fixed_view_mut::<3, 3>(0, 0)
         .copy_from(&(-jri * so3::exp(&er).transpose() * so3::right_jacobian(&x) * pre.dr_dbg));
@@ -535,17 +556,12 @@ pub fn window_terms(
     jb.fixed_view_mut::<3, 3>(3, 3).copy_from(&-pre.dv_dba);
     jb.fixed_view_mut::<3, 3>(6, 0).copy_from(&-pre.dp_dbg);
     jb.fixed_view_mut::<3, 3>(6, 3).copy_from(&-pre.dp_dba);
-    let (node, u) = st.bias.weights(pre.t_mid());
-    jl.fixed_view_mut::<9, 6>(0, NFIXED)
-        .copy_from(&(jb * (1.0 - u)));
-    jl.fixed_view_mut::<9, 6>(0, NFIXED + 6)
-        .copy_from(&(jb * u));
     WindowTerms {
         e: white * e,
         j1: white * j1,
         j2: white * j2,
         jl: white * jl,
-        node,
+        jb: white * jb,
     }
 }
 
@@ -602,11 +618,18 @@ mod tests {
     /// worst, in the rotation).
     #[test]
     fn the_truth_leaves_residuals_far_below_the_noise() {
-        let (m, cfg, samples, st) = setup();
+        let (m, cfg, samples, mut st) = setup();
         let times: Vec<f64> = (1..190).map(|i| 0.1 * i as f64).collect();
+        st.bias = st.bias.resampled(&times, st.time_offset_s);
         for shift in [0.0, 0.0005, -0.0005, 0.002] {
             let offset0 = st.time_offset_s + shift;
-            let w = integrate_windows(&samples, &times, offset0, &st, &cfg.noise);
+            let w = integrate_windows(
+                &samples,
+                &times,
+                offset0,
+                |k| window_bias(&st, k),
+                &cfg.noise,
+            );
             let (mut worst, mut sum): (f64, f64) = (0.0, 0.0);
             for (k, p) in w.iter().enumerate() {
                 let p = p.as_ref().expect("covered");
@@ -614,7 +637,7 @@ mod tests {
                 assert!((19..=21).contains(&p.samples), "{}", p.samples);
                 let white = whitening(p, variances(&cfg)).expect("positive definite");
                 let (k1, k2) = (knot(&m, times[k]), knot(&m, times[k + 1]));
-                let e = white * residual(&k1, &k2, p, offset0, &st);
+                let e = white * residual((k, &k1), &k2, p, offset0, &st);
                 worst = worst.max(e.amax());
                 sum += e.norm_squared();
             }
@@ -770,13 +793,23 @@ mod tests {
             match c {
                 0..18 => knot(&mut a, c),
                 18..36 => knot(&mut b, c - 18),
-                _ => {
+                36..45 => {
                     let mut d = nalgebra::DVector::zeros(st.dim());
                     d[c - 36] = s;
                     x = x.retract(&d);
                 }
+                _ => {
+                    // The two knots' biases, gyro then accelerometer.
+                    let (i, r) = ((c - 45) / 6, (c - 45) % 6);
+                    let b = &mut x.bias.values[i];
+                    if r < 3 {
+                        b.gyro[r] += s;
+                    } else {
+                        b.accel[r - 3] += s;
+                    }
+                }
             }
-            residual(&a, &b, pre, off0, &x)
+            residual((0, &a), &b, pre, off0, &x)
         };
         (at(h) - at(-h)) / (2.0 * h)
     }
@@ -788,7 +821,14 @@ mod tests {
     fn the_analytic_jacobians_match_differences_of_the_residual() {
         let (m, cfg, samples, mut st) = setup();
         let off0 = st.time_offset_s - 0.003;
-        let w = integrate_windows(&samples, &[7.2, 7.3], off0, &st, &cfg.noise);
+        st.bias = st.bias.resampled(&[7.2, 7.3], st.time_offset_s);
+        let w = integrate_windows(
+            &samples,
+            &[7.2, 7.3],
+            off0,
+            |k| window_bias(&st, k),
+            &cfg.noise,
+        );
         let pre = w[0].as_ref().expect("covered");
         st.bias.values[0].gyro += Vector3::new(3e-3, -2e-3, 1e-3);
         st.bias.values[1].accel += Vector3::new(0.05, -0.02, 0.03);
@@ -797,33 +837,23 @@ mod tests {
         ));
         st.gravity_rotation *= so3::exp(&Vector3::new(0.01, -0.02, 0.0));
         let (k1, k2) = (knot(&m, 7.2), knot(&m, 7.3));
-        let t = window_terms(&k1, &k2, pre, off0, &st, &M9::identity());
-        let e = residual(&k1, &k2, pre, off0, &st);
+        let t = window_terms((0, &k1), &k2, pre, off0, &st, &M9::identity());
+        let e = residual((0, &k1), &k2, pre, off0, &st);
         assert!((t.e - e).norm() < 1e-12);
         assert!(e.norm() > 1e-3, "{}", e.norm());
-        let (node, u) = st.bias.weights(pre.t_mid());
-        let total = 36 + NFIXED + 6 * st.bias.values.len();
-        for c in 0..total {
+        // Both knots' biases: columns 45..51 and 51..57.
+        for c in 0..36 + NFIXED + 12 {
             let num = numeric_column(&k1, &k2, pre, off0, &st, c);
             let ana: V9 = match c {
                 0..18 => t.j1.column(c).into_owned(),
                 18..36 => t.j2.column(c - 18).into_owned(),
                 _ if c - 36 < NFIXED => t.jl.column(c - 36).into_owned(),
-                _ => {
-                    let (i, r) = ((c - 36 - NFIXED) / 6, (c - 36 - NFIXED) % 6);
-                    if i == node {
-                        t.jl.column(NFIXED + r).into_owned()
-                    } else if i == node + 1 {
-                        t.jl.column(NFIXED + 6 + r).into_owned()
-                    } else {
-                        V9::zeros()
-                    }
-                }
+                _ => t.jb.column((c - 45) % 6) * 0.5,
             };
             let scale = 1.0 + num.amax();
             assert!(
                 (ana - num).amax() < 1e-6 * scale,
-                "column {c}: {ana} vs {num} (u {u})"
+                "column {c}: {ana} vs {num}"
             );
         }
     }

@@ -1,27 +1,57 @@
 //! The joint problem of the trajectory and the IMU's calibration: camera poses on some knots,
-//! the motion prior between knots, the IMU's bins between them, and the random walks between
-//! bias nodes; Gauss-Newton on knots and calibration together, the calibration eliminated
-//! through its Schur complement (the knots' system stays block tridiagonal).
+//! the motion prior between knots, the IMU's bins (or preintegrated windows) between them, and
+//! the biases' random walks from knot to knot; Gauss-Newton on knots and calibration together,
+//! the calibration eliminated through its Schur complement. Each knot carries its biases beside
+//! its trajectory state (a block of [`KB`] = 24), so the knots' system stays block tridiagonal
+//! however fast the biases walk, and the calibration is the 9 fixed parameters (17 with a DVL).
 //!
 //! The same problem serves the DVL + IMU mode: no camera (a prior on the first knot fixes the
 //! gauge), the IMU's own frame and clock as the trajectory's (those columns held), and the
 //! DVL's velocities as a third kind of factor with the DVL's parameters at the end of `theta`.
 
-use nalgebra::{DMatrix, DVector, Matrix3, SMatrix, Vector6};
+use nalgebra::{DMatrix, DVector, Matrix3, SMatrix, SVector, Vector6};
 use rayon::prelude::*;
 
 use super::bins::ImuBin;
 use super::coupling::{Coupling, schur_forms};
-use super::factors::{BinTerms, SparsePoseFactors, bin_residual, bin_terms};
+use super::factors::{SparsePoseFactors, bin_residual, bin_terms};
 use super::preint::{WindowTerms, Windows, residual as window_residual, window_terms};
 use super::state::{ImuState, NFIXED};
 use crate::calib::model::{DvlObs, NPARAM};
 use crate::error::{Error, Result};
 use crate::trajectory::JerkDensity;
-use crate::trajectory::blocktri::{BandedInverse, BlockTridiagonal, Factored, M18, V18};
+use crate::trajectory::blocktri::{BandedInverse, BlockTridiagonal, Factored, V18};
 use crate::trajectory::gp::{Knot, LocalState, local_gamma, local_state};
 use crate::trajectory::solver::{Problem, step};
 use crate::types::imu::ImuNoise;
+
+/// The knots' block in the joint problem: the trajectory's state at the knot (18), then the
+/// IMU's biases there (gyro, then accelerometer), linear between knots and tied to the next
+/// knot's by their random walks.
+pub const KB: usize = 24;
+/// A knot's block of the joint problem.
+pub type MK = SMatrix<f64, KB, KB>;
+/// A knot's part of a vector of the joint problem.
+pub type VK = SVector<f64, KB>;
+
+/// `[j b]`: a factor's Jacobian on a knot's trajectory state and on its biases, as one on the
+/// knot's block.
+fn widen<const M: usize>(j: &SMatrix<f64, M, 18>, b: &SMatrix<f64, M, 6>) -> SMatrix<f64, M, KB> {
+    let mut out = SMatrix::<f64, M, KB>::zeros();
+    out.fixed_columns_mut::<18>(0).copy_from(j);
+    out.fixed_columns_mut::<6>(18).copy_from(b);
+    out
+}
+
+/// A knot block's trajectory part.
+fn trajectory_part(x: &VK) -> V18 {
+    x.fixed_rows::<18>(0).into_owned()
+}
+
+/// A knot block's bias part (gyro, then accelerometer).
+fn bias_part(x: &VK) -> Vector6<f64> {
+    x.fixed_rows::<6>(18).into_owned()
+}
 
 /// The problem: knot times, the poses on them, the motion prior, the IMU's bins and noise.
 pub struct ImuJoint<'a> {
@@ -91,7 +121,7 @@ const LAST_STEP_BELOW: f64 = 1.0;
 
 /// The calibration's Schur complement `S` (symmetrised), the reduced right-hand side `s` and
 /// the knots' `A^-1 r`, from the linearisation `lin` and the knots' factor.
-fn schur_of(lin: &Linear, factor: &Factored) -> (DMatrix<f64>, DVector<f64>, Vec<V18>) {
+fn schur_of(lin: &Linear, factor: &Factored<KB>) -> (DMatrix<f64>, DVector<f64>, Vec<VK>) {
     let (hah, har, xr) = schur_forms(factor, &lin.cross);
     let schur = &lin.hth - hah;
     let schur = (&schur + schur.transpose()) * 0.5;
@@ -100,20 +130,20 @@ fn schur_of(lin: &Linear, factor: &Factored) -> (DMatrix<f64>, DVector<f64>, Vec
 
 /// One Gauss-Newton step.
 struct Step {
-    dx: Vec<V18>,
+    dx: Vec<VK>,
     dth: DVector<f64>,
     schur: DMatrix<f64>,
     decrement: f64,
     /// The calibration's share of `decrement`: `dth^T S dth`.
     theta_decrement: f64,
-    factor: Factored,
+    factor: Factored<KB>,
 }
 
 /// The linearisation at a solution, the knots' factor and the calibration's Schur complement
 /// there, kept for [`ImuJoint::redundancy_of`].
 struct Last {
     lin: Linear,
-    factor: Factored,
+    factor: Factored<KB>,
     schur: DMatrix<f64>,
     /// Whether `lin` was taken at the point before the solution's last step (a fraction of a
     /// standard deviation away) rather than at the solution (read by the tests).
@@ -121,33 +151,9 @@ struct Last {
     behind: bool,
 }
 
-/// The columns of `theta` a bin touches: the fixed parameters, then its two bias nodes.
-fn theta_columns(node: usize) -> [usize; 21] {
-    std::array::from_fn(|c| {
-        if c < NFIXED {
-            c
-        } else {
-            NFIXED + 6 * node + (c - NFIXED)
-        }
-    })
-}
-
-/// A bin's Jacobian on the columns of [`theta_columns`].
-fn theta_jacobian(t: &BinTerms) -> SMatrix<f64, 6, 21> {
-    let u = t.node.1;
-    let mut jl = SMatrix::<f64, 6, 21>::zeros();
-    jl.fixed_view_mut::<6, 9>(0, 0).copy_from(&t.jth);
-    for r in 0..6 {
-        jl[(r, 9 + r)] = 1.0 - u;
-        jl[(r, 15 + r)] = u;
-    }
-    jl
-}
-
-/// The columns of `theta` the redundancy's solves take at once: two passes cover the camera
-/// modes' 57 (nine fixed parameters and eight bias nodes) with 7 padding columns and the DVL's
-/// 64 without any (36 padded the first to 72).
-const CHUNK: usize = 32;
+/// The columns of `theta` the redundancy's solves take at once: one pass covers the camera
+/// modes' 9 and, with a DVL, its 17.
+const CHUNK: usize = 17;
 
 /// The error of a calibration whose information is singular.
 fn singular() -> Error {
@@ -157,12 +163,12 @@ fn singular() -> Error {
 /// `J Sigma J^T` of a residual block with Jacobians `j1`, `j2` on knots `k`, `k + 1`, for the
 /// knots' covariance blocks `band` (the trajectory's own, the calibration held).
 fn local_projection<const M: usize>(
-    band: &BandedInverse,
+    band: &BandedInverse<KB>,
     k: usize,
-    j1: &SMatrix<f64, M, 18>,
-    j2: &SMatrix<f64, M, 18>,
+    j1: &SMatrix<f64, M, KB>,
+    j2: &SMatrix<f64, M, KB>,
 ) -> SMatrix<f64, M, M> {
-    let (d1, d2, u): (&M18, &M18, &M18) = (&band.diag[k], &band.diag[k + 1], &band.upper[k]);
+    let (d1, d2, u): (&MK, &MK, &MK) = (&band.diag[k], &band.diag[k + 1], &band.upper[k]);
     let a = j1 * u * j2.transpose();
     j1 * d1 * j1.transpose() + a + a.transpose() + j2 * d2 * j2.transpose()
 }
@@ -208,52 +214,78 @@ const BLOCK: usize = 256;
 /// Bins one task computes in turn, sharing their intervals' local states.
 const TASK: usize = 32;
 
-/// A bin's share of the normal equations, computed apart from the sums it goes into.
+/// A bin's or window's share of the normal equations, computed apart from the sums it goes
+/// into: on knots `k` and `k + 1` (their trajectory states and biases) and on the fixed
+/// parameters.
 #[derive(Clone, Default)]
 struct BinNormal {
     k: usize,
-    node: usize,
     cost: f64,
-    d1: M18,
-    d2: M18,
-    up: M18,
-    r1: V18,
-    r2: V18,
-    c1: SMatrix<f64, 18, 21>,
-    c2: SMatrix<f64, 18, 21>,
-    hl: SMatrix<f64, 21, 21>,
-    gl: SMatrix<f64, 21, 1>,
+    d1: MK,
+    d2: MK,
+    up: MK,
+    r1: VK,
+    r2: VK,
+    c1: SMatrix<f64, KB, NFIXED>,
+    c2: SMatrix<f64, KB, NFIXED>,
+    hl: SMatrix<f64, NFIXED, NFIXED>,
+    gl: SMatrix<f64, NFIXED, 1>,
 }
 
 /// Knots per run of [`ImuJoint::linearise_windows`].
 const RUN: usize = 256;
 
-/// A run's cost, what its last window adds to the next run's first knot (the node, then the
-/// knot's diagonal block, right-hand side and coupling), and its sums on `theta`.
+/// A run's cost, what its last window adds to the next run's first knot (the knot's diagonal
+/// block, right-hand side and coupling), and its sums on the fixed parameters.
 struct RunTail {
     cost: f64,
-    next: Option<(usize, M18, V18, SMatrix<f64, 18, 21>)>,
-    hth: DMatrix<f64>,
-    gth: DVector<f64>,
+    next: Option<(MK, VK, SMatrix<f64, KB, NFIXED>)>,
+    hl: SMatrix<f64, NFIXED, NFIXED>,
+    gl: SMatrix<f64, NFIXED, 1>,
 }
 
-/// Adds a bin's or window's blocks on the 21 columns of `theta` it touches.
-fn add_theta(hth: &mut DMatrix<f64>, gth: &mut DVector<f64>, b: &BinNormal) {
-    let cols = theta_columns(b.node);
-    for (a, &ca) in cols.iter().enumerate() {
-        gth[ca] -= b.gl[a];
-        for (c, &cb) in cols.iter().enumerate() {
-            hth[(ca, cb)] += b.hl[(a, c)];
-        }
-    }
+/// Adds a block on the fixed parameters to the calibration's normal equations.
+fn add_theta(
+    hth: &mut DMatrix<f64>,
+    gth: &mut DVector<f64>,
+    (hl, gl): (&SMatrix<f64, NFIXED, NFIXED>, &SMatrix<f64, NFIXED, 1>),
+) {
+    let mut h = hth.fixed_view_mut::<NFIXED, NFIXED>(0, 0);
+    h += hl;
+    let mut g = gth.fixed_rows_mut::<NFIXED>(0);
+    g -= gl;
 }
 
 impl BinNormal {
+    /// The share of a whitened residual `e` with Jacobians `j1`, `j2` on knots `k`, `k + 1`
+    /// and `jth` on the fixed parameters.
+    fn of<const M: usize>(
+        k: usize,
+        e: &SVector<f64, M>,
+        j1: &SMatrix<f64, M, KB>,
+        j2: &SMatrix<f64, M, KB>,
+        jth: &SMatrix<f64, M, NFIXED>,
+    ) -> BinNormal {
+        BinNormal {
+            k,
+            cost: e.norm_squared(),
+            d1: j1.tr_mul(j1),
+            d2: j2.tr_mul(j2),
+            up: j1.tr_mul(j2),
+            r1: j1.tr_mul(e),
+            r2: j2.tr_mul(e),
+            c1: j1.tr_mul(jth),
+            c2: j2.tr_mul(jth),
+            hl: jth.tr_mul(jth),
+            gl: jth.tr_mul(e),
+        }
+    }
+
     /// Adds the blocks into the knots' system `sys`, the coupling `cross` and the calibration's
     /// `hth` and `gth`; returns the cost.
     fn add_into(
         &self,
-        sys: &mut BlockTridiagonal,
+        sys: &mut BlockTridiagonal<KB>,
         cross: &mut Coupling,
         (hth, gth): (&mut DMatrix<f64>, &mut DVector<f64>),
     ) -> f64 {
@@ -263,29 +295,47 @@ impl BinNormal {
         sys.upper[k] += self.up;
         sys.rhs[k] -= self.r1;
         sys.rhs[k + 1] -= self.r2;
-        cross.add_bin(k, self.node, &self.c1);
-        cross.add_bin(k + 1, self.node, &self.c2);
-        add_theta(hth, gth, self);
+        cross.add_bin(k, &self.c1);
+        cross.add_bin(k + 1, &self.c2);
+        add_theta(hth, gth, (&self.hl, &self.gl));
         self.cost
     }
 }
 
+/// A window's Jacobians on its two knots' blocks: each knot's biases carry half of the
+/// window's (whose biases are the two knots' mean).
+fn window_jacobians(t: &WindowTerms) -> (SMatrix<f64, 9, KB>, SMatrix<f64, 9, KB>) {
+    let half = t.jb * 0.5;
+    (widen(&t.j1, &half), widen(&t.j2, &half))
+}
+
 /// A window's share of the normal equations (its terms already whitened).
 fn window_normal(k: usize, t: &WindowTerms) -> BinNormal {
-    BinNormal {
-        k,
-        node: t.node,
-        cost: t.e.norm_squared(),
-        d1: t.j1.tr_mul(&t.j1),
-        d2: t.j2.tr_mul(&t.j2),
-        up: t.j1.tr_mul(&t.j2),
-        r1: t.j1.tr_mul(&t.e),
-        r2: t.j2.tr_mul(&t.e),
-        c1: t.j1.tr_mul(&t.jl),
-        c2: t.j2.tr_mul(&t.jl),
-        hl: t.jl.tr_mul(&t.jl),
-        gl: t.jl.tr_mul(&t.e),
-    }
+    let (j1, j2) = window_jacobians(t);
+    BinNormal::of(k, &t.e, &j1, &j2, &t.jl)
+}
+
+/// A bin's Jacobians on its two knots' blocks, whitened by the square roots of its
+/// information `w`, with its residual and its Jacobian on the fixed parameters.
+fn bin_whitened(
+    t: &super::factors::BinTerms,
+    w: &Vector6<f64>,
+) -> (
+    Vector6<f64>,
+    SMatrix<f64, 6, KB>,
+    SMatrix<f64, 6, KB>,
+    SMatrix<f64, 6, NFIXED>,
+) {
+    let sw = w.map(f64::sqrt);
+    let eye = SMatrix::<f64, 6, 6>::identity();
+    let j1 = widen(&t.j1, &(eye * (1.0 - t.u)));
+    let j2 = widen(&t.j2, &(eye * t.u));
+    (
+        t.e.component_mul(&sw),
+        SMatrix::from_fn(|r, c| sw[r] * j1[(r, c)]),
+        SMatrix::from_fn(|r, c| sw[r] * j2[(r, c)]),
+        SMatrix::from_fn(|r, c| sw[r] * t.jth[(r, c)]),
+    )
 }
 
 impl ImuJoint<'_> {
@@ -405,7 +455,7 @@ impl ImuJoint<'_> {
         st: &ImuState,
     ) -> Option<WindowTerms> {
         let (pre, white) = w.list.get(k)?.as_ref()?;
-        let mut t = window_terms(&knots[k], &knots[k + 1], pre, w.offset0, st, white);
+        let mut t = window_terms((k, &knots[k]), &knots[k + 1], pre, w.offset0, st, white);
         for &c in self.held.iter().filter(|&&c| c < NFIXED) {
             t.jl.column_mut(c).fill(0.0);
         }
@@ -413,27 +463,53 @@ impl ImuJoint<'_> {
     }
 
     /// Zeroes the columns of a bin's calibration Jacobian that are held.
-    fn hold_bin(&self, jl: &mut SMatrix<f64, 6, 21>) {
+    fn hold_bin(&self, jl: &mut SMatrix<f64, 6, NFIXED>) {
         for &c in self.held.iter().filter(|&&c| c < NFIXED) {
             jl.column_mut(c).fill(0.0);
         }
     }
 
-    fn walk_information(&self, i: usize, st: &ImuState) -> (f64, f64) {
-        let dt = st.bias.times[i + 1] - st.bias.times[i];
+    /// The information of the biases' random walks (gyro, accelerometer) between knots `k`
+    /// and `k + 1`.
+    fn walk_information(&self, k: usize) -> (f64, f64) {
+        let dt = self.times[k + 1] - self.times[k];
         let g = self.noise.gyroscope_random_walk.max(1e-12);
         let a = self.noise.accelerometer_random_walk.max(1e-12);
         (1.0 / (g * g * dt), 1.0 / (a * a * dt))
     }
 
+    /// The random walks' cost: the biases' change from each knot to the next.
     fn walk_cost(&self, st: &ImuState) -> f64 {
         (0..st.bias.values.len() - 1)
-            .map(|i| {
-                let (wg, wa) = self.walk_information(i, st);
-                let (b0, b1) = (&st.bias.values[i], &st.bias.values[i + 1]);
+            .map(|k| {
+                let (wg, wa) = self.walk_information(k);
+                let (b0, b1) = (&st.bias.values[k], &st.bias.values[k + 1]);
                 wg * (b1.gyro - b0.gyro).norm_squared() + wa * (b1.accel - b0.accel).norm_squared()
             })
             .sum()
+    }
+
+    /// The random walks' share of the normal equations, on the knots' bias rows; returns
+    /// their cost.
+    fn linearise_walks(&self, st: &ImuState, sys: &mut BlockTridiagonal<KB>) -> f64 {
+        let mut cost = 0.0;
+        for k in 0..st.bias.values.len() - 1 {
+            let (wg, wa) = self.walk_information(k);
+            let (b0, b1) = (&st.bias.values[k], &st.bias.values[k + 1]);
+            let r = [b1.gyro - b0.gyro, b1.accel - b0.accel];
+            cost += wg * r[0].norm_squared() + wa * r[1].norm_squared();
+            for (part, (w, d)) in [(wg, &r[0]), (wa, &r[1])].into_iter().enumerate() {
+                for (x, dx) in d.iter().enumerate() {
+                    let c = 18 + 3 * part + x;
+                    sys.diag[k][(c, c)] += w;
+                    sys.diag[k + 1][(c, c)] += w;
+                    sys.upper[k][(c, c)] -= w;
+                    sys.rhs[k][c] += w * dx;
+                    sys.rhs[k + 1][c] -= w * dx;
+                }
+            }
+        }
+        cost
     }
 
     /// The whole cost at `knots` and `st`.
@@ -442,7 +518,7 @@ impl ImuJoint<'_> {
         if let Some(w) = &self.windows {
             let term = |_: &(), _: usize, k: usize, _: f64| {
                 w.list[k].as_ref().map_or(0.0, |(pre, white)| {
-                    let e = window_residual(&knots[k], &knots[k + 1], pre, w.offset0, st);
+                    let e = window_residual((k, &knots[k]), &knots[k + 1], pre, w.offset0, st);
                     (white * e).norm_squared()
                 })
             };
@@ -453,7 +529,7 @@ impl ImuJoint<'_> {
         let gamma2 = |k: usize| local_gamma(&knots[k], &knots[k + 1]);
         let term = |g2: &V18, j: usize, k: usize, s: f64| {
             let dt = self.times[k + 1] - self.times[k];
-            let e = bin_residual(&knots[k], g2, s, dt, &self.bins[j], st);
+            let e = bin_residual((k, &knots[k]), g2, s, dt, &self.bins[j], st);
             e.dot(&self.info[j].component_mul(&e))
         };
         self.map_factors(&placed, 0.0, gamma2, term, |c| cost += c);
@@ -461,37 +537,20 @@ impl ImuJoint<'_> {
     }
 
     /// The normal equations at `knots` and `st`: the knots' blocks into `sys`, the rest returned.
-    fn linearise(&self, knots: &[Knot], st: &ImuState, sys: &mut BlockTridiagonal) -> Linear {
+    fn linearise(&self, knots: &[Knot], st: &ImuState, sys: &mut BlockTridiagonal<KB>) -> Linear {
         let n = knots.len();
+        debug_assert_eq!(st.bias.values.len(), n, "one bias per knot");
         let p = st.dim();
-        let mut cost = self.problem().assemble_into(knots, sys);
+        let mut cost = self.assemble_trajectory(knots, sys);
         let mut cross = Coupling::zeros(n, p, st.dvl.map(|_| st.dvl_start()));
         let mut hth = DMatrix::<f64>::zeros(p, p);
         let mut gth = DVector::<f64>::zeros(p);
         let normal = |l: &LocalState, j: usize, k: usize, s: f64| {
             let dt = self.times[k + 1] - self.times[k];
-            let t = bin_terms(&knots[k], l, s, dt, &self.bins[j], st);
-            let w = &self.info[j];
-            let we = w.component_mul(&t.e);
-            let mut jl = theta_jacobian(&t);
-            self.hold_bin(&mut jl);
-            let wj1 = SMatrix::<f64, 6, 18>::from_fn(|r, c| w[r] * t.j1[(r, c)]);
-            let wj2 = SMatrix::<f64, 6, 18>::from_fn(|r, c| w[r] * t.j2[(r, c)]);
-            let wjl = SMatrix::<f64, 6, 21>::from_fn(|r, c| w[r] * jl[(r, c)]);
-            BinNormal {
-                k,
-                node: t.node.0,
-                cost: t.e.dot(&we),
-                d1: t.j1.transpose() * wj1,
-                d2: t.j2.transpose() * wj2,
-                up: t.j1.transpose() * wj2,
-                r1: t.j1.transpose() * we,
-                r2: t.j2.transpose() * we,
-                c1: t.j1.transpose() * wjl,
-                c2: t.j2.transpose() * wjl,
-                hl: jl.transpose() * wjl,
-                gl: jl.transpose() * we,
-            }
+            let mut t = bin_terms((k, &knots[k]), l, s, dt, &self.bins[j], st);
+            self.hold_bin(&mut t.jth);
+            let (e, j1, j2, jth) = bin_whitened(&t, &self.info[j]);
+            BinNormal::of(k, &e, &j1, &j2, &jth)
         };
         let local = |k: usize| local_state(&knots[k], &knots[k + 1]);
         let add = |b: &BinNormal| cost += b.add_into(sys, &mut cross, (&mut hth, &mut gth));
@@ -504,25 +563,7 @@ impl ImuJoint<'_> {
                 self.map_factors(&placed, BinNormal::default(), local, normal, add)
             }
         }
-        // The random walks between nodes.
-        for i in 0..st.bias.values.len() - 1 {
-            let (wg, wa) = self.walk_information(i, st);
-            let (b0, b1) = (&st.bias.values[i], &st.bias.values[i + 1]);
-            let r = [b1.gyro - b0.gyro, b1.accel - b0.accel];
-            cost += wg * r[0].norm_squared() + wa * r[1].norm_squared();
-            for (part, (w, d)) in [(wg, &r[0]), (wa, &r[1])].into_iter().enumerate() {
-                for (x, dx) in d.iter().enumerate() {
-                    let c0 = NFIXED + 6 * i + 3 * part + x;
-                    let c1 = c0 + 6;
-                    hth[(c0, c0)] += w;
-                    hth[(c1, c1)] += w;
-                    hth[(c0, c1)] -= w;
-                    hth[(c1, c0)] -= w;
-                    gth[c0] += w * dx;
-                    gth[c1] -= w * dx;
-                }
-            }
-        }
+        cost += self.linearise_walks(st, sys);
         // The DVL's velocities.
         if let Some(p) = &st.dvl {
             cost += self.linearise_dvl(knots, st, p, sys, &mut cross, (&mut hth, &mut gth));
@@ -542,6 +583,32 @@ impl ImuJoint<'_> {
         }
     }
 
+    /// The trajectory's own terms (poses and motion prior) on the knots' trajectory rows of
+    /// `sys`, every other entry of its blocks zeroed; returns their cost.
+    fn assemble_trajectory(&self, knots: &[Knot], sys: &mut BlockTridiagonal<KB>) -> f64 {
+        let n = knots.len();
+        let mut own = BlockTridiagonal::<18>::zeros(n);
+        let cost = self.problem().assemble_into(knots, &mut own);
+        sys.diag
+            .par_iter_mut()
+            .zip(own.diag.par_iter())
+            .zip(sys.rhs.par_iter_mut().zip(own.rhs.par_iter()))
+            .for_each(|((d, od), (r, or))| {
+                d.fill(0.0);
+                d.fixed_view_mut::<18, 18>(0, 0).copy_from(od);
+                r.fill(0.0);
+                r.fixed_rows_mut::<18>(0).copy_from(or);
+            });
+        sys.upper
+            .par_iter_mut()
+            .zip(own.upper.par_iter())
+            .for_each(|(u, ou)| {
+                u.fill(0.0);
+                u.fixed_view_mut::<18, 18>(0, 0).copy_from(ou);
+            });
+        cost
+    }
+
     /// The windows' share of [`ImuJoint::linearise`]: their blocks on the knots into `sys` and
     /// `cross`, on `theta` into `hth` and `gth`; returns their cost. Runs of [`RUN`] knots are
     /// filled in parallel, each by its own windows (window `k` lies between knots `k` and
@@ -553,11 +620,10 @@ impl ImuJoint<'_> {
         w: &Windows,
         knots: &[Knot],
         st: &ImuState,
-        sys: &mut BlockTridiagonal,
+        sys: &mut BlockTridiagonal<KB>,
         cross: &mut Coupling,
         (hth, gth): (&mut DMatrix<f64>, &mut DVector<f64>),
     ) -> f64 {
-        let p = hth.nrows();
         // Knot `n - 1` has no window of its own: a run made of it alone (cut off by the zip
         // with the `n - 1` upper blocks) would add nothing; the window before it hands it
         // its share as any run's last window does.
@@ -568,12 +634,12 @@ impl ImuJoint<'_> {
             .zip(sys.rhs.par_chunks_mut(RUN))
             .zip(cross.runs_mut(RUN))
             .enumerate()
-            .map(|(run, (((diag, upper), rhs), mut rows))| {
+            .map(|(run, (((diag, upper), rhs), rows))| {
                 let mut tail = RunTail {
                     cost: 0.0,
                     next: None,
-                    hth: DMatrix::zeros(p, p),
-                    gth: DVector::zeros(p),
+                    hl: SMatrix::zeros(),
+                    gl: SMatrix::zeros(),
                 };
                 for i in 0..upper.len() {
                     let k = run * RUN + i;
@@ -585,15 +651,16 @@ impl ImuJoint<'_> {
                     diag[i] += b.d1;
                     upper[i] += b.up;
                     rhs[i] -= b.r1;
-                    rows.add_bin(i, b.node, &b.c1);
+                    rows[i] += b.c1;
                     if i + 1 < diag.len() {
                         diag[i + 1] += b.d2;
                         rhs[i + 1] -= b.r2;
-                        rows.add_bin(i + 1, b.node, &b.c2);
+                        rows[i + 1] += b.c2;
                     } else {
-                        tail.next = Some((b.node, b.d2, b.r2, b.c2));
+                        tail.next = Some((b.d2, b.r2, b.c2));
                     }
-                    add_theta(&mut tail.hth, &mut tail.gth, &b);
+                    tail.hl += b.hl;
+                    tail.gl += b.gl;
                 }
                 tail
             })
@@ -601,14 +668,13 @@ impl ImuJoint<'_> {
         let mut cost = 0.0;
         for (run, tail) in runs.into_iter().enumerate() {
             cost += tail.cost;
-            if let Some((node, d2, r2, c2)) = tail.next {
+            if let Some((d2, r2, c2)) = tail.next {
                 let k = (run + 1) * RUN;
                 sys.diag[k] += d2;
                 sys.rhs[k] -= r2;
-                cross.add_bin(k, node, &c2);
+                cross.add_bin(k, &c2);
             }
-            *hth += &tail.hth;
-            *gth += &tail.gth;
+            add_theta(hth, gth, (&tail.hl, &tail.gl));
         }
         cost
     }
@@ -618,11 +684,11 @@ impl ImuJoint<'_> {
     /// complement `S = H_theta - H_x theta^T A^-1 H_x theta` and the reduced right-hand side
     /// `s = g_theta - H_x theta^T A^-1 r` come from the knots' factor ([`schur_forms`]); the
     /// knots' step is `A^-1 (r - H_x theta d_theta)`.
-    fn step(&self, lin: &Linear, sys: BlockTridiagonal) -> Result<Step> {
+    fn step(&self, lin: &Linear, sys: BlockTridiagonal<KB>) -> Result<Step> {
         let factor = sys.factor()?;
         let (schur, s, xr) = schur_of(lin, &factor);
         let dth = solve_schur(&schur, &s)?;
-        let hd: Vec<V18> = (0..xr.len()).map(|k| lin.cross.times(k, &dth)).collect();
+        let hd: Vec<VK> = (0..xr.len()).map(|k| lin.cross.times(k, &dth)).collect();
         let xd = factor.solve_many::<1>(&hd);
         let dx = xr.iter().zip(&xd).map(|(a, b)| a - b).collect();
         let theta_decrement = s.dot(&dth);
@@ -648,7 +714,7 @@ impl ImuJoint<'_> {
     ) -> Result<DVector<f64>> {
         let kept = self.density.clone();
         self.density = kept.scaled(factor);
-        let mut sys = BlockTridiagonal::zeros(knots.len());
+        let mut sys = BlockTridiagonal::<KB>::zeros(knots.len());
         let lin = self.linearise(knots, st, &mut sys);
         self.density = kept;
         Ok(self.step(&lin, sys)?.dth)
@@ -664,7 +730,7 @@ impl ImuJoint<'_> {
     /// the first term needs the knots' banded covariance, the second splits by the columns of
     /// `G`, so `X G` is solved for a few columns at a time and never stored whole.
     pub fn redundancy(&self, knots: &[Knot], st: &ImuState) -> Result<Redundancy> {
-        let mut sys = BlockTridiagonal::zeros(knots.len());
+        let mut sys = BlockTridiagonal::<KB>::zeros(knots.len());
         let lin = self.linearise(knots, st, &mut sys);
         let factor = sys.factor()?;
         let schur = schur_of(&lin, &factor).0;
@@ -694,7 +760,7 @@ impl ImuJoint<'_> {
         knots: &[Knot],
         st: &ImuState,
         lin: Linear,
-        factor: Factored,
+        factor: Factored<KB>,
         schur: &DMatrix<f64>,
     ) -> Result<Redundancy> {
         let n = knots.len();
@@ -705,7 +771,7 @@ impl ImuJoint<'_> {
             .solve_upper_triangular(&DMatrix::identity(p, p))
             .ok_or_else(singular)?;
         let solved = |c0: usize| {
-            let mut x: Vec<SMatrix<f64, 18, CHUNK>> = (0..n)
+            let mut x: Vec<SMatrix<f64, KB, CHUNK>> = (0..n)
                 .map(|k| lin.cross.times_matrix::<CHUNK>(k, &g, c0))
                 .collect();
             factor.solve_many_in_place::<CHUNK>(&mut x);
@@ -734,8 +800,8 @@ impl ImuJoint<'_> {
         &self,
         knots: &[Knot],
         st: &ImuState,
-        (xg, g, c0): (&[SMatrix<f64, 18, CHUNK>], &DMatrix<f64>, usize),
-        band: Option<&BandedInverse>,
+        (xg, g, c0): (&[SMatrix<f64, KB, CHUNK>], &DMatrix<f64>, usize),
+        band: Option<&BandedInverse<KB>>,
         out: &mut Redundancy,
     ) {
         let width = CHUNK.min(g.ncols() - c0);
@@ -744,22 +810,20 @@ impl ImuJoint<'_> {
                 if c < width { g[(cols[a], c0 + c)] } else { 0.0 }
             })
         };
+        let fixed: Vec<usize> = (0..NFIXED).collect();
+        let g_fixed = SMatrix::<f64, NFIXED, CHUNK>::from_iterator(g_rows(&fixed).iter().copied());
         let local = |k: usize| local_state(&knots[k], &knots[k + 1]);
-        // Per row: `w |u|^2`, and with the band `w e^2` and `1 - w (J_x A^-1 J_x^T)`.
+        // Per row: `|u|^2`, and with the band `e^2` and `1 - J_x A^-1 J_x^T` (whitened rows).
         let terms = |l: &LocalState, j: usize, k: usize, s: f64| {
             let dt = self.times[k + 1] - self.times[k];
-            let t = bin_terms(&knots[k], l, s, dt, &self.bins[j], st);
-            let mut jl = theta_jacobian(&t);
-            self.hold_bin(&mut jl);
-            let gl = SMatrix::<f64, 21, CHUNK>::from_iterator(
-                g_rows(&theta_columns(t.node.0)).iter().copied(),
-            );
-            let u = t.j1 * xg[k] + t.j2 * xg[k + 1] - jl * gl;
-            let w = &self.info[j];
-            let proj = band.map(|b| local_projection(b, k, &t.j1, &t.j2));
+            let mut t = bin_terms((k, &knots[k]), l, s, dt, &self.bins[j], st);
+            self.hold_bin(&mut t.jth);
+            let (e, j1, j2, jth) = bin_whitened(&t, &self.info[j]);
+            let u = j1 * xg[k] + j2 * xg[k + 1] - jth * g_fixed;
+            let proj = band.map(|b| local_projection(b, k, &j1, &j2));
             std::array::from_fn::<_, 6, _>(|r| {
-                let own = proj.map(|pr| (w[r] * t.e[r] * t.e[r], 1.0 - w[r] * pr[(r, r)]));
-                (w[r] * u.row(r).norm_squared(), own)
+                let own = proj.map(|pr| (e[r] * e[r], 1.0 - pr[(r, r)]));
+                (u.row(r).norm_squared(), own)
             })
         };
         let mut sink = |rows: &[(f64, Option<(f64, f64)>)]| {
@@ -779,11 +843,9 @@ impl ImuJoint<'_> {
                     let Some(t) = self.window_at(w, knots, k, st) else {
                         return [(0.0, None); 9];
                     };
-                    let gl = SMatrix::<f64, 21, CHUNK>::from_iterator(
-                        g_rows(&theta_columns(t.node)).iter().copied(),
-                    );
-                    let u = t.j1 * xg[k] + t.j2 * xg[k + 1] - t.jl * gl;
-                    let proj = band.map(|b| local_projection(b, k, &t.j1, &t.j2));
+                    let (j1, j2) = window_jacobians(&t);
+                    let u = j1 * xg[k] + j2 * xg[k + 1] - t.jl * g_fixed;
+                    let proj = band.map(|b| local_projection(b, k, &j1, &j2));
                     std::array::from_fn::<_, 9, _>(|r| {
                         let own = proj.map(|pr| (t.e[r] * t.e[r], 1.0 - pr[(r, r)]));
                         (u.row(r).norm_squared(), own)
@@ -805,14 +867,16 @@ impl ImuJoint<'_> {
             let local = |k: usize| local_state(&knots[k], &knots[k + 1]);
             let terms = |l: &LocalState, i: usize, k: usize, tau: f64| {
                 let t = self.dvl_terms(knots, k, tau, l, i, pd);
-                let u = t.j1 * xg[k] + t.j2 * xg[k + 1] - t.jth * gl;
+                let none = SMatrix::<f64, 3, 6>::zeros();
+                let (j1, j2) = (widen(&t.j1, &none), widen(&t.j2, &none));
+                let u = j1 * xg[k] + j2 * xg[k + 1] - t.jth * gl;
                 let w = &self.dvl_info[i];
                 // tr(W P) for symmetric P.
                 let trace = |p: &Matrix3<f64>| w.component_mul(p).sum();
                 let own = band.map(|b| {
                     (
                         (t.e.transpose() * w * t.e)[0],
-                        3.0 - trace(&local_projection(b, k, &t.j1, &t.j2)),
+                        3.0 - trace(&local_projection(b, k, &j1, &j2)),
                     )
                 });
                 (trace(&(u * u.transpose())), own)
@@ -836,7 +900,7 @@ impl ImuJoint<'_> {
         max_iterations: usize,
     ) -> Result<Solution> {
         let n = knots.len();
-        let mut sys = BlockTridiagonal::zeros(n);
+        let mut sys = BlockTridiagonal::<KB>::zeros(n);
         let mut lin = self.linearise(&knots, &st, &mut sys);
         let mut cost = lin.cost;
         let mut iterations = 0;
@@ -888,11 +952,13 @@ impl ImuJoint<'_> {
                     )
             });
             previous = Some((decrement, theta_decrement));
+            let dx18: Vec<V18> = dx.iter().map(trajectory_part).collect();
+            let db: Vec<Vector6<f64>> = dx.iter().map(bias_part).collect();
             let mut scale = 1.0;
             let mut accepted = None;
             for _ in 0..10 {
-                let trial = step(&knots, &dx, scale);
-                let tst = st.retract(&(&dth * scale));
+                let trial = step(&knots, &dx18, scale);
+                let tst = st.retract(&(&dth * scale)).with_bias_step(&db, scale);
                 let tcost = self.cost(&trial, &tst);
                 if tcost.is_finite() && tcost <= cost {
                     accepted = Some((trial, tst, tcost));

@@ -8,26 +8,27 @@
 //! | 3..6 | lever arm `p_cam_imu`, m | added |
 //! | 6 | clock offset, s (`t_cam = t_imu + offset`) | added |
 //! | 7..9 | gravity direction | `R_g <- R_g Exp([d0, d1, 0])`, `g_world = R_g [0, 0, -|g|]` |
-//! | 9 + 6 i .. | bias node `i`: gyro (rad/s), then accelerometer (m/s^2) | added |
-//! | last 8, with a DVL | the DVL's `[dphi; dp; dkappa; ddelta]` | as `CalibrationParams::updated` |
+//! | 9..17, with a DVL | the DVL's `[dphi; dp; dkappa; ddelta]` | as `CalibrationParams::updated` |
 //!
-//! The biases are linear between nodes on the IMU clock; consecutive nodes are tied by the
-//! random walks of the noise file.
+//! The biases are not in `theta`: in the joint problem they are states of the knots (one gyro
+//! and one accelerometer bias per knot, linear between knots, consecutive knots tied by the
+//! random walks of the noise file), stepped with the knots ([`ImuState::with_bias_step`]).
 
-use nalgebra::{DVector, Matrix3, Vector3};
+use nalgebra::{DVector, Matrix3, Vector3, Vector6};
 
 use crate::calib::model::NPARAM;
 use crate::lie::{Se3, so3};
 use crate::types::CalibrationParams;
 use crate::types::imu::ImuBias;
 
-/// Parameters before the bias nodes.
+/// Parameters before the DVL's.
 pub const NFIXED: usize = 9;
 
 /// The biases, linear between nodes.
 #[derive(Clone, Debug, PartialEq)]
 pub struct BiasNodes {
-    /// Node times, IMU clock, seconds, strictly increasing (at least two).
+    /// Node times, seconds, strictly increasing (at least two): the knots' times (camera clock)
+    /// in the joint problem, the IMU's clock in its first estimate.
     pub times: Vec<f64>,
     /// The biases at the nodes.
     pub values: Vec<ImuBias>,
@@ -62,10 +63,24 @@ impl BiasNodes {
     /// The bias at `t`.
     pub fn at(&self, t: f64) -> ImuBias {
         let (i, u) = self.weights(t);
+        self.between(i, u)
+    }
+
+    /// `(1 - u) b_i + u b_{i+1}`.
+    pub fn between(&self, i: usize, u: f64) -> ImuBias {
         let (a, b) = (&self.values[i], &self.values[i + 1]);
         ImuBias {
             gyro: a.gyro * (1.0 - u) + b.gyro * u,
             accel: a.accel * (1.0 - u) + b.accel * u,
+        }
+    }
+
+    /// Nodes at `times` with the biases of `self` there (`self`'s times shifted by `shift`:
+    /// from the IMU's clock to the camera's, the clock offset).
+    pub fn resampled(&self, times: &[f64], shift: f64) -> BiasNodes {
+        BiasNodes {
+            times: times.to_vec(),
+            values: times.iter().map(|t| self.at(t - shift)).collect(),
         }
     }
 }
@@ -102,7 +117,7 @@ impl ImuState {
 
     /// The first column of the DVL's parameters (the length of `theta` without them).
     pub fn dvl_start(&self) -> usize {
-        NFIXED + 6 * self.bias.values.len()
+        NFIXED
     }
 
     /// The state moved by the step `d` (length [`ImuState::dim`]).
@@ -116,16 +131,22 @@ impl ImuState {
         .renormalized();
         out.time_offset_s += d[6];
         out.gravity_rotation = self.gravity_rotation * so3::exp(&Vector3::new(d[7], d[8], 0.0));
-        for (i, b) in out.bias.values.iter_mut().enumerate() {
-            b.gyro += v3(NFIXED + 6 * i);
-            b.accel += v3(NFIXED + 6 * i + 3);
-        }
         if let Some(p) = &self.dvl {
             let c = self.dvl_start();
             let dp = nalgebra::SMatrix::<f64, NPARAM, 1>::from_fn(|r, _| d[c + r]);
             out.dvl = Some(p.updated(&dp));
         }
         out
+    }
+
+    /// The state with `scale` times the knots' bias steps `db` added (one per node: gyro, then
+    /// accelerometer).
+    pub fn with_bias_step(mut self, db: &[Vector6<f64>], scale: f64) -> ImuState {
+        for (b, d) in self.bias.values.iter_mut().zip(db) {
+            b.gyro += d.fixed_rows::<3>(0) * scale;
+            b.accel += d.fixed_rows::<3>(3) * scale;
+        }
+        self
     }
 
     /// The rotation `R_g` that takes `[0, 0, -1]` to the direction of `g_world`.
