@@ -48,9 +48,9 @@ fn main() {
         durations = vec![30.0, 60.0, 120.0, 240.0];
     }
     println!(
-        "| recording | IMU samples | knots | bias nodes | iterations | camera-IMU (s, MB) | DVL + IMU (s, MB) | camera + IMU + DVL (s, MB) |"
+        "| recording | IMU samples | knots | iterations | camera-IMU (s, MB) | DVL + IMU (s, MB) | camera + IMU + DVL (s, MB) |"
     );
-    println!("|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|");
     for duration in durations {
         let cfg = SimConfig {
             seed: 1,
@@ -101,10 +101,9 @@ fn main() {
             all_cell = format!("{t_all:.2}, {mem_all:.0}");
         }
         println!(
-            "| {duration:.0} s | {} | {} | {} | {} | {t:.2}, {mem:.0} | {dvl_cell} | {all_cell} |",
+            "| {duration:.0} s | {} | {} | {} | {t:.2}, {mem:.0} | {dvl_cell} | {all_cell} |",
             imu.samples.len(),
             est.knots.len(),
-            est.state.bias.values.len(),
             est.iterations
         );
     }
