@@ -3,7 +3,7 @@
 //!
 //! Environment: `DURATION` (s), `PREINT` (0 for the bins), `POSES_PER_KNOT`, `QCF` (a factor
 //! on the motion prior's density, `ImuOptions::density_factor`, on top of
-//! `JOINT_DENSITY_FACTOR`), `BIAS_NODES` (the most bias nodes, `ImuOptions::max_bias_nodes`),
+//! `JOINT_DENSITY_FACTOR`), `BIAS_NODES` (the most bias nodes of the first estimate, `ImuOptions::max_bias_nodes`),
 //! `SIM_IMU_NOISE`, `SIM_IMU_WALK` and `SIM_POSE_NOISE` (factors on the simulated IMU's white
 //! noise, on its biases' random walks and on the poses' noise; the noise the calibration is
 //! told stays as stated, so at 0 what is left of an error is the method's own, not the
