@@ -13,7 +13,7 @@
 use nalgebra::{DMatrix, DVector, SMatrix};
 use rayon::prelude::*;
 
-use super::solve::{KB, VK};
+use super::block::{KB, VK};
 use super::state::NFIXED;
 use crate::calib::model::NPARAM;
 use crate::trajectory::blocktri::{Factored, ForwardParts, forward_in_place, lower_inverse};

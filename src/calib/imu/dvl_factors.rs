@@ -7,9 +7,9 @@ use std::ops::{AddAssign, SubAssign};
 
 use nalgebra::{DMatrix, DVector, SMatrix};
 
+use super::block::KB;
 use super::coupling::Coupling;
 use super::solve::ImuJoint;
-use super::solve::KB;
 use super::state::ImuState;
 use crate::calib::model::{NPARAM, d_predict_d_params, d_predict_d_twist, predict};
 use crate::trajectory::KnotView;

@@ -17,6 +17,7 @@
 //! smooth over).
 
 pub(crate) mod bins;
+pub(crate) mod block;
 pub(crate) mod coupling;
 pub mod dvl;
 pub(crate) mod dvl_factors;

@@ -13,6 +13,7 @@ use nalgebra::{DMatrix, DVector, Matrix3, SMatrix, SVector, Vector6};
 use rayon::prelude::*;
 
 use super::bins::ImuBin;
+use super::block::{KB, MK, VK, bias_part, trajectory_part, widen};
 use super::coupling::{Coupling, schur_forms};
 use super::factors::{SparsePoseFactors, bin_residual, bin_terms};
 use super::preint::{WindowTerms, Windows, residual as window_residual, window_terms};
@@ -24,34 +25,6 @@ use crate::trajectory::blocktri::{BandedInverse, BlockTridiagonal, Factored, V18
 use crate::trajectory::gp::{Knot, LocalState, local_gamma, local_state};
 use crate::trajectory::solver::{Problem, step};
 use crate::types::imu::ImuNoise;
-
-/// The knots' block in the joint problem: the trajectory's state at the knot (18), then the
-/// IMU's biases there (gyro, then accelerometer), linear between knots and tied to the next
-/// knot's by their random walks.
-pub const KB: usize = 24;
-/// A knot's block of the joint problem.
-pub type MK = SMatrix<f64, KB, KB>;
-/// A knot's part of a vector of the joint problem.
-pub type VK = SVector<f64, KB>;
-
-/// `[j b]`: a factor's Jacobian on a knot's trajectory state and on its biases, as one on the
-/// knot's block.
-fn widen<const M: usize>(j: &SMatrix<f64, M, 18>, b: &SMatrix<f64, M, 6>) -> SMatrix<f64, M, KB> {
-    let mut out = SMatrix::<f64, M, KB>::zeros();
-    out.fixed_columns_mut::<18>(0).copy_from(j);
-    out.fixed_columns_mut::<6>(18).copy_from(b);
-    out
-}
-
-/// A knot block's trajectory part.
-fn trajectory_part(x: &VK) -> V18 {
-    x.fixed_rows::<18>(0).into_owned()
-}
-
-/// A knot block's bias part (gyro, then accelerometer).
-fn bias_part(x: &VK) -> Vector6<f64> {
-    x.fixed_rows::<6>(18).into_owned()
-}
 
 /// The problem: knot times, the poses on them, the motion prior, the IMU's bins and noise.
 pub struct ImuJoint<'a> {
