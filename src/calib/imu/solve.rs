@@ -511,10 +511,23 @@ impl ImuJoint<'_> {
 
     /// The normal equations at `knots` and `st`: the knots' blocks into `sys`, the rest returned.
     fn linearise(&self, knots: &[Knot], st: &ImuState, sys: &mut BlockTridiagonal<KB>) -> Linear {
+        let mut own = BlockTridiagonal::<18>::zeros(knots.len());
+        self.linearise_into(knots, st, sys, &mut own)
+    }
+
+    /// [`ImuJoint::linearise`] with `own` the storage the trajectory's terms are assembled in
+    /// first (its contents meaningless), kept by a caller that linearises again and again.
+    fn linearise_into(
+        &self,
+        knots: &[Knot],
+        st: &ImuState,
+        sys: &mut BlockTridiagonal<KB>,
+        own: &mut BlockTridiagonal<18>,
+    ) -> Linear {
         let n = knots.len();
         debug_assert_eq!(st.bias.values.len(), n, "one bias per knot");
         let p = st.dim();
-        let mut cost = self.assemble_trajectory(knots, sys);
+        let mut cost = self.assemble_trajectory(knots, sys, own);
         let mut cross = Coupling::zeros(n, p, st.dvl.map(|_| st.dvl_start()));
         let mut hth = DMatrix::<f64>::zeros(p, p);
         let mut gth = DVector::<f64>::zeros(p);
@@ -557,11 +570,15 @@ impl ImuJoint<'_> {
     }
 
     /// The trajectory's own terms (poses and motion prior) on the knots' trajectory rows of
-    /// `sys`, every other entry of its blocks zeroed; returns their cost.
-    fn assemble_trajectory(&self, knots: &[Knot], sys: &mut BlockTridiagonal<KB>) -> f64 {
-        let n = knots.len();
-        let mut own = BlockTridiagonal::<18>::zeros(n);
-        let cost = self.problem().assemble_into(knots, &mut own);
+    /// `sys`, every other entry of its blocks zeroed, assembled in `own` first; returns their
+    /// cost.
+    fn assemble_trajectory(
+        &self,
+        knots: &[Knot],
+        sys: &mut BlockTridiagonal<KB>,
+        own: &mut BlockTridiagonal<18>,
+    ) -> f64 {
+        let cost = self.problem().assemble_into(knots, own);
         sys.diag
             .par_iter_mut()
             .zip(own.diag.par_iter())
@@ -874,7 +891,8 @@ impl ImuJoint<'_> {
     ) -> Result<Solution> {
         let n = knots.len();
         let mut sys = BlockTridiagonal::<KB>::zeros(n);
-        let mut lin = self.linearise(&knots, &st, &mut sys);
+        let mut own = BlockTridiagonal::<18>::zeros(n);
+        let mut lin = self.linearise_into(&knots, &st, &mut sys, &mut own);
         let mut cost = lin.cost;
         let mut iterations = 0;
         let mut converged = false;
@@ -975,7 +993,7 @@ impl ImuJoint<'_> {
                 None => converged = true,
             }
             sys = factor.into_system();
-            lin = self.linearise(&knots, &st, &mut sys);
+            lin = self.linearise_into(&knots, &st, &mut sys, &mut own);
             cost = lin.cost;
         }
     }
