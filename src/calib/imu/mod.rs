@@ -27,6 +27,7 @@ pub(crate) mod init;
 pub(crate) mod preint;
 pub(crate) mod solve;
 pub mod state;
+pub(crate) mod walks;
 
 use nalgebra::{DMatrix, Matrix3, Vector3};
 
